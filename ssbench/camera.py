@@ -1,0 +1,324 @@
+"""The one camera module: every conversion between world, view, clip, NDC, UV, pixel and depth lives here.
+
+The conventions are described on ``ssbench/CONVENTIONS.md``; this module enforces them. In short:
+
+* **View space** is OpenGL / three.js: camera at the origin, looking down −z, +x right, +y up. Points in
+  front of the camera have ``view_z < 0``.
+* **Projection** is ``gluPerspective(fovy, aspect = W / H, near, far)``; NDC is in [−1, 1]³.
+* **UV** is ``ndc * 0.5 + 0.5`` with ``v`` pointing *up*, as in the articles' shaders.
+* **Pixels**: continuous coordinates ``(px, py)`` with ``py`` pointing *down*; row 0 is the top of the
+  image; the centre of pixel (column i, row j) is ``(i + 0.5, j + 0.5)``.
+* **Depth encodings**: GL depth buffer ``d ∈ [0, 1]``, view z, and linear ("orthographic") depth
+  ``(z + n) / (n − f) ∈ [0, 1]`` (seed 002 §2.2, three.js ``packing.glsl``).
+* **Mitsuba** places camera-local +x to the image *left* and its sensor defaults to a horizontal fov; the
+  mapping to Mitsuba (:meth:`Camera.mitsuba_sensor`) is written here and nowhere else.
+
+Vector functions take a ``dim`` argument naming the component axis: ``-3`` (the default) fits ``(B, 3, H, W)``
+and ``(3, H, W)`` images; pass ``dim=-1`` for ``(N, 3)`` point lists.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Sequence
+
+import torch
+
+Vec3 = tuple[float, float, float]
+
+
+def _vec3(value: Sequence[float], name: str) -> Vec3:
+    try:
+        out = tuple(float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected three numbers, got {value!r}") from None
+    if len(out) != 3 or not all(math.isfinite(v) for v in out):
+        raise ValueError(f"{name}: expected three finite numbers, got {value!r}")
+    return out  # type: ignore[return-value]
+
+
+def _sub(a: Vec3, b: Vec3) -> Vec3:
+    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
+
+
+def _cross(a: Vec3, b: Vec3) -> Vec3:
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def _norm(a: Vec3) -> float:
+    return math.sqrt(a[0] ** 2 + a[1] ** 2 + a[2] ** 2)
+
+
+def _normalize(a: Vec3) -> Vec3:
+    n = _norm(a)
+    return (a[0] / n, a[1] / n, a[2] / n)
+
+
+def _split(x: torch.Tensor, dim: int, n: int, name: str) -> list[torch.Tensor]:
+    if x.shape[dim] != n:
+        raise ValueError(f"{name}: dimension {dim} must have {n} components, got shape {tuple(x.shape)}")
+    return list(x.unbind(dim))
+
+
+@dataclass(frozen=True)
+class Camera:
+    """A pinhole camera with OpenGL conventions (see the module docstring and ``CONVENTIONS.md``).
+
+    Build one with :meth:`from_look_at`. All fields are plain Python numbers so the camera is hashable and
+    can key a cache; matrices are produced on demand in the dtype and device asked for.
+
+    Example:
+        >>> cam = Camera.from_look_at((0, 2, 6), (0, 0.6, 0), (0, 1, 0), 45.0, 320, 240, 0.1, 100.0)
+        >>> cam.projection_matrix().shape
+        torch.Size([4, 4])
+        >>> cam.view_z_to_depth(torch.tensor([-0.1, -100.0], dtype=torch.float64)).tolist()
+        [0.0, 1.0]
+    """
+
+    eye: Vec3
+    target: Vec3
+    up: Vec3
+    fovy_deg: float
+    width: int
+    height: int
+    near: float
+    far: float
+
+    # ------------------------------------------------------------------ construction and validation
+    @classmethod
+    def from_look_at(cls, eye: Sequence[float], target: Sequence[float], up: Sequence[float],
+                     fovy_deg: float, width: int, height: int, near: float, far: float) -> "Camera":
+        """Camera at ``eye`` looking at ``target``; ``fovy_deg`` is the *vertical* field of view."""
+        return cls(_vec3(eye, "eye"), _vec3(target, "target"), _vec3(up, "up"), float(fovy_deg),
+                   width, height, float(near), float(far))
+
+    def __post_init__(self) -> None:
+        for name in ("width", "height"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v <= 0:
+                raise ValueError(f"{name}: image size must be a positive integer, got {v!r}")
+        if not (math.isfinite(self.fovy_deg) and 0.0 < self.fovy_deg < 180.0):
+            raise ValueError(f"fovy_deg: must lie in (0, 180) degrees, got {self.fovy_deg}")
+        if not (math.isfinite(self.near) and self.near > 0.0):
+            raise ValueError(f"near: must be a finite number > 0, got {self.near}")
+        if not (math.isfinite(self.far) and self.far > self.near):
+            raise ValueError(f"far: must be finite and greater than near={self.near}, got {self.far}")
+        fwd = _sub(self.target, self.eye)
+        if _norm(fwd) < 1e-12:
+            raise ValueError(f"target: must differ from eye {self.eye}")
+        if _norm(self.up) < 1e-12 or _norm(_cross(_normalize(fwd), _normalize(self.up))) < 1e-6:
+            raise ValueError(f"up: must be non-zero and not parallel to the view direction, got {self.up}")
+
+    def with_resolution(self, width: int, height: int) -> "Camera":
+        """The same camera with another image size (the vertical fov is kept)."""
+        return replace(self, width=width, height=height)
+
+    # ------------------------------------------------------------------ scalars
+    @property
+    def aspect(self) -> float:
+        """``W / H``."""
+        return self.width / self.height
+
+    @property
+    def focal(self) -> float:
+        """``F = 1 / tan(fovy / 2)`` (seed 002 §3.3)."""
+        return 1.0 / math.tan(math.radians(self.fovy_deg) / 2.0)
+
+    @property
+    def fovx_deg(self) -> float:
+        """Horizontal field of view in degrees."""
+        return math.degrees(2.0 * math.atan(math.tan(math.radians(self.fovy_deg) / 2.0) * self.aspect))
+
+    @property
+    def basis(self) -> tuple[Vec3, Vec3, Vec3]:
+        """World-space unit vectors (right, up, back) of the view frame: view +x, +y, +z."""
+        back = _normalize(_sub(self.eye, self.target))
+        right = _normalize(_cross(self.up, back))
+        return right, _cross(back, right), back
+
+    # ------------------------------------------------------------------ matrices
+    def view_matrix(self, dtype: torch.dtype = torch.float64, device=None) -> torch.Tensor:
+        """World → view 4×4 matrix (``gluLookAt``)."""
+        r, u, b = self.basis
+        e = self.eye
+        rows = [[*r, -(r[0] * e[0] + r[1] * e[1] + r[2] * e[2])],
+                [*u, -(u[0] * e[0] + u[1] * e[1] + u[2] * e[2])],
+                [*b, -(b[0] * e[0] + b[1] * e[1] + b[2] * e[2])],
+                [0.0, 0.0, 0.0, 1.0]]
+        return torch.tensor(rows, dtype=dtype, device=device)
+
+    def camera_to_world(self, dtype: torch.dtype = torch.float64, device=None) -> torch.Tensor:
+        """View → world 4×4 matrix (inverse of :meth:`view_matrix`)."""
+        r, u, b = self.basis
+        e = self.eye
+        rows = [[r[0], u[0], b[0], e[0]], [r[1], u[1], b[1], e[1]], [r[2], u[2], b[2], e[2]],
+                [0.0, 0.0, 0.0, 1.0]]
+        return torch.tensor(rows, dtype=dtype, device=device)
+
+    def projection_matrix(self, dtype: torch.dtype = torch.float64, device=None) -> torch.Tensor:
+        """GL perspective matrix (seed 002 §3.3, ``M_perspective``)."""
+        n, f, F = self.near, self.far, self.focal
+        rows = [[F / self.aspect, 0.0, 0.0, 0.0],
+                [0.0, F, 0.0, 0.0],
+                [0.0, 0.0, -(f + n) / (f - n), -2.0 * f * n / (f - n)],
+                [0.0, 0.0, -1.0, 0.0]]
+        return torch.tensor(rows, dtype=dtype, device=device)
+
+    def inverse_projection_matrix(self, dtype: torch.dtype = torch.float64, device=None) -> torch.Tensor:
+        """Closed-form inverse of :meth:`projection_matrix`."""
+        n, f, F = self.near, self.far, self.focal
+        rows = [[self.aspect / F, 0.0, 0.0, 0.0],
+                [0.0, 1.0 / F, 0.0, 0.0],
+                [0.0, 0.0, 0.0, -1.0],
+                [0.0, 0.0, -(f - n) / (2.0 * f * n), (f + n) / (2.0 * f * n)]]
+        return torch.tensor(rows, dtype=dtype, device=device)
+
+    # ------------------------------------------------------------------ world <-> view
+    def _apply(self, m: torch.Tensor, x: torch.Tensor, dim: int, translate: bool, name: str) -> torch.Tensor:
+        c = _split(x, dim, 3, name)
+        m = m.to(dtype=x.dtype, device=x.device)
+        out = []
+        for i in range(3):
+            v = m[i, 0] * c[0] + m[i, 1] * c[1] + m[i, 2] * c[2]
+            out.append(v + m[i, 3] if translate else v)
+        return torch.stack(out, dim)
+
+    def world_to_view(self, p: torch.Tensor, dim: int = -3) -> torch.Tensor:
+        """World points → view points."""
+        return self._apply(self.view_matrix(), p, dim, True, "p")
+
+    def view_to_world(self, p: torch.Tensor, dim: int = -3) -> torch.Tensor:
+        """View points → world points."""
+        return self._apply(self.camera_to_world(), p, dim, True, "p")
+
+    def world_to_view_dir(self, v: torch.Tensor, dim: int = -3) -> torch.Tensor:
+        """World directions (and normals: the map is a rotation) → view directions."""
+        return self._apply(self.view_matrix(), v, dim, False, "v")
+
+    def view_to_world_dir(self, v: torch.Tensor, dim: int = -3) -> torch.Tensor:
+        """View directions (and normals) → world directions."""
+        return self._apply(self.camera_to_world(), v, dim, False, "v")
+
+    # ------------------------------------------------------------------ view <-> NDC <-> UV <-> pixel
+    def view_to_ndc(self, p: torch.Tensor, dim: int = -3) -> torch.Tensor:
+        """View points → NDC ``(x, y, z)`` in [−1, 1]³ inside the frustum (divide by ``w = −z``)."""
+        x, y, z = _split(p, dim, 3, "p")
+        n, f, F = self.near, self.far, self.focal
+        w = -z
+        return torch.stack([F / self.aspect * x / w, F * y / w,
+                            (f + n) / (f - n) + 2.0 * f * n / ((f - n) * z)], dim)
+
+    def ndc_to_view(self, ndc: torch.Tensor, dim: int = -3) -> torch.Tensor:
+        """NDC ``(x, y, z)`` → view points (inverse of :meth:`view_to_ndc`)."""
+        x, y, zn = _split(ndc, dim, 3, "ndc")
+        z = self.depth_to_view_z(zn * 0.5 + 0.5)
+        return torch.stack([x * -z * self.aspect / self.focal, y * -z / self.focal, z], dim)
+
+    @staticmethod
+    def ndc_to_uv(ndc_xy: torch.Tensor) -> torch.Tensor:
+        """NDC → UV (``v`` up): ``uv = ndc * 0.5 + 0.5``."""
+        return ndc_xy * 0.5 + 0.5
+
+    @staticmethod
+    def uv_to_ndc(uv: torch.Tensor) -> torch.Tensor:
+        """UV → NDC: ``ndc = 2 uv − 1``."""
+        return uv * 2.0 - 1.0
+
+    def uv_to_pixel(self, uv: torch.Tensor, dim: int = -3) -> torch.Tensor:
+        """UV (v up) → continuous pixel coordinates ``(px, py)`` (py down, row 0 at the top)."""
+        u, v = _split(uv, dim, 2, "uv")
+        # NOTE: the row axis flips here: UV's v grows upward, image rows grow downward.
+        return torch.stack([u * self.width, (1.0 - v) * self.height], dim)
+
+    def pixel_to_uv(self, px: torch.Tensor, dim: int = -3) -> torch.Tensor:
+        """Continuous pixel coordinates → UV (inverse of :meth:`uv_to_pixel`)."""
+        x, y = _split(px, dim, 2, "px")
+        return torch.stack([x / self.width, 1.0 - y / self.height], dim)
+
+    def view_to_pixel(self, p: torch.Tensor, dim: int = -3) -> torch.Tensor:
+        """View points → continuous pixel coordinates ``(px, py)``."""
+        ndc = self.view_to_ndc(p, dim)
+        return self.uv_to_pixel(self.ndc_to_uv(ndc.narrow(dim, 0, 2)), dim)
+
+    def pixel_centers(self, dtype: torch.dtype = torch.float32, device=None) -> torch.Tensor:
+        """``(2, H, W)`` pixel-centre coordinates: ``[0, j, i] = i + 0.5``, ``[1, j, i] = j + 0.5``."""
+        ys = torch.arange(self.height, dtype=dtype, device=device) + 0.5
+        xs = torch.arange(self.width, dtype=dtype, device=device) + 0.5
+        gy, gx = torch.meshgrid(ys, xs, indexing="ij")
+        return torch.stack([gx, gy], 0)
+
+    def uv_grid(self, dtype: torch.dtype = torch.float32, device=None) -> torch.Tensor:
+        """``(2, H, W)`` UV of every pixel centre (``v`` up, so ``v`` *decreases* down the rows)."""
+        return self.pixel_to_uv(self.pixel_centers(dtype, device), dim=0)
+
+    def pixel_rays(self, dtype: torch.dtype = torch.float32, device=None) -> torch.Tensor:
+        """``(3, H, W)`` view-space directions through pixel centres, scaled so that ``z = −1``."""
+        uv = self.uv_grid(dtype, device)
+        return self.uv_to_view(uv, torch.full_like(uv[:1], -1.0), dim=0)
+
+    # ------------------------------------------------------------------ depth encodings (seed 002 §2.2)
+    def view_z_to_depth(self, view_z: torch.Tensor) -> torch.Tensor:
+        """View z → GL depth buffer value in [0, 1] (three.js ``viewZToPerspectiveDepth``)."""
+        n, f = self.near, self.far
+        return ((n + view_z) * f) / ((f - n) * view_z)
+
+    def depth_to_view_z(self, depth: torch.Tensor) -> torch.Tensor:
+        """GL depth buffer value → view z (three.js ``perspectiveDepthToViewZ``)."""
+        n, f = self.near, self.far
+        return (n * f) / ((f - n) * depth - f)
+
+    def view_z_to_orthographic_depth(self, view_z: torch.Tensor) -> torch.Tensor:
+        """View z → linear depth ``(z + n) / (n − f)`` in [0, 1] (``viewZToOrthographicDepth``)."""
+        return (view_z + self.near) / (self.near - self.far)
+
+    def orthographic_depth_to_view_z(self, linear_depth: torch.Tensor) -> torch.Tensor:
+        """Linear depth → view z (``orthographicDepthToViewZ``)."""
+        return linear_depth * (self.near - self.far) - self.near
+
+    # ------------------------------------------------------------------ position from depth (two seed ways)
+    def uv_to_view_params(self) -> tuple[float, float, float, float]:
+        """HBAO ``UvToViewParams`` (seed 002 §3.3): ``(−2/F₁, −2/F₂, 1/F₁, 1/F₂)``.
+
+        ``F₁ = F · H / W`` and ``F₂ = F`` with ``F = 1 / tan(fovy / 2)``, derived from
+        ``x_view = (2u − 1)·(−z) / (F / aspect)`` and ``y_view = (2v − 1)·(−z) / F``.
+        """
+        f1 = self.focal * self.height / self.width
+        f2 = self.focal
+        return (-2.0 / f1, -2.0 / f2, 1.0 / f1, 1.0 / f2)
+
+    def uv_to_view(self, uv: torch.Tensor, view_z: torch.Tensor, dim: int = -3) -> torch.Tensor:
+        """HBAO ``uvToView``: ``xy = (A · uv + B) · z`` (seed 002 §3.3). ``view_z`` has size 1 on ``dim``."""
+        a0, a1, b0, b1 = self.uv_to_view_params()
+        u, v = _split(uv, dim, 2, "uv")
+        z = view_z.squeeze(dim) if view_z.dim() == uv.dim() else view_z
+        return torch.stack([(a0 * u + b0) * z, (a1 * v + b1) * z, z.expand_as(u)], dim)
+
+    def view_position_from_depth(self, uv: torch.Tensor, depth: torch.Tensor, dim: int = -3) -> torch.Tensor:
+        """SSAO ``getViewPosition`` (seed 002 §2.2): un-project ``(uv, depth)`` with the inverse projection.
+
+        ``clipW = P[3][2]·z + P[3][3]`` (three.js column-major ``[2][3]``), ``clip = (2·(uv, d) − 1, 1)·clipW``.
+        """
+        u, v = _split(uv, dim, 2, "uv")
+        d = depth.squeeze(dim) if depth.dim() == uv.dim() else depth
+        view_z = self.depth_to_view_z(d)
+        clip_w = -view_z                                       # P[3] = (0, 0, −1, 0)
+        clip = [(u * 2 - 1) * clip_w, (v * 2 - 1) * clip_w, (d * 2 - 1) * clip_w, clip_w]
+        m = self.inverse_projection_matrix(dtype=uv.dtype, device=uv.device)
+        out = [sum(m[i, k] * clip[k] for k in range(4)) for i in range(3)]
+        return torch.stack(out, dim)
+
+    # ------------------------------------------------------------------ Mitsuba (the one place)
+    def mitsuba_sensor(self) -> dict:
+        """Mitsuba ``perspective`` sensor parameters equal to this camera (no Mitsuba import here).
+
+        NOTE: Mitsuba's camera-local frame has +x pointing to the image *left* and looks down +z, so its
+        ``to_world`` is our view→world matrix times ``diag(−1, 1, −1, 1)`` (a 180° turn about y). Its ``fov``
+        is horizontal unless ``fov_axis='y'``. Its rays start on the near plane, so ``si.t`` is not the eye
+        distance: ssbench reads positions (``si.p``), never ``si.t``.
+        """
+        m = self.camera_to_world().tolist()
+        for row in m:                           # right-multiply by diag(−1, 1, −1, 1): negate columns 0, 2
+            row[0], row[2] = -row[0], -row[2]
+        return {"type": "perspective", "fov": self.fovy_deg, "fov_axis": "y",
+                "near_clip": self.near, "far_clip": self.far, "to_world": m,
+                "width": self.width, "height": self.height}

@@ -1,0 +1,157 @@
+"""Scene data model: geometry + materials + lights + camera, as frozen, hashable data.
+
+A scene models only what the comparisons need: analytic shapes (sphere, box, rectangle, disk, cylinder) and
+meshes (OBJ/PLY), each with a material of albedo / roughness / metallic; point, directional and constant
+environment lights; one :class:`~ssbench.camera.Camera`. Nothing here imports Mitsuba; the reference backend
+translates a :class:`Scene` into a Mitsuba scene (``ssbench.reference.convert``).
+
+Transforms: every shape has a ``to_world`` 4×4 (row-major) built as ``T · R · S`` from ``translate``,
+``rotate`` (Euler degrees about x, then y, then z: ``R = Rz · Ry · Rx``) and ``scale``.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from dataclasses import asdict, dataclass, field
+from typing import Any, Sequence
+
+from ..camera import Camera
+
+Vec3 = tuple[float, float, float]
+Mat4 = tuple[tuple[float, ...], ...]
+
+SHAPE_TYPES = ("sphere", "box", "rectangle", "disk", "cylinder", "mesh")
+LIGHT_TYPES = ("point", "directional", "environment")
+
+
+class SceneError(ValueError):
+    """A scene description is invalid. The message starts with ``file:line:`` (or ``<catalog:name>``)."""
+
+
+@dataclass(frozen=True)
+class Material:
+    """Surface parameters shared by the G-buffer and the path tracer.
+
+    ``albedo`` is linear RGB in [0, 1]; ``roughness`` in [0, 1] (1 = Lambertian); ``metallic`` in [0, 1].
+    """
+
+    albedo: Vec3 = (0.7, 0.7, 0.7)
+    roughness: float = 1.0
+    metallic: float = 0.0
+
+
+@dataclass(frozen=True)
+class Shape:
+    """One object of the scene.
+
+    ``params`` holds the type's own parameters as sorted ``(key, value)`` pairs:
+    sphere ``center, radius``; box ``size`` (3 edge lengths); rectangle ``size`` (2 edge lengths, local xy
+    plane, normal +z); disk ``radius`` (local xy plane, normal +z); cylinder ``p0, p1, radius, caps``;
+    mesh ``file, sha256, face_normals``.
+    """
+
+    id: str
+    type: str
+    params: tuple[tuple[str, Any], ...]
+    to_world: Mat4
+    material: Material = Material()
+    where: str = ""                 # "file:line" of the definition, for later error messages
+
+    def param(self, key: str) -> Any:
+        return dict(self.params)[key]
+
+
+@dataclass(frozen=True)
+class Light:
+    """``point``: ``position``, ``intensity`` (RGB, W/sr); ``directional``: ``direction`` (the light travels
+    along it), ``irradiance``; ``environment``: constant ``radiance``."""
+
+    type: str
+    params: tuple[tuple[str, Any], ...]
+
+    def param(self, key: str) -> Any:
+        return dict(self.params)[key]
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A complete, validated scene. Build one with :func:`ssbench.scenes.load` or :func:`scene_from_dict`."""
+
+    name: str
+    description: str
+    shapes: tuple[Shape, ...]
+    lights: tuple[Light, ...]
+    camera: Camera
+    max_depth: int = 6
+    source: str = "<dict>"
+    extra: tuple[tuple[str, Any], ...] = field(default=())
+
+    def shape_index(self, shape_id: str) -> int:
+        """Position of a shape in :attr:`shapes`; this index is the G-buffer ``shape_id``."""
+        for i, s in enumerate(self.shapes):
+            if s.id == shape_id:
+                return i
+        raise KeyError(f"shape_id: no shape named {shape_id!r} in scene {self.name!r}")
+
+    def with_camera(self, camera: Camera) -> "Scene":
+        from dataclasses import replace
+        return replace(self, camera=camera)
+
+    def content_hash(self) -> str:
+        """SHA-256 of everything that affects a rendering (not the description or source path)."""
+        d = asdict(self)
+        d.pop("description"), d.pop("source")
+        for s in d["shapes"]:
+            s.pop("where")
+        blob = json.dumps(d, sort_keys=True, default=str).encode()
+        return hashlib.sha256(blob).hexdigest()
+
+
+# ---------------------------------------------------------------------- transforms
+def identity4() -> list[list[float]]:
+    return [[1.0 if i == j else 0.0 for j in range(4)] for i in range(4)]
+
+
+def matmul4(a: Sequence[Sequence[float]], b: Sequence[Sequence[float]]) -> list[list[float]]:
+    return [[sum(a[i][k] * b[k][j] for k in range(4)) for j in range(4)] for i in range(4)]
+
+
+def translate4(t: Sequence[float]) -> list[list[float]]:
+    m = identity4()
+    m[0][3], m[1][3], m[2][3] = (float(v) for v in t)
+    return m
+
+
+def scale4(s: Sequence[float]) -> list[list[float]]:
+    m = identity4()
+    m[0][0], m[1][1], m[2][2] = (float(v) for v in s)
+    return m
+
+
+def rotate4(euler_deg: Sequence[float]) -> list[list[float]]:
+    """``Rz · Ry · Rx`` from Euler angles in degrees (x applied first)."""
+    ax, ay, az = (math.radians(float(v)) for v in euler_deg)
+    cx, sx, cy, sy, cz, sz = math.cos(ax), math.sin(ax), math.cos(ay), math.sin(ay), math.cos(az), math.sin(az)
+    rx = [[1, 0, 0, 0], [0, cx, -sx, 0], [0, sx, cx, 0], [0, 0, 0, 1]]
+    ry = [[cy, 0, sy, 0], [0, 1, 0, 0], [-sy, 0, cy, 0], [0, 0, 0, 1]]
+    rz = [[cz, -sz, 0, 0], [sz, cz, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
+    return matmul4(rz, matmul4(ry, rx))
+
+
+def frame_z_to(axis: Sequence[float]) -> list[list[float]]:
+    """A rotation taking local +z to the unit vector ``axis`` (for disks and cylinder caps)."""
+    z = [float(v) for v in axis]
+    n = math.sqrt(sum(v * v for v in z))
+    z = [v / n for v in z]
+    helper = [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0]
+    x = [helper[1] * z[2] - helper[2] * z[1], helper[2] * z[0] - helper[0] * z[2],
+         helper[0] * z[1] - helper[1] * z[0]]
+    xn = math.sqrt(sum(v * v for v in x))
+    x = [v / xn for v in x]
+    y = [z[1] * x[2] - z[2] * x[1], z[2] * x[0] - z[0] * x[2], z[0] * x[1] - z[1] * x[0]]
+    return [[x[0], y[0], z[0], 0.0], [x[1], y[1], z[1], 0.0], [x[2], y[2], z[2], 0.0], [0.0, 0.0, 0.0, 1.0]]
+
+
+def freeze4(m: Sequence[Sequence[float]]) -> Mat4:
+    return tuple(tuple(float(v) for v in row) for row in m)

@@ -1,0 +1,46 @@
+# ssbench — the two commands: `make report` (main job) and `make test`. Both bootstrap what they need.
+PY          ?= python3
+VENV        ?= .venv
+TORCH_SPEC  ?= torch==2.13.0
+PYTHON      := $(VENV)/bin/python
+PIP         := $(VENV)/bin/pip
+STAMP       := $(VENV)/.ssbench-installed
+REPORT_ARGS ?=
+PYTEST_ARGS ?=
+
+.PHONY: setup llvm test test-fast report info bench lessons clean
+
+## setup: create .venv, install CPU torch first (override TORCH_SPEC), then the project with its extras
+setup: $(STAMP) llvm
+
+$(STAMP): pyproject.toml
+	test -x $(PYTHON) || $(PY) -m venv $(VENV)
+	$(PIP) install -q "$(TORCH_SPEC)"
+	$(PIP) install -q -e ".[dev]"
+	touch $(STAMP)
+
+## llvm: make sure Dr.Jit has a working libLLVM (installs Debian's libllvm19 when apt is usable)
+llvm:
+	@sh scripts/ensure_llvm.sh
+
+## test: the whole suite (slow tests included, as in CI)
+test: setup
+	MPLBACKEND=Agg $(PYTHON) -m pytest $(PYTEST_ARGS)
+
+## test-fast: skip the slow (rendering / subprocess) tests
+test-fast: setup
+	MPLBACKEND=Agg $(PYTHON) -m pytest -m "not slow" $(PYTEST_ARGS)
+
+## report: the main job — reference renders of the built-in scenes into reports/latest/index.html
+report: setup
+	MPLBACKEND=Agg $(PYTHON) -m ssbench report --out reports $(REPORT_ARGS)
+
+info: setup
+	$(PYTHON) -m ssbench info
+
+## bench: G-buffer timing at 640x360 (prints numbers; not a test)
+bench: setup
+	$(PYTHON) benchmarks/bench_gbuffer.py
+
+clean:
+	rm -rf $(VENV) reports/2* reports/latest .pytest_cache

@@ -1,0 +1,101 @@
+"""On-disk cache of reference renders, keyed by a content hash; corrupt entries are detected and recomputed.
+
+Location: ``$SSBENCH_CACHE_DIR`` or ``~/.cache/ssbench``. Set ``SSBENCH_CACHE=0`` to bypass it. A key hashes
+the scene content, camera, channels, spp, seed, the backend variant and the Mitsuba/Dr.Jit versions, so a
+changed input never reads a stale entry. Each entry is one ``.npz`` holding its arrays plus a SHA-256 of their
+bytes; it is written to a temporary file and renamed, so a crash never leaves a half-written entry.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+import warnings
+from dataclasses import asdict, is_dataclass
+from typing import Any, Optional
+
+import numpy as np
+
+from . import backend
+
+
+def cache_dir() -> str:
+    return os.environ.get("SSBENCH_CACHE_DIR") or os.path.join(os.path.expanduser("~"), ".cache", "ssbench")
+
+
+def enabled() -> bool:
+    return os.environ.get("SSBENCH_CACHE", "1").strip().lower() not in ("0", "false", "off", "no")
+
+
+def _jsonable(x: Any) -> Any:
+    if is_dataclass(x):
+        return asdict(x)
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    return x
+
+
+def make_key(kind: str, *parts: Any) -> str:
+    """Content hash of ``parts`` plus the backend variant and library versions."""
+    info = backend.choice()
+    mi = backend.mitsuba()
+    import drjit as dr
+    blob = json.dumps([kind, _jsonable(list(parts)), info.variant, mi.__version__, dr.__version__],
+                      sort_keys=True, default=str)
+    return f"{kind}-{hashlib.sha256(blob.encode()).hexdigest()[:32]}"
+
+
+def _digest(arrays: dict[str, np.ndarray]) -> str:
+    h = hashlib.sha256()
+    for k in sorted(arrays):
+        a = np.ascontiguousarray(arrays[k])
+        h.update(k.encode()), h.update(str(a.dtype).encode()), h.update(str(a.shape).encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def path_for(key: str) -> str:
+    return os.path.join(cache_dir(), key[-2:], key + ".npz")
+
+
+def load(key: str) -> Optional[dict[str, np.ndarray]]:
+    """The arrays stored under ``key``, or ``None`` when absent, disabled or corrupt (then it is removed)."""
+    if not enabled():
+        return None
+    p = path_for(key)
+    if not os.path.exists(p):
+        return None
+    try:
+        with np.load(p, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files if k != "__meta__"}
+            meta = json.loads(bytes(z["__meta__"]).decode())
+        if meta.get("sha256") != _digest(arrays):
+            raise ValueError("checksum mismatch")
+        return arrays
+    except Exception as e:  # truncated zip, bad checksum, unreadable JSON ...
+        warnings.warn(f"ssbench cache: corrupt entry {p} ({e}); recomputing", RuntimeWarning, stacklevel=2)
+        try:
+            os.remove(p)
+        except OSError:
+            pass
+        return None
+
+
+def store(key: str, arrays: dict[str, np.ndarray], meta: Optional[dict] = None) -> None:
+    """Write ``arrays`` atomically under ``key``."""
+    if not enabled():
+        return
+    p = path_for(key)
+    os.makedirs(os.path.dirname(p), exist_ok=True)
+    m = dict(meta or {}, sha256=_digest(arrays))
+    payload = dict(arrays, __meta__=np.frombuffer(json.dumps(m).encode(), dtype=np.uint8))
+    fd, tmp = tempfile.mkstemp(dir=os.path.dirname(p), suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            np.savez(f, **payload)
+        os.replace(tmp, p)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        raise

@@ -48,15 +48,15 @@ def color(scene, width: Optional[int] = None, height: Optional[int] = None, spp:
     mscene = convert.load(sc, cam)
     passes = [PASS_SPP] * (spp // PASS_SPP) + ([spp % PASS_SPP] if spp % PASS_SPP else [])
     show = progress if progress is not None else cam.width * cam.height * spp > 4_000_000
-    acc = np.zeros((cam.height, cam.width, 3), np.float64)
+    acc = torch.zeros((cam.height, cam.width, 3), dtype=torch.float64)
     t0 = time.perf_counter()
     for k, n in enumerate(tqdm(passes, desc=f"color {sc.name} {cam.width}x{cam.height} {spp}spp",
                                disable=not show, leave=False)):
         s = _pass_seed(seed, k)
         s = dr.opaque(mi.UInt32, s) if backend.is_jit() else s
         img = mi.render(mscene, spp=n, seed=s)
-        acc += np.asarray(img, dtype=np.float64) * n
-    rgb = (acc / spp).astype(np.float32).transpose(2, 0, 1)[None].copy()        # (1, 3, H, W)
+        acc += (img.torch() if backend.is_jit() else torch.from_numpy(np.array(img))).double() * n  # (H, W, 3)
+    rgb = (acc / spp).float().permute(2, 0, 1)[None].contiguous().numpy()        # (1, 3, H, W)
     if use_cache:
         cache.store(key, {"color": rgb}, {"seconds": time.perf_counter() - t0})
     return torch.from_numpy(rgb)

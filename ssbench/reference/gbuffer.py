@@ -102,14 +102,15 @@ def _render_jit(sc: Scene, cam: Camera, chans: tuple[str, ...]) -> dict[str, np.
     mscene = convert.load(sc, cam)
     r = _trace(mi, dr, mscene, cam, "back_z" in chans)
     H, W = cam.height, cam.width
-    img = lambda a: np.asarray(a.numpy(), dtype=np.float32).reshape(1, 1, H, W)  # noqa: E731
+    # Dr.Jit -> torch by DLPack (.torch(): zero-copy for flat arrays); numpy views of those for the cache
+    img = lambda a: a.torch().reshape(1, 1, H, W).numpy()                        # noqa: E731
     vec = lambda v: np.concatenate([img(v.x), img(v.y), img(v.z)], 1)            # noqa: E731
-    out = {"mask": r["hit"].numpy().reshape(1, 1, H, W).astype(bool)}
+    out = {"mask": r["hit"].torch().reshape(1, 1, H, W).numpy()}
     if {"position", "view_z"} & set(chans):
         # The hit point on Mitsuba's own ray, o + t·d, and world -> view, both in float64. (Mitsuba's si.p is
         # rebuilt from shape-local coordinates and strays up to ~1e-6 relative off the ray for big shapes.)
-        f64 = lambda v: torch.from_numpy(np.stack([v.x.numpy(), v.y.numpy(), v.z.numpy()])).double()  # noqa
-        t = torch.from_numpy(np.asarray(r["t"].numpy())).double()
+        f64 = lambda v: torch.stack([v.x.torch(), v.y.torch(), v.z.torch()]).double()  # noqa: E731
+        t = r["t"].torch().double()
         pw = f64(r["ray_o"]) + t * f64(r["ray_d"])
         pw = torch.where(torch.isfinite(pw), pw, torch.zeros_like(pw))                   # misses: t = inf
         pv = cam.world_to_view(pw, dim=0).float().numpy().reshape(1, 3, H, W)
@@ -120,7 +121,7 @@ def _render_jit(sc: Scene, cam: Camera, chans: tuple[str, ...]) -> dict[str, np.
     if "normal" in chans:
         out["normal"] = vec(r["n_view"])
     if {"shape_id", "albedo", "roughness", "metallic"} & set(chans):
-        out["shape_id"] = r["sid"].numpy().astype(np.int32).reshape(1, 1, H, W)
+        out["shape_id"] = r["sid"].torch().reshape(1, 1, H, W).numpy()
     if "back_z" in chans:
         out["back_z"] = img(r["back_z"])
     return out

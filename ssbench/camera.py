@@ -260,7 +260,9 @@ class Camera:
     def view_z_to_depth(self, view_z: torch.Tensor) -> torch.Tensor:
         """View z → GL depth buffer value in [0, 1] (three.js ``viewZToPerspectiveDepth``)."""
         n, f = self.near, self.far
-        return ((n + view_z) * f) / ((f - n) * view_z)
+        # three.js ((n + z) f) / ((f − n) z) with numerator and denominator negated (exact), so that
+        # z = −near gives +0.0 rather than −0.0
+        return ((-n - view_z) * f) / ((f - n) * -view_z)
 
     def depth_to_view_z(self, depth: torch.Tensor) -> torch.Tensor:
         """GL depth buffer value → view z (three.js ``perspectiveDepthToViewZ``)."""
@@ -291,7 +293,8 @@ class Camera:
         a0, a1, b0, b1 = self.uv_to_view_params()
         u, v = _split(uv, dim, 2, "uv")
         z = view_z.squeeze(dim) if view_z.dim() == uv.dim() else view_z
-        return torch.stack([(a0 * u + b0) * z, (a1 * v + b1) * z, z.expand_as(u)], dim)
+        u, v, z = torch.broadcast_tensors(u, v, z)             # e.g. a (1, 2, H, W) grid with (B, 1, H, W) z
+        return torch.stack([(a0 * u + b0) * z, (a1 * v + b1) * z, z], dim)
 
     def view_position_from_depth(self, uv: torch.Tensor, depth: torch.Tensor, dim: int = -3) -> torch.Tensor:
         """SSAO ``getViewPosition`` (seed 002 §2.2): un-project ``(uv, depth)`` with the inverse projection.

@@ -134,7 +134,8 @@ def load(scene: Scene, camera: Camera | None = None):
         _LOADED.move_to_end(key)
         return _LOADED[key]
     try:
-        obj = mi.load_dict(scene_dict(scene, camera))
+        # optimize=False: the default merges shapes that share a BSDF into one shape with an empty id
+        obj = mi.load_dict(scene_dict(scene, camera), optimize=False)
     except SceneError:
         raise
     except Exception as e:  # Mitsuba's own errors (e.g. an unreadable mesh) get the scene's name

@@ -25,7 +25,7 @@ from . import backend, cache, convert
 DEFAULT_CHANNELS = ("view_z", "normal", "position", "albedo", "roughness", "metallic", "shape_id", "mask")
 #: maximum number of surfaces crossed while looking for the exit through the first object
 EXIT_SEARCH = 8
-_KERNEL_VERSION = 4        # bump when the kernel's output changes, to invalidate caches
+_KERNEL_VERSION = 5        # bump when the kernel's output changes, to invalidate caches
 
 
 def _channels(channels: Optional[Iterable[str]]) -> tuple[str, ...]:

@@ -157,9 +157,12 @@ def test_only_requested_channels_and_bad_arguments():
         gbuffer("no_such_scene")
 
 
-def test_every_catalog_scene_renders():
+def test_every_catalog_scene_renders_with_ids_from_the_scene():
     for name in catalog.names():
         g = gbuffer(name, 64, 48, channels=["view_z", "shape_id", "mask", "back_z"])
         assert g.mask.any(), name
+        assert torch.equal(g.shape_id >= 0, g.mask), name                # every hit names its shape
         ids = set(g.shape_id.unique().tolist()) - {-1}
         assert ids <= set(range(len(load(name).shapes))), name
+    g = gbuffer("cornell_box", channels=["shape_id", "mask"])            # shapes sharing one material
+    assert set(g.shape_id.unique().tolist()) == {-1} | set(range(len(load("cornell_box").shapes)))

@@ -1,0 +1,4 @@
+"""``python -m ssbench``: the same as the ``ssbench`` command."""
+from .cli import main
+
+raise SystemExit(main())

@@ -1,0 +1,223 @@
+"""Build the HTML report: reference renders of the built-in scenes with timings and environment metadata.
+
+A run goes to ``<out_root>/<YYYYmmdd-HHMMSS>/`` (``index.html``, ``summary.md``, ``meta.json``,
+``img/<scene>/<channel>.png``) and is then copied to ``<out_root>/latest/``: the copy is written to a temporary
+directory beside it and renamed into place, so ``latest`` is never half-written. Image links are relative, so
+both copies show their images.
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from typing import Iterable, Optional, Sequence
+
+from ..gbuffer import CHANNELS, GBuffer
+from ..io import _umask_mode
+
+#: G-buffer previews shown under each scene's colour image, in this order
+PREVIEW_ROW = ("view_z", "normal", "position", "albedo", "roughness", "metallic", "shape_id", "mask", "back_z")
+ALL_CHANNELS = tuple(CHANNELS)
+_REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+
+# ------------------------------------------------------------------------------------------ rendering
+def render_scene(scene, width: Optional[int] = None, height: Optional[int] = None,
+                 channels: Sequence[str] = ALL_CHANNELS, *, spp: int = 64, seed: int = 0,
+                 use_cache: bool = True) -> tuple[GBuffer, dict]:
+    """Render ``channels`` of ``scene`` (``mask`` always included); timings ``{"gbuffer_s", "color_s"}``.
+
+    The geometric channels and the path-traced colour are rendered and timed separately
+    (``time.perf_counter``); either time is ``None`` when that part was not asked for.
+    """
+    from .. import reference
+    geo = tuple(dict.fromkeys([c for c in channels if c != "color"] + ["mask"]))
+    t0 = time.perf_counter()
+    g = reference.gbuffer(scene, width, height, channels=geo, spp=spp, seed=seed, use_cache=use_cache)
+    timings = {"gbuffer_s": time.perf_counter() - t0, "color_s": None}
+    if "color" in channels:
+        t0 = time.perf_counter()
+        col = reference.color(scene, g.width, g.height, spp=spp, seed=seed, use_cache=use_cache)
+        timings["color_s"] = time.perf_counter() - t0
+        g = GBuffer(g.camera, color=col, **g.as_dict())
+    return g, timings
+
+
+# ------------------------------------------------------------------------------------------ metadata
+def _version(module: str) -> Optional[str]:
+    try:
+        return getattr(__import__(module), "__version__", None)
+    except Exception:
+        return None
+
+
+def environment() -> dict:
+    """Versions, threads, the Mitsuba backend choice (with its probe attempts) and the machine."""
+    import torch
+    from .. import __version__
+    from ..reference import backend
+    b = backend.info()
+    return {"ssbench": __version__, "python": platform.python_version(), "python_executable": sys.executable,
+            "torch": torch.__version__, "torch_threads": torch.get_num_threads(), "kornia": _version("kornia"),
+            "numpy": _version("numpy"), "mitsuba": b["mitsuba"], "drjit": b["drjit"],
+            "drjit_threads": b["drjit_threads"], "variant": b["variant"], "libllvm": b["libllvm"],
+            "libllvm_major": b["libllvm_major"], "backend_reason": b["reason"],
+            "probe": [list(t) for t in b["tried"]], "node": platform.node(),
+            "processor": platform.processor() or platform.machine(), "machine": platform.machine(),
+            "platform": platform.platform(), "cpu_count": os.cpu_count()}
+
+
+def git_state(repo: str = _REPO) -> dict:
+    """``{"commit": sha or "unknown", "dirty": bool or None}`` of the repository holding ssbench."""
+    def git(*args: str) -> Optional[str]:
+        try:
+            r = subprocess.run(["git", *args], cwd=repo, capture_output=True, text=True, timeout=20)
+        except (OSError, subprocess.SubprocessError):
+            return None
+        return r.stdout if r.returncode == 0 else None
+    sha = git("rev-parse", "HEAD")
+    if not sha:
+        return {"commit": "unknown", "dirty": None}
+    status = git("status", "--porcelain", "--untracked-files=no")
+    return {"commit": sha.strip(), "dirty": None if status is None else bool(status.strip())}
+
+
+# ------------------------------------------------------------------------------------------ output
+def _new_run_dir(out_root: str) -> tuple[str, str]:
+    stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
+    for k in range(1000):
+        name = stamp if k == 0 else f"{stamp}-{k}"
+        path = os.path.join(out_root, name)
+        try:
+            os.makedirs(path)
+            return name, path
+        except FileExistsError:
+            continue
+    raise RuntimeError(f"out_root: could not create a fresh run directory in {out_root!r}")
+
+
+def _write_text(path: str, text: str) -> None:
+    fd, tmp = tempfile.mkstemp(prefix=".tmp-", dir=os.path.dirname(path))
+    with os.fdopen(fd, "w", encoding="utf-8") as f:
+        f.write(text)
+    os.chmod(tmp, _umask_mode())
+    os.replace(tmp, path)
+
+
+def refresh_latest(run_dir: str, out_root: str) -> str:
+    """Make ``<out_root>/latest`` a full copy of ``run_dir``, swapped in by rename (never half-written)."""
+    latest = os.path.join(out_root, "latest")
+    tmp = tempfile.mkdtemp(prefix=".latest-new-", dir=out_root)
+    shutil.copytree(run_dir, tmp, dirs_exist_ok=True)
+    old = None
+    if os.path.lexists(latest):
+        old = tempfile.mkdtemp(prefix=".latest-old-", dir=out_root)
+        os.rmdir(old)
+        os.replace(latest, old)
+    os.replace(tmp, latest)
+    if old is not None and os.path.isdir(old) and not os.path.islink(old):
+        shutil.rmtree(old, ignore_errors=True)
+    elif old is not None:
+        os.unlink(old)
+    return latest
+
+
+def _fmt(s: Optional[float]) -> str:
+    return "–" if s is None else f"{s:.3f}"
+
+
+def _summary_md(meta: dict) -> str:
+    lines = [f"# ssbench reference report {meta['run']}", ""]
+    lines += [f"{meta['width']}×{meta['height']}, {meta['spp']} spp, seed {meta['seed']}; times in seconds "
+              "(first calls include Dr.Jit kernel compilation when its cache is cold).", "",
+              "| scene | G-buffer s | colour s | coverage | description |", "|---|---:|---:|---:|---|"]
+    for s in meta["scenes"]:
+        lines.append(f"| {s['name']} | {_fmt(s['timings']['gbuffer_s'])} | {_fmt(s['timings']['color_s'])} | "
+                     f"{s['coverage']:.1%} | {s['description']} |")
+    lines += ["", "## Metadata", "", "| key | value |", "|---|---|"]
+    for k, v in meta["metadata_rows"]:
+        lines.append(f"| {k} | {str(v).replace('|', '/')} |")
+    return "\n".join(lines) + "\n"
+
+
+def _rows(meta: dict) -> list[tuple[str, str]]:
+    env, git = meta["environment"], meta["git"]
+    return [("date", meta["date"]), ("git commit", git["commit"]),
+            ("dirty", {True: "yes", False: "no", None: "unknown"}[git["dirty"]]),
+            ("ssbench", env["ssbench"]), ("python", env["python"]), ("torch", env["torch"]),
+            ("mitsuba", env["mitsuba"]), ("drjit", env["drjit"]), ("kornia", env["kornia"]),
+            ("numpy", env["numpy"]), ("Mitsuba variant", env["variant"]),
+            ("libLLVM", f"{env['libllvm']} (major {env['libllvm_major']})" if env["libllvm"] else "none"),
+            ("torch threads", env["torch_threads"]), ("Dr.Jit threads", env["drjit_threads"]),
+            ("machine", f"{env['node']} · {env['processor']} · {env['machine']} · {env['cpu_count']} CPUs"),
+            ("platform", env["platform"]), ("image size", f"{meta['width']}×{meta['height']}"),
+            ("spp / seed", f"{meta['spp']} / {meta['seed']}"), ("render cache", "on" if meta["use_cache"] else "off"),
+            ("backend start-up s", _fmt(meta["backend_init_s"])), ("total wall time s", _fmt(meta["total_s"]))]
+
+
+def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = None, width: int = 320,
+                 height: int = 240, spp: int = 64, seed: int = 0, *, use_cache: bool = False,
+                 progress: Optional[bool] = None) -> str:
+    """Render every catalog scene (or ``scenes``) and write a report run; returns the run's ``index.html``.
+
+    ``use_cache=False`` (default) renders afresh so the timings measure rendering, not the disk cache.
+    """
+    import jinja2
+    from tqdm import tqdm
+    from .. import io
+    from ..scenes import catalog, load
+    t_start = time.perf_counter()
+    known = catalog.names()
+    names = known if scenes is None else list(dict.fromkeys(scenes))
+    unknown = [n for n in names if n not in known]
+    if unknown or not names:
+        raise ValueError(f"scenes: unknown or empty {unknown or names}; built-in scenes: {', '.join(known)}")
+    for k, v in (("width", width), ("height", height), ("spp", spp)):
+        if isinstance(v, bool) or not isinstance(v, int) or v <= 0:
+            raise ValueError(f"{k}: must be a positive integer, got {v!r}")
+    out_root = os.path.abspath(os.fspath(out_root))
+    os.makedirs(out_root, exist_ok=True)
+    t0 = time.perf_counter()
+    env = environment()                                     # probes the backend and imports Mitsuba
+    backend_init_s = time.perf_counter() - t0
+    run, run_dir = _new_run_dir(out_root)
+    descriptions = catalog.describe()
+    rows = []
+    for name in tqdm(names, desc="report", unit="scene", disable=None if progress is None else not progress):
+        sc = load(name)
+        g, timings = render_scene(sc, width, height, ALL_CHANNELS, spp=spp, seed=seed, use_cache=use_cache)
+        t0 = time.perf_counter()
+        images = {}
+        for ch in ("color",) + PREVIEW_ROW:
+            rel = f"img/{name}/{ch}.png"
+            io.preview_png(os.path.join(run_dir, *rel.split("/")), ch, getattr(g, ch), mask=g.mask,
+                           camera=g.camera)
+            images[ch] = rel
+        timings["preview_s"] = time.perf_counter() - t0
+        rows.append({"name": name, "description": descriptions.get(name, sc.description), "images": images,
+                     "timings": timings, "coverage": float(g.mask.float().mean()),
+                     "camera": {k: getattr(g.camera, k) for k in ("eye", "target", "up", "fovy_deg", "width",
+                                                                  "height", "near", "far")}})
+    meta = {"run": run, "date": _dt.datetime.now().astimezone().isoformat(timespec="seconds"),
+            "width": width, "height": height, "spp": spp, "seed": seed, "use_cache": use_cache,
+            "git": git_state(), "environment": env, "backend_init_s": backend_init_s, "scenes": rows,
+            "preview_row": list(PREVIEW_ROW)}
+    meta["total_s"] = time.perf_counter() - t_start
+    meta["metadata_rows"] = _rows(meta)
+    tpl_env = jinja2.Environment(loader=jinja2.FileSystemLoader(os.path.join(os.path.dirname(__file__),
+                                                                              "templates")),
+                                 autoescape=True, undefined=jinja2.StrictUndefined, trim_blocks=True,
+                                 lstrip_blocks=True)
+    html = tpl_env.get_template("index.html.j2").render(meta=meta, fmt=_fmt)
+    index = os.path.join(run_dir, "index.html")
+    _write_text(index, html)
+    _write_text(os.path.join(run_dir, "summary.md"), _summary_md(meta))
+    _write_text(os.path.join(run_dir, "meta.json"), json.dumps(meta, indent=2, default=str) + "\n")
+    refresh_latest(run_dir, out_root)
+    return index

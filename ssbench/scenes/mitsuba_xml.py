@@ -1,0 +1,464 @@
+"""Mitsuba 3 scene XML → :class:`Scene`: a documented subset, read as data (nothing is ever executed).
+
+The file is parsed with ``xml.parsers.expat``; DOCTYPE/ENTITY declarations and ``<include>`` are refused, so no
+external entity is resolved and no entity expansion happens. Every error reads ``file:line: what is wrong``.
+
+Supported subset (anything else is an error naming ``file:line``):
+
+* ``<scene version="x.y.z">`` root (version >= 2), ``<default name=.. value=..>`` and ``$name`` substitution.
+* The first ``perspective`` sensor: ``fov`` + ``fov_axis`` (``x`` is Mitsuba's default; ``y``, ``diagonal``,
+  ``smaller``, ``larger``) or ``focal_length``, converted to our vertical ``fovy`` with the film aspect;
+  ``near_clip`` (0.01), ``far_clip`` (10000); ``to_world`` must be one ``<lookat>``; film ``width``/``height``
+  (768×576).
+* Shapes ``sphere``, ``cube`` (→ box, [-1, 1]³), ``rectangle`` and ``disk`` (unit, xy plane), ``cylinder``
+  (open: ``caps: false``), ``obj``/``ply`` (→ mesh). ``to_world`` chains translate / rotate / scale / matrix /
+  lookat; the product must be ``T · R · S`` with positive scales (no shear, no mirroring). Area emitters on
+  shapes are ignored.
+* BSDFs, inline or ``<ref id>`` to a top-level ``<bsdf id>``: ``diffuse``, ``twosided`` (unwrapped),
+  ``conductor`` (albedo 0.9 or ``specular_reflectance``), ``roughconductor`` (roughness = sqrt(alpha): our
+  roughness r means GGX alpha r², as in Mitsuba's ``principled``), ``principled`` (base_color, roughness,
+  metallic). Colours are ``rgb``, ``float`` or a constant ``spectrum``; textures are not supported.
+* Emitters ``point``, ``constant`` (→ environment), ``directional``; ``<integrator type="path">``
+  ``max_depth`` (−1, unlimited and Mitsuba's default, → 64). Other integrators and samplers are ignored.
+"""
+from __future__ import annotations
+
+import math
+import re
+from typing import Any
+from xml.parsers import expat
+
+from .model import Scene, SceneError, identity4, matmul4, scale4, translate4
+from .schema import _path_str, scene_from_dict
+
+_SEP = re.compile(r"[,\s]+")
+_PROPS = {"float", "integer", "boolean", "string", "rgb", "spectrum", "point", "vector", "transform"}
+_SHAPES = {"sphere": {"center", "radius"}, "cube": set(), "rectangle": set(), "disk": set(),
+           "cylinder": {"p0", "p1", "radius"}, "obj": {"filename", "face_normals", "flip_tex_coords"},
+           "ply": {"filename", "face_normals", "flip_tex_coords"}}
+_IGNORED_TOP = {"bsdf", "default", "sampler", "film", "rfilter", "texture"}
+_UNLIMITED_DEPTH = 64
+
+
+class _Node:
+    __slots__ = ("tag", "attrs", "kids", "line")
+
+    def __init__(self, tag: str, attrs: dict, line: int):
+        self.tag, self.attrs, self.kids, self.line = tag, attrs, [], line
+
+    def get(self, key: str, default: Any = None) -> Any:
+        return self.attrs.get(key, default)
+
+
+def _tree(text: str, filename: str) -> _Node:
+    p = expat.ParserCreate()
+    p.SetParamEntityParsing(expat.XML_PARAM_ENTITY_PARSING_NEVER)
+    stack: list[_Node] = []
+    roots: list[_Node] = []
+
+    def start(tag: str, attrs: dict) -> None:
+        if len(stack) > 32:
+            raise SceneError(f"{filename}:{p.CurrentLineNumber}: malformed XML: elements nested too deeply")
+        node = _Node(tag, attrs, p.CurrentLineNumber)
+        (stack[-1].kids if stack else roots).append(node)
+        stack.append(node)
+
+    def refuse(*_: Any) -> None:
+        raise SceneError(f"{filename}:{p.CurrentLineNumber}: DOCTYPE/ENTITY declarations are not allowed")
+
+    p.StartElementHandler, p.EndElementHandler = start, lambda tag: stack.pop()
+    p.StartDoctypeDeclHandler = p.EntityDeclHandler = p.ExternalEntityRefHandler = refuse
+    try:
+        p.Parse(text, True)
+    except expat.ExpatError as e:
+        raise SceneError(f"{filename}:{e.lineno}: malformed XML: {expat.ErrorString(e.code)}") from None
+    return roots[0]
+
+
+def _clean(x: float) -> float:
+    """Round away float noise (12 significant digits, |x| < 1e-12 → 0) so 30° stays 30°."""
+    return 0.0 if abs(x) < 1e-12 else float(f"{x:.12g}")
+
+
+def decompose(m: Any) -> tuple[list[float], list[float], list[float]]:
+    """Split an affine 4×4 ``M = T · R · S`` into translate, Euler degrees (``R = Rz·Ry·Rx``) and positive scale.
+
+    Raises ``ValueError`` for projective, singular, sheared (beyond 1e-5) or mirroring matrices."""
+    if any(abs(m[3][j] - (1.0 if j == 3 else 0.0)) > 1e-12 for j in range(4)):
+        raise ValueError("the last row must be 0 0 0 1 (projective transforms are not supported)")
+    s = [math.sqrt(sum(m[i][j] ** 2 for i in range(3))) for j in range(3)]
+    if min(s) <= 1e-12 * max(s) or max(s) == 0.0:
+        raise ValueError("singular transform (a scale is zero)")
+    r = [[m[i][j] / s[j] for j in range(3)] for i in range(3)]
+    if max(abs(sum(r[k][i] * r[k][j] for k in range(3)) - (i == j)) for i in range(3) for j in range(3)) > 1e-5:
+        raise ValueError("shear is not supported (only translate, rotate and per-axis scale)")
+    det = (r[0][0] * (r[1][1] * r[2][2] - r[1][2] * r[2][1]) - r[0][1] * (r[1][0] * r[2][2] - r[1][2] * r[2][0])
+           + r[0][2] * (r[1][0] * r[2][1] - r[1][1] * r[2][0]))
+    if det < 0:
+        raise ValueError("negative determinant (a mirroring) is not supported")
+    ax = math.atan2(r[2][1], r[2][2])
+    ay = math.atan2(-r[2][0], math.hypot(r[0][0], r[1][0]))
+    sa, ca = math.sin(ax), math.cos(ax)      # az from R · Rx(ax)^T = Rz · Ry: stable at gimbal lock too
+    az = math.atan2(sa * r[0][2] - ca * r[0][1], ca * r[1][1] - sa * r[1][2])
+    return ([_clean(m[i][3]) for i in range(3)], [_clean(math.degrees(a)) for a in (ax, ay, az)],
+            [_clean(v) for v in s])
+
+
+def _rotate_axis(axis: list[float], deg: float) -> list[list[float]]:
+    x, y, z = axis
+    c, s = math.cos(math.radians(deg)), math.sin(math.radians(deg))
+    C = 1.0 - c
+    return [[c + x * x * C, x * y * C - z * s, x * z * C + y * s, 0.0],
+            [y * x * C + z * s, c + y * y * C, y * z * C - x * s, 0.0],
+            [z * x * C - y * s, z * y * C + x * s, c + z * z * C, 0.0], [0.0, 0.0, 0.0, 1.0]]
+
+
+def _unit(v: list[float]) -> list[float]:
+    n = math.sqrt(sum(a * a for a in v))
+    return [a / n for a in v]
+
+
+def _cross(a: list[float], b: list[float]) -> list[float]:
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+
+
+def _default_up(d: list[float]) -> list[float]:
+    """Mitsuba's ``coordinate_system(d).first``: the up vector of a ``<lookat>`` without ``up``."""
+    sign = 1.0 if d[2] >= 0 else -1.0
+    a = -1.0 / (sign + d[2])
+    return [1.0 + sign * d[0] * d[0] * a, sign * d[0] * d[1] * a, -sign * d[0]]
+
+
+class _Conv:
+    def __init__(self, filename: str):
+        self.f, self.lines, self.named = filename, {}, {}
+
+    def err(self, node: _Node, msg: str) -> SceneError:
+        return SceneError(f"{self.f}:{node.line}: {msg}")
+
+    def at(self, path: tuple, node: _Node | None) -> None:
+        if node is not None:
+            self.lines[path] = node.line
+
+    def locate(self, path: tuple) -> str:
+        for n in range(len(path), -1, -1):
+            if path[:n] in self.lines:
+                return f"{self.f}:{self.lines[path[:n]]}"
+        return f"{self.f}:1"
+
+    # ------------------------------------------------------------ values
+    def split(self, node: _Node, allowed: set, objs: tuple = (), ignore: set = frozenset()) -> tuple[dict, list]:
+        props: dict[str, _Node] = {}
+        kids: list[_Node] = []
+        what = f"<{node.tag} type={node.get('type')!r}>"
+        for k in node.kids:
+            if k.tag in _PROPS:
+                name = k.get("name")
+                if name in ignore:
+                    continue
+                if name not in allowed:
+                    raise self.err(k, f"{what}: unsupported property {name!r} "
+                                      f"(supported: {', '.join(sorted(allowed)) or 'none'})")
+                if name in props:
+                    raise self.err(k, f"{what}: duplicate property {name!r}")
+                props[name] = k
+            elif k.tag in objs:
+                kids.append(k)
+            else:
+                raise self.err(k, f"{what}: element <{k.tag}> is not supported here")
+        return props, kids
+
+    def nums(self, node: _Node, key: str = "value", counts: tuple = (1,)) -> list[float]:
+        raw = node.get(key)
+        if raw is None:
+            raise self.err(node, f"<{node.tag} name={node.get('name')!r}>: missing attribute {key!r}")
+        try:
+            vals = [float(v) for v in _SEP.split(raw.strip()) if v]
+        except ValueError:
+            raise self.err(node, f"<{node.tag} name={node.get('name')!r}>: {key}: not a number: {raw!r}") from None
+        if len(vals) not in counts:
+            raise self.err(node, f"<{node.tag}>: {key}: expected {' or '.join(map(str, counts))} numbers, "
+                                 f"got {raw!r}")
+        return vals
+
+    def xyz(self, node: _Node, default: float, key: str = "value") -> list[float]:
+        if key in node.attrs:
+            v = self.nums(node, key, (1, 3) if key == "value" else (3,))
+            return v * 3 if len(v) == 1 else v
+        return [self.nums(node, c)[0] if c in node.attrs else default for c in "xyz"]
+
+    def scalar(self, props: dict, name: str, default: Any, path: tuple = (), integer: bool = False) -> Any:
+        node = props.get(name)
+        if node is None:
+            return default
+        self.at(path, node)
+        if integer:
+            try:
+                return int(node.get("value", ""))
+            except ValueError:
+                raise self.err(node, f"{name}: expected an integer, got {node.get('value')!r}") from None
+        return self.nums(node)[0]
+
+    def text(self, props: dict, name: str, default: str) -> str:
+        return props[name].get("value", "") if name in props else default
+
+    def flag(self, props: dict, name: str) -> bool:
+        v = self.text(props, name, "false").lower()
+        if v not in ("true", "false"):
+            raise self.err(props[name], f"{name}: expected true or false, got {v!r}")
+        return v == "true"
+
+    def color(self, props: dict, name: str, default: float, path: tuple) -> list[float]:
+        node = props.get(name)
+        if node is None:
+            return [default] * 3
+        self.at(path, node)
+        if node.tag not in ("rgb", "float", "spectrum"):
+            raise self.err(node, f"{name}: expected rgb, float or a constant spectrum, got <{node.tag}>")
+        v = self.nums(node, counts=(1, 3) if node.tag == "rgb" else (1,))
+        return v * 3 if len(v) == 1 else v
+
+    def transform(self, t: _Node) -> list[list[float]]:
+        m = identity4()
+        for op in t.kids:
+            if op.tag == "translate":
+                step = translate4(self.xyz(op, 0.0))
+            elif op.tag == "scale":
+                step = scale4(self.xyz(op, 1.0))
+            elif op.tag == "rotate":
+                axis = self.xyz(op, 0.0)
+                if abs(math.sqrt(sum(a * a for a in axis)) - 1.0) > 1e-6:
+                    raise self.err(op, f"rotate: the axis (x, y, z) must have unit length (Mitsuba does not "
+                                       f"normalise it), got {axis}")
+                step = _rotate_axis(axis, self.nums(op, "angle")[0])
+            elif op.tag == "matrix":
+                v = self.nums(op, counts=(16, 9))
+                step = ([v[4 * i: 4 * i + 4] for i in range(4)] if len(v) == 16 else
+                        [v[3 * i: 3 * i + 3] + [0.0] for i in range(3)] + [[0.0, 0.0, 0.0, 1.0]])
+            elif op.tag == "lookat":
+                eye, target, up = self.lookat(op)
+                d = _unit([b - a for a, b in zip(eye, target)])
+                left = _unit(_cross(up, d))
+                nu = _cross(d, left)
+                step = [[left[i], nu[i], d[i], eye[i]] for i in range(3)] + [[0.0, 0.0, 0.0, 1.0]]
+            else:
+                raise self.err(op, f"transform {t.get('name')!r}: unknown operation <{op.tag}>")
+            m = matmul4(step, m)           # Mitsuba applies the operations in document order
+        return m
+
+    def lookat(self, op: _Node) -> tuple[list[float], list[float], list[float]]:
+        eye, target = self.xyz(op, 0.0, "origin"), self.xyz(op, 0.0, "target")
+        if eye == target:
+            raise self.err(op, "lookat: target must differ from origin")
+        up = self.xyz(op, 0.0, "up") if "up" in op.attrs else [0.0, 0.0, 0.0]
+        if not any(up):
+            up = _default_up(_unit([b - a for a, b in zip(eye, target)]))
+        return eye, target, up
+
+    # ------------------------------------------------------------ objects
+    def sensor(self, node: _Node) -> dict:
+        if node.get("type") != "perspective":
+            raise self.err(node, f"camera: unsupported sensor type {node.get('type')!r} (only 'perspective')")
+        props, kids = self.split(node, {"fov", "fov_axis", "focal_length", "near_clip", "far_clip", "to_world"},
+                                 ("film", "sampler"), {"shutter_open", "shutter_close"})
+        self.at(("camera",), node)
+        eye, target, up = [0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]
+        if "to_world" in props:
+            t = props["to_world"]
+            bad = [op for op in t.kids if op.tag != "lookat"] + t.kids[1:]
+            if bad or not t.kids:
+                raise self.err(bad[0] if bad else t, "camera: sensor to_world: only a single <lookat> is supported "
+                                                     "for sensors")
+            eye, target, up = self.lookat(t.kids[0])
+            for k in ("eye", "target", "up"):
+                self.at(("camera", k), t.kids[0])
+        width, height = 768, 576
+        for film in (k for k in kids if k.tag == "film"):
+            fp, _ = self.split(film, {"width", "height"}, ("rfilter",),
+                               {"pixel_format", "component_format", "file_format", "sample_border", "compensate"})
+            width = self.scalar(fp, "width", width, ("camera", "width"), integer=True)
+            height = self.scalar(fp, "height", height, ("camera", "height"), integer=True)
+        aspect = width / height if width > 0 and height > 0 else 1.0
+        if "fov" in props:
+            fov = self.scalar(props, "fov", 0.0, ("camera", "fovy"))
+            axis = self.text(props, "fov_axis", "x").lower()
+            axis = {"smaller": "y" if aspect > 1 else "x", "larger": "x" if aspect > 1 else "y"}.get(axis, axis)
+        else:
+            f = self.text(props, "focal_length", "50mm").removesuffix("mm")
+            try:
+                fov, axis = math.degrees(2 * math.atan(math.hypot(36, 24) / (2 * float(f)))), "diagonal"
+            except (ValueError, ZeroDivisionError):
+                raise self.err(props["focal_length"], f"focal_length: expected '<x>mm', got {f!r}") from None
+        h = math.tan(math.radians(fov) / 2)
+        if axis == "x":
+            h /= aspect
+        elif axis == "diagonal":
+            h /= math.sqrt(1 + aspect * aspect)
+        elif axis != "y":
+            raise self.err(props["fov_axis"], f"camera.fov_axis: expected x, y, diagonal, smaller or larger, "
+                                              f"got {axis!r}")
+        return {"eye": eye, "target": target, "up": up, "fovy": math.degrees(2 * math.atan(h)), "width": width,
+                "height": height, "near": self.scalar(props, "near_clip", 0.01, ("camera", "near")),
+                "far": self.scalar(props, "far_clip", 10000.0, ("camera", "far"))}
+
+    def bsdf(self, node: _Node, path: tuple) -> dict:
+        if node.tag == "ref":
+            if node.get("id") not in self.named:
+                raise self.err(node, f"{_path_str(path)}: reference to unknown bsdf id {node.get('id')!r}")
+            node = self.named[node.get("id")]
+        kind = node.get("type")
+        self.at(path, node)
+        if kind == "twosided":
+            _, kids = self.split(node, set(), ("bsdf", "ref"))
+            if len(kids) != 1:
+                raise self.err(node, f"{_path_str(path)}: twosided must wrap exactly one bsdf")
+            return self.bsdf(kids[0], path)
+        a = path + ("albedo",)
+        if kind == "diffuse":
+            props, _ = self.split(node, {"reflectance"})
+            return {"albedo": self.color(props, "reflectance", 0.5, a), "roughness": 1.0, "metallic": 0.0}
+        if kind in ("conductor", "roughconductor"):
+            props, _ = self.split(node, {"specular_reflectance", "material", "eta", "k"}
+                                  | ({"alpha", "distribution", "sample_visible"} if kind == "roughconductor" else set()))
+            alpha = self.scalar(props, "alpha", 0.1 if kind == "roughconductor" else 0.0, path + ("roughness",))
+            return {"albedo": self.color(props, "specular_reflectance", 0.9, a),
+                    "roughness": math.sqrt(alpha) if alpha > 0 else alpha, "metallic": 1.0}
+        if kind == "principled":
+            props, _ = self.split(node, {"base_color", "roughness", "metallic"})
+            return {"albedo": self.color(props, "base_color", 0.5, a),
+                    "roughness": self.scalar(props, "roughness", 0.5, path + ("roughness",)),
+                    "metallic": self.scalar(props, "metallic", 0.0, path + ("metallic",))}
+        raise self.err(node, f"{_path_str(path)}: unknown bsdf type {kind!r} "
+                             f"(supported: diffuse, twosided, conductor, roughconductor, principled)")
+
+    def shape(self, node: _Node, k: int) -> dict:
+        kind, path = node.get("type"), ("shapes", k)
+        if kind not in _SHAPES:
+            raise self.err(node, f"{_path_str(path + ('type',))}: unknown object type {kind!r} "
+                                 f"(supported: {', '.join(_SHAPES)})")
+        props, kids = self.split(node, _SHAPES[kind] | {"to_world", "flip_normals"}, ("bsdf", "ref", "emitter"))
+        self.at(path, node)
+        if self.flag(props, "flip_normals"):
+            raise self.err(props["flip_normals"], f"{_path_str(path)}: flip_normals is not supported")
+        tw = props.get("to_world")
+        m = self.transform(tw) if tw is not None else identity4()
+        try:
+            t, r, s = decompose(m)
+        except ValueError as e:
+            raise self.err(tw or node, f"{_path_str(path)}.to_world: {e}") from None
+        for key in ("translate", "rotate", "scale", "size"):
+            self.at(path + (key,), tw)
+        d: dict[str, Any] = {"type": kind, "id": node.get("id", f"{kind}_{k}")}
+        one = lambda v: all(abs(x - 1.0) < 1e-12 for x in v)        # noqa: E731
+        if kind == "sphere":
+            if max(s) - min(s) > 1e-9 * max(s):
+                raise self.err(tw, f"{_path_str(path)}.to_world: spheres take only uniform scales, got {s}")
+            c = self.xyz(props["center"], 0.0) if "center" in props else [0.0, 0.0, 0.0]
+            self.at(path + ("center",), props.get("center", tw))
+            d["center"] = [_clean(sum(m[i][j] * c[j] for j in range(3)) + m[i][3]) for i in range(3)]
+            d["radius"] = self.scalar(props, "radius", 1.0, path + ("radius",)) * s[0]
+        elif kind in ("cube", "rectangle", "disk"):
+            d.update(type={"cube": "box"}.get(kind, kind), translate=t, rotate=r)
+            if kind == "cube":
+                d["size"] = [2 * v for v in s]
+            elif kind == "rectangle":
+                d["size"], rest = [2 * s[0], 2 * s[1]], [1.0, 1.0, s[2]]
+            else:
+                d["radius"], rest = s[0], [1.0, _clean(s[1] / s[0]), s[2]]
+            if kind != "cube" and not one(rest):
+                d["scale"] = rest
+        else:
+            d.update(translate=t, rotate=r)
+            if not one(s):
+                d["scale"] = s
+            if kind == "cylinder":
+                for key, default in (("p0", [0.0, 0.0, 0.0]), ("p1", [0.0, 0.0, 1.0])):
+                    d[key] = self.xyz(props[key], 0.0) if key in props else default
+                    self.at(path + (key,), props.get(key))
+                d.update(radius=self.scalar(props, "radius", 1.0, path + ("radius",)), caps=False)
+            else:
+                if "filename" not in props:
+                    raise self.err(node, f"{_path_str(path)}.filename: missing required property")
+                self.at(path + ("file",), props["filename"])
+                d.update(type="mesh", file=self.text(props, "filename", ""),
+                         face_normals=self.flag(props, "face_normals"))
+        mats = [c for c in kids if c.tag in ("bsdf", "ref")]
+        if len(mats) > 1:
+            raise self.err(mats[1], f"{_path_str(path)}: a shape takes at most one bsdf")
+        d["material"] = (self.bsdf(mats[0], path + ("material",)) if mats else
+                         {"albedo": [0.5] * 3, "roughness": 1.0, "metallic": 0.0})   # Mitsuba's default bsdf
+        bad = [c for c in kids if c.tag == "emitter" and c.get("type") != "area"]
+        if bad:
+            raise self.err(bad[0], f"{_path_str(path)}: only area emitters may be nested in a shape")
+        return d
+
+    def emitter(self, node: _Node, j: int) -> dict:
+        kind, path = node.get("type"), ("lights", j)
+        self.at(path, node)
+        if kind == "point":
+            props, _ = self.split(node, {"position", "intensity", "to_world"})
+            pos = (self.xyz(props["position"], 0.0) if "position" in props else
+                   [row[3] for row in self.transform(props["to_world"])] if "to_world" in props else [0.0] * 3)
+            self.at(path + ("position",), props.get("position", props.get("to_world")))
+            return {"type": "point", "position": pos, "intensity": self.color(props, "intensity", 1.0,
+                                                                               path + ("intensity",))}
+        if kind == "constant":
+            props, _ = self.split(node, {"radiance"})
+            return {"type": "environment", "radiance": self.color(props, "radiance", 1.0, path + ("radiance",))}
+        if kind == "directional":
+            props, _ = self.split(node, {"direction", "irradiance", "to_world"})
+            self.at(path + ("direction",), props.get("direction", props.get("to_world")))
+            dv = (self.xyz(props["direction"], 0.0) if "direction" in props else
+                  [row[2] for row in self.transform(props["to_world"])[:3]] if "to_world" in props else [0, 0, 1.0])
+            return {"type": "directional", "direction": dv,
+                    "irradiance": self.color(props, "irradiance", 1.0, path + ("irradiance",))}
+        raise self.err(node, f"{_path_str(path + ('type',))}: unsupported emitter type {kind!r} (supported: "
+                             f"point, constant, directional; area emitters only inside shapes)")
+
+    def scene(self, root: _Node) -> dict:
+        if root.tag != "scene":
+            raise self.err(root, f"the root element must be <scene version=...>, got <{root.tag}>")
+        self.at((), root)
+        version = root.get("version", "")
+        if not re.fullmatch(r"\d+\.\d+\.\d+", version) or int(version.split(".")[0]) < 2:
+            raise self.err(root, f"scene version: expected 'x.y.z' with x >= 2 (Mitsuba 2/3), got {version!r}")
+        params = {k.get("name"): k.get("value", "") for k in root.kids if k.tag == "default"}
+        self.substitute(root, params)
+        self.named = {k.get("id"): k for k in root.kids if k.tag == "bsdf" and k.get("id")}
+        data: dict[str, Any] = {"description": "converted from Mitsuba XML", "shapes": [], "lights": [],
+                                "render": {"max_depth": _UNLIMITED_DEPTH}}   # Mitsuba's default: path, -1
+        for k in root.kids:
+            if k.tag == "sensor":
+                if "camera" not in data:           # Mitsuba renders with the first sensor
+                    data["camera"] = self.sensor(k)
+            elif k.tag == "shape":
+                data["shapes"].append(self.shape(k, len(data["shapes"])))
+            elif k.tag == "emitter":
+                data["lights"].append(self.emitter(k, len(data["lights"])))
+            elif k.tag == "integrator" and k.get("type") == "path":
+                props, _ = self.split(k, {"max_depth"}, ignore={"rr_depth", "hide_emitters"})
+                depth = self.scalar(props, "max_depth", -1, ("render", "max_depth"), integer=True)
+                data["render"] = {"max_depth": _UNLIMITED_DEPTH if depth == -1 else depth}
+            elif k.tag not in _IGNORED_TOP and k.tag != "integrator":
+                raise self.err(k, f"unsupported top-level element <{k.tag}>")
+        if "camera" not in data:
+            raise self.err(root, "camera: the scene has no <sensor>")
+        return data
+
+    def substitute(self, node: _Node, params: dict) -> None:
+        for key, v in node.attrs.items():
+            if "$" in v and node.tag != "default":
+                for name in sorted(params, key=len, reverse=True):
+                    v = v.replace("$" + name, params[name])
+                if "$" in v:
+                    raise self.err(node, f"undefined parameter in {key}={v!r} (declare it with <default>)")
+                node.attrs[key] = v
+        for kid in node.kids:
+            self.substitute(kid, params)
+
+
+def parse_mitsuba_xml(text: str, filename: str = "<xml>", base_dir: str | None = None) -> Scene:
+    """Parse Mitsuba 3 scene XML (the subset in the module docstring). Errors name ``filename:line``."""
+    conv = _Conv(filename)
+    data = conv.scene(_tree(text, filename))
+    return scene_from_dict(data, conv.locate, filename, base_dir)

@@ -2,8 +2,9 @@
 
 Rays come from the scene's own Mitsuba sensor (``sensor.sample_ray`` at film position ``((i + ½)/W,
 (j + ½)/H)``), so they start on the near plane and end at the far plane exactly like a GL rasteriser's
-frustum. Positions are read from ``si.p`` (never ``si.t``, which starts at the near plane) and mapped to GL view
-space by :meth:`Camera.view_matrix`.
+frustum. A hit's position is the point on *that* ray, ``ray.o + si.t · ray.d`` in float64 (``si.t`` is
+measured from the near-plane origin, never used as an eye distance; ``si.p`` is rebuilt from shape-local
+coordinates and can stray ~1e-6 relative off the ray), mapped to GL view space by :meth:`Camera.view_matrix`.
 
 Only the requested channels are evaluated; Dr.Jit is lazy, so unrequested expressions cost nothing, and the
 back-face search (``back_z``, up to :data:`EXIT_SEARCH` extra traces) runs only when asked for.

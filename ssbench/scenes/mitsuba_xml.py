@@ -3,7 +3,8 @@
 The file is parsed with ``xml.parsers.expat``; DOCTYPE/ENTITY declarations and ``<include>`` are refused, so no
 external entity is resolved and no entity expansion happens. Every error reads ``file:line: what is wrong``.
 
-Supported subset (anything else is an error naming ``file:line``):
+Supported subset (anything else, unknown properties included, is an error naming ``file:line``, so nothing that
+changes the picture is silently dropped):
 
 * ``<scene version="x.y.z">`` root (version >= 2), ``<default name=.. value=..>`` and ``$name`` substitution.
 * The first ``perspective`` sensor: ``fov`` + ``fov_axis`` (``x`` is Mitsuba's default; ``y``, ``diagonal``,
@@ -11,15 +12,16 @@ Supported subset (anything else is an error naming ``file:line``):
   ``near_clip`` (0.01), ``far_clip`` (10000); ``to_world`` must be one ``<lookat>``; film ``width``/``height``
   (768×576).
 * Shapes ``sphere``, ``cube`` (→ box, [-1, 1]³), ``rectangle`` and ``disk`` (unit, xy plane), ``cylinder``
-  (open: ``caps: false``), ``obj``/``ply`` (→ mesh). ``to_world`` chains translate / rotate / scale / matrix /
-  lookat; the product must be ``T · R · S`` with positive scales (no shear, no mirroring). Area emitters on
-  shapes are ignored.
+  (open: ``caps: false``), ``obj``/``ply`` (→ mesh). ``to_world`` chains translate / rotate (unit axis: Mitsuba
+  does not normalise it) / scale / matrix / lookat; the product must be ``T · R · S`` with positive scales (no
+  shear, no mirroring) and is stored as translate / Euler rotate / scale. Area emitters on shapes are ignored.
 * BSDFs, inline or ``<ref id>`` to a top-level ``<bsdf id>``: ``diffuse``, ``twosided`` (unwrapped),
   ``conductor`` (albedo 0.9 or ``specular_reflectance``), ``roughconductor`` (roughness = sqrt(alpha): our
   roughness r means GGX alpha r², as in Mitsuba's ``principled``), ``principled`` (base_color, roughness,
   metallic). Colours are ``rgb``, ``float`` or a constant ``spectrum``; textures are not supported.
 * Emitters ``point``, ``constant`` (→ environment), ``directional``; ``<integrator type="path">``
-  ``max_depth`` (−1, unlimited and Mitsuba's default, → 64). Other integrators and samplers are ignored.
+  ``max_depth`` (−1, unlimited, is Mitsuba's default and also applies without an integrator: → 64). Other
+  integrators, samplers and filters are ignored.
 """
 from __future__ import annotations
 
@@ -174,8 +176,11 @@ class _Conv:
             raise self.err(node, f"<{node.tag} name={node.get('name')!r}>: missing attribute {key!r}")
         try:
             vals = [float(v) for v in _SEP.split(raw.strip()) if v]
+            if not all(map(math.isfinite, vals)):
+                raise ValueError
         except ValueError:
-            raise self.err(node, f"<{node.tag} name={node.get('name')!r}>: {key}: not a number: {raw!r}") from None
+            raise self.err(node, f"<{node.tag} name={node.get('name')!r}>: {key}: expected finite numbers, "
+                                 f"got {raw!r}") from None
         if len(vals) not in counts:
             raise self.err(node, f"<{node.tag}>: {key}: expected {' or '.join(map(str, counts))} numbers, "
                                  f"got {raw!r}")
@@ -239,8 +244,7 @@ class _Conv:
                 eye, target, up = self.lookat(op)
                 d = _unit([b - a for a, b in zip(eye, target)])
                 left = _unit(_cross(up, d))
-                nu = _cross(d, left)
-                step = [[left[i], nu[i], d[i], eye[i]] for i in range(3)] + [[0.0, 0.0, 0.0, 1.0]]
+                step = [[v[i] for v in (left, _cross(d, left), d, eye)] for i in range(3)] + [[0.0, 0.0, 0.0, 1.0]]
             else:
                 raise self.err(op, f"transform {t.get('name')!r}: unknown operation <{op.tag}>")
             m = matmul4(step, m)           # Mitsuba applies the operations in document order
@@ -251,8 +255,11 @@ class _Conv:
         if eye == target:
             raise self.err(op, "lookat: target must differ from origin")
         up = self.xyz(op, 0.0, "up") if "up" in op.attrs else [0.0, 0.0, 0.0]
+        d = _unit([b - a for a, b in zip(eye, target)])
         if not any(up):
-            up = _default_up(_unit([b - a for a, b in zip(eye, target)]))
+            up = _default_up(d)
+        if math.sqrt(sum(v * v for v in _cross(up, d))) < 1e-9 * math.sqrt(sum(v * v for v in up)):
+            raise self.err(op, f"lookat: up {up} must not be parallel to target - origin")
         return eye, target, up
 
     # ------------------------------------------------------------ objects
@@ -318,8 +325,8 @@ class _Conv:
             props, _ = self.split(node, {"reflectance"})
             return {"albedo": self.color(props, "reflectance", 0.5, a), "roughness": 1.0, "metallic": 0.0}
         if kind in ("conductor", "roughconductor"):
-            props, _ = self.split(node, {"specular_reflectance", "material", "eta", "k"}
-                                  | ({"alpha", "distribution", "sample_visible"} if kind == "roughconductor" else set()))
+            rough = {"alpha", "distribution", "sample_visible"} if kind == "roughconductor" else set()
+            props, _ = self.split(node, {"specular_reflectance", "material", "eta", "k"} | rough)
             alpha = self.scalar(props, "alpha", 0.1 if kind == "roughconductor" else 0.0, path + ("roughness",))
             return {"albedo": self.color(props, "specular_reflectance", 0.9, a),
                     "roughness": math.sqrt(alpha) if alpha > 0 else alpha, "metallic": 1.0}
@@ -422,7 +429,11 @@ class _Conv:
         version = root.get("version", "")
         if not re.fullmatch(r"\d+\.\d+\.\d+", version) or int(version.split(".")[0]) < 2:
             raise self.err(root, f"scene version: expected 'x.y.z' with x >= 2 (Mitsuba 2/3), got {version!r}")
-        params = {k.get("name"): k.get("value", "") for k in root.kids if k.tag == "default"}
+        params = {}
+        for k in (k for k in root.kids if k.tag == "default"):
+            if not re.fullmatch(r"\w+", k.get("name", "")) or "value" not in k.attrs or k.kids:
+                raise self.err(k, "<default> takes a name (letters, digits, _) and a value, and no children")
+            params[k.get("name")] = k.get("value")
         self.substitute(root, params)
         self.named = {k.get("id"): k for k in root.kids if k.tag == "bsdf" and k.get("id")}
         data: dict[str, Any] = {"description": "converted from Mitsuba XML", "shapes": [], "lights": [],

@@ -132,6 +132,7 @@ def _camera(c: _Ctx, v: Any) -> Camera:
         return Camera.from_look_at(eye, target, up, fovy, width, height, near, far)
     except ValueError as e:
         field = str(e).split(":", 1)[0]
+        field = {"fovy_deg": "fovy"}.get(field, field)      # Camera's field name -> the scene file's key
         raise c.fail(path + (field,), str(e).split(":", 1)[-1].strip()) from None
 
 

@@ -3,6 +3,7 @@ import json
 import math
 import os
 import random
+import re
 import subprocess
 import sys
 
@@ -162,7 +163,8 @@ def test_realistic_scene(tmp_path):
 def test_fov_axis_converts_to_vertical_fov(tmp_path, axis, w, h, tan_half_y):
     text = SCENE.replace('<float name="fov" value="60"/>',
                          f'<float name="fov" value="50"/><string name="fov_axis" value="{axis}"/>')
-    text = text.replace('value="$res"', f'value="{w}"').replace('name="height" value="240"', f'name="height" value="{h}"')
+    text = text.replace('value="$res"', f'value="{w}"')
+    text = text.replace('name="height" value="240"', f'name="height" value="{h}"')
     cam = load(write(tmp_path, text)).camera
     expected = math.degrees(2 * math.atan(tan_half_y(math.tan(math.radians(25)), w, h)))
     assert cam.fovy_deg == pytest.approx(expected, abs=1e-12)
@@ -218,7 +220,8 @@ render: {max_depth: 4}
 
 def test_decompose_round_trips():
     rng = random.Random(7)
-    cases = [((0, 0, 0), (0, 0, 0), (1, 1, 1)), ((1, 2, 3), (0, 90, 0), (1, 2, 3)), ((0, 0, 0), (30, -90, 45), (2, 2, 2)),
+    cases = [((0, 0, 0), (0, 0, 0), (1, 1, 1)), ((1, 2, 3), (0, 90, 0), (1, 2, 3)),
+             ((0, 0, 0), (30, -90, 45), (2, 2, 2)),
              ((-1, 0, 5), (180, 0, 0), (0.5, 1, 1)), ((0, 0, 0), (-90, 0, 0), (10, 5, 1))]
     for _ in range(200):
         cases.append(([rng.uniform(-10, 10) for _ in range(3)],
@@ -231,6 +234,12 @@ def test_decompose_round_trips():
         assert close(t2, t) and close(s2, s, 1e-9 * max(s))
         if abs(r[1]) < 89:                      # away from gimbal lock the angles themselves come back
             assert close(r2, r, 1e-7), (r, r2)
+    # exact gimbal lock (cos y == 0 exactly, as a typed matrix has): x and z rotations share one axis
+    for r in ((30, 90, 45), (-120, -90, 10), (170, 90, -100)):
+        m = [[0.0 if abs(v) < 1e-15 else v for v in row] for row in rotate4(r)]
+        assert m[2][1] == m[2][2] == m[0][0] == m[1][0] == 0.0
+        t2, r2, s2 = decompose(m)
+        assert mat_close(rotate4(r2), m) and close(s2, (1, 1, 1)) and close(t2, (0, 0, 0)), (r, r2)
 
 
 @pytest.mark.parametrize("matrix,what", [
@@ -258,13 +267,18 @@ def _err(tmp_path, text) -> str:
 
 
 @pytest.mark.parametrize("old,new,needle,words", [
-    ('<shape type="cylinder">', '<shape type="teapot">', 'type="teapot"', ["unknown object type", "teapot", "shapes[4].type"]),
-    ('<bsdf type="conductor"/>', '<bsdf type="plastic"/>', 'type="plastic"', ["unknown bsdf type", "plastic", "shapes[3].material"]),
-    ('<float name="radius" value="1"/>', '<float name="radius" value="-1"/>', 'value="-1"', ["shapes[0].radius", "> 0"]),
-    ('<float name="radius" value="1"/>', '<float name="radiu" value="1"/>', 'name="radiu"', ["radiu", "unsupported property"]),
+    ('<shape type="cylinder">', '<shape type="teapot">', 'type="teapot"',
+     ["unknown object type", "teapot", "shapes[4].type"]),
+    ('<bsdf type="conductor"/>', '<bsdf type="plastic"/>', 'type="plastic"',
+     ["unknown bsdf type", "plastic", "shapes[3].material"]),
+    ('<float name="radius" value="1"/>', '<float name="radius" value="-1"/>', 'value="-1"',
+     ["shapes[0].radius", "> 0"]),
+    ('<float name="radius" value="1"/>', '<float name="radiu" value="1"/>', 'name="radiu"',
+     ["radiu", "unsupported property"]),
     ('value="0.8, 0.1, 0.1"', 'value="1.8, 0.1, 0.1"', "1.8, 0.1", ["shapes[0].material.albedo", "[0, 1]"]),
     ('<integer name="width" value="$res"/>', '<integer name="width" value="0"/>', 'name="width"', ["camera.width"]),
-    ('<float name="far_clip" value="200"/>', '<float name="far_clip" value="0.01"/>', 'far_clip', ["camera.far", "near"]),
+    ('<float name="far_clip" value="200"/>', '<float name="far_clip" value="0.01"/>', 'far_clip',
+     ["camera.far", "near"]),
     ('<lookat origin', '<translate x="1"/><lookat origin', '<translate x="1"/>', ["lookat", "sensor"]),
     ('<float name="fov" value="60"/>', '<float name="fov" value="60"/><string name="fov_axis" value="z"/>',
      'fov_axis', ["fov_axis", "'z'"]),
@@ -274,15 +288,46 @@ def _err(tmp_path, text) -> str:
     ('<bsdf type="twosided" id="red">', '<include filename="other.xml"/><bsdf type="twosided" id="red">',
      "<include", ["include"]),
     ('<ref id="red"/>', '<ref id="blue"/>', 'id="blue"', ["blue", "shapes[0].material"]),
+    ('up="0, 1, 0"', 'up="0, -1.4, -6"', "<lookat", ["lookat", "parallel"]),
+    ('<default name="spp" value="16"/>', '<default value="16"/>', '<default value', ["<default>", "name"]),
+    ('<float name="alpha" value="0.04"/>', '<float name="alpha" value="nan"/>', '"nan"', ["finite", "nan"]),
     ('</shape>\n    <shape type="cube"', '</shap>\n    <shape type="cube"', "</shap>", ["malformed XML", "mismatched"]),
 ])
 def test_errors_name_file_line_and_field(tmp_path, old, new, needle, words):
-    assert SCENE.count(old) == 1 or old.startswith("<float name=\"radius\"")
+    assert SCENE.count(old) == 1
     text = SCENE.replace(old, new, 1)
     msg = _err(tmp_path, text)
     assert msg.startswith(f"{tmp_path / 'scene.xml'}:{line_of(text, needle)}:"), msg
     for w in words:
         assert w in msg, (w, msg)
+
+
+def test_mutated_files_raise_only_scene_errors_with_file_line():
+    """Random attribute and tag mutations: every failure is a SceneError naming file:line, never a crash."""
+    rng = random.Random(1234)
+    values = ["0", "-1", "1e400", "nan", "", "a", "1 2", "1,2,3,4", "$x", "0 0 0", "y", "diagonal", "maybe",
+              "sphere", "ref", "twosided", "-90", "1e-12"]
+    tags = ["shape", "bsdf", "ref", "transform", "lookat", "float", "rgb", "point", "sensor", "film", "emitter",
+            "matrix", "scale", "integer", "spectrum", "texture", "default", "include"]
+    attr, failures = re.compile(r'"[^"]*"'), 0
+    for _ in range(400):
+        text = SCENE
+        for _ in range(rng.randint(1, 3)):
+            m = rng.choice(list(attr.finditer(text)))
+            text = text[:m.start()] + '"' + rng.choice(values) + '"' + text[m.end():]
+        if rng.random() < 0.5:                  # rename an element (and its closing tag)
+            m = rng.choice(list(re.finditer(r"<(\w+)", text)))
+            new, end = rng.choice(tags), text.find(">", m.start())
+            if text[end - 1] != "/":
+                close_at = text.find(f"</{m.group(1)}>", end)
+                text = text[:close_at] + f"</{new}>" + text[close_at + len(m.group(1)) + 3:]
+            text = text[:m.start(1)] + new + text[m.end(1):]
+        try:
+            parse_mitsuba_xml(text, "fuzz.xml", None)
+        except SceneError as e:
+            assert re.match(r"^fuzz\.xml:\d+: ", str(e)), str(e)
+            failures += 1
+    assert failures > 100                       # the mutations do break files
 
 
 def test_missing_sensor_mesh_and_version(tmp_path):
@@ -338,8 +383,10 @@ CROSS_XML = """<scene version="3.0.0">
     <transform name="to_world"><matrix value="0.8 0 0 -0.5  0 0.8 0 0  0 0 0.8 -1  0 0 0 1"/>
     <rotate z="1" angle="15"/></transform></shape>
   <shape type="sphere" id="ball"><point name="center" value="0.5"/><float name="radius" value="0.4"/>
-    <transform name="to_world"><lookat origin="0.5 0.3 1.5" target="1 2 3" up="0 1 0"/><scale value="0.8"/></transform></shape>
-  <shape type="rectangle" id="floor"><transform name="to_world"><rotate x="1" angle="-90"/><scale value="10"/></transform></shape>
+    <transform name="to_world"><lookat origin="0.5 0.3 1.5" target="1 2 3" up="0 1 0"/><scale value="0.8"/>
+    </transform></shape>
+  <shape type="rectangle" id="floor">
+    <transform name="to_world"><rotate x="1" angle="-90"/><scale value="10"/></transform></shape>
   <shape type="cube" id="tilted"><transform name="to_world"><scale x="0.2" y="0.4" z="0.3"/>
     <rotate x="0.28221626051507914" y="0.9407208683835973" z="0.18814417367671946" angle="-130"/>
     <translate value="-1.5, 0.6, -1"/></transform></shape>
@@ -358,7 +405,7 @@ def mi_load(f, arg):          # optimize=False (Mitsuba >= 3.7) keeps meshes wit
         return f(arg, optimize=False)
     except TypeError:
         return f(arg)
-orig, conv = mi_load(mi.load_file, path), mi_load(mi.load_dict, convert.scene_dict(load(path)))
+orig, conv = mi_load(mi.load_file, path), convert.load(load(path))
 fov = lambda s: mi.traverse(s.sensors()[0])["x_fov"]
 out = {"x_fov": [float(fov(s)) if isinstance(fov(s), float) else float(fov(s)[0]) for s in (orig, conv)],
        "rays": 0, "hits": {},

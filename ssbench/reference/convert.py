@@ -12,7 +12,8 @@ from collections import OrderedDict
 from typing import Any
 
 from ..camera import Camera
-from ..scenes.model import Material, Scene, SceneError, Shape, frame_z_to, matmul4, scale4, translate4
+from ..scenes.model import Material, Scene, SceneError, Shape
+from ..scenes.transforms import frame_z_to, matmul4, scale4, translate4
 from ..scenes.schema import cylinder_caps
 from . import backend
 

@@ -30,7 +30,9 @@ import re
 from typing import Any
 from xml.parsers import expat
 
-from .model import Scene, SceneError, identity4, matmul4, scale4, translate4
+from .model import Scene, SceneError
+from .transforms import (clean, cross, decompose, default_up, identity4, matmul4, rotate_axis4, scale4,
+                         translate4, unit)
 from .schema import _path_str, scene_from_dict
 
 _SEP = re.compile(r"[,\s]+")
@@ -75,60 +77,6 @@ def _tree(text: str, filename: str) -> _Node:
     except expat.ExpatError as e:
         raise SceneError(f"{filename}:{e.lineno}: malformed XML: {expat.ErrorString(e.code)}") from None
     return roots[0]
-
-
-def _clean(x: float) -> float:
-    """Round away float noise (12 significant digits, |x| < 1e-12 → 0) so 30° stays 30°."""
-    return 0.0 if abs(x) < 1e-12 else float(f"{x:.12g}")
-
-
-def decompose(m: Any) -> tuple[list[float], list[float], list[float]]:
-    """Split an affine 4×4 ``M = T · R · S`` into translate, Euler degrees (``R = Rz·Ry·Rx``) and positive scale.
-
-    Raises ``ValueError`` for projective, singular, sheared (beyond 1e-5) or mirroring matrices."""
-    if any(abs(m[3][j] - (1.0 if j == 3 else 0.0)) > 1e-12 for j in range(4)):
-        raise ValueError("the last row must be 0 0 0 1 (projective transforms are not supported)")
-    s = [math.sqrt(sum(m[i][j] ** 2 for i in range(3))) for j in range(3)]
-    if min(s) <= 1e-12 * max(s) or max(s) == 0.0:
-        raise ValueError("singular transform (a scale is zero)")
-    r = [[m[i][j] / s[j] for j in range(3)] for i in range(3)]
-    if max(abs(sum(r[k][i] * r[k][j] for k in range(3)) - (i == j)) for i in range(3) for j in range(3)) > 1e-5:
-        raise ValueError("shear is not supported (only translate, rotate and per-axis scale)")
-    det = (r[0][0] * (r[1][1] * r[2][2] - r[1][2] * r[2][1]) - r[0][1] * (r[1][0] * r[2][2] - r[1][2] * r[2][0])
-           + r[0][2] * (r[1][0] * r[2][1] - r[1][1] * r[2][0]))
-    if det < 0:
-        raise ValueError("negative determinant (a mirroring) is not supported")
-    ax = math.atan2(r[2][1], r[2][2])
-    ay = math.atan2(-r[2][0], math.hypot(r[0][0], r[1][0]))
-    sa, ca = math.sin(ax), math.cos(ax)      # az from R · Rx(ax)^T = Rz · Ry: stable at gimbal lock too
-    az = math.atan2(sa * r[0][2] - ca * r[0][1], ca * r[1][1] - sa * r[1][2])
-    return ([_clean(m[i][3]) for i in range(3)], [_clean(math.degrees(a)) for a in (ax, ay, az)],
-            [_clean(v) for v in s])
-
-
-def _rotate_axis(axis: list[float], deg: float) -> list[list[float]]:
-    x, y, z = axis
-    c, s = math.cos(math.radians(deg)), math.sin(math.radians(deg))
-    C = 1.0 - c
-    return [[c + x * x * C, x * y * C - z * s, x * z * C + y * s, 0.0],
-            [y * x * C + z * s, c + y * y * C, y * z * C - x * s, 0.0],
-            [z * x * C - y * s, z * y * C + x * s, c + z * z * C, 0.0], [0.0, 0.0, 0.0, 1.0]]
-
-
-def _unit(v: list[float]) -> list[float]:
-    n = math.sqrt(sum(a * a for a in v))
-    return [a / n for a in v]
-
-
-def _cross(a: list[float], b: list[float]) -> list[float]:
-    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-
-
-def _default_up(d: list[float]) -> list[float]:
-    """Mitsuba's ``coordinate_system(d).first``: the up vector of a ``<lookat>`` without ``up``."""
-    sign = 1.0 if d[2] >= 0 else -1.0
-    a = -1.0 / (sign + d[2])
-    return [1.0 + sign * d[0] * d[0] * a, sign * d[0] * d[1] * a, -sign * d[0]]
 
 
 class _Conv:
@@ -235,16 +183,16 @@ class _Conv:
                 if abs(math.sqrt(sum(a * a for a in axis)) - 1.0) > 1e-6:
                     raise self.err(op, f"rotate: the axis (x, y, z) must have unit length (Mitsuba does not "
                                        f"normalise it), got {axis}")
-                step = _rotate_axis(axis, self.nums(op, "angle")[0])
+                step = rotate_axis4(axis, self.nums(op, "angle")[0])
             elif op.tag == "matrix":
                 v = self.nums(op, counts=(16, 9))
                 step = ([v[4 * i: 4 * i + 4] for i in range(4)] if len(v) == 16 else
                         [v[3 * i: 3 * i + 3] + [0.0] for i in range(3)] + [[0.0, 0.0, 0.0, 1.0]])
             elif op.tag == "lookat":
                 eye, target, up = self.lookat(op)
-                d = _unit([b - a for a, b in zip(eye, target)])
-                left = _unit(_cross(up, d))
-                step = [[v[i] for v in (left, _cross(d, left), d, eye)] for i in range(3)] + [[0.0, 0.0, 0.0, 1.0]]
+                d = unit([b - a for a, b in zip(eye, target)])
+                left = unit(cross(up, d))
+                step = [[v[i] for v in (left, cross(d, left), d, eye)] for i in range(3)] + [[0.0, 0.0, 0.0, 1.0]]
             else:
                 raise self.err(op, f"transform {t.get('name')!r}: unknown operation <{op.tag}>")
             m = matmul4(step, m)           # Mitsuba applies the operations in document order
@@ -255,10 +203,10 @@ class _Conv:
         if eye == target:
             raise self.err(op, "lookat: target must differ from origin")
         up = self.xyz(op, 0.0, "up") if "up" in op.attrs else [0.0, 0.0, 0.0]
-        d = _unit([b - a for a, b in zip(eye, target)])
+        d = unit([b - a for a, b in zip(eye, target)])
         if not any(up):
-            up = _default_up(d)
-        if math.sqrt(sum(v * v for v in _cross(up, d))) < 1e-9 * math.sqrt(sum(v * v for v in up)):
+            up = default_up(d)
+        if math.sqrt(sum(v * v for v in cross(up, d))) < 1e-9 * math.sqrt(sum(v * v for v in up)):
             raise self.err(op, f"lookat: up {up} must not be parallel to target - origin")
         return eye, target, up
 
@@ -362,7 +310,7 @@ class _Conv:
                 raise self.err(tw, f"{_path_str(path)}.to_world: spheres take only uniform scales, got {s}")
             c = self.xyz(props["center"], 0.0) if "center" in props else [0.0, 0.0, 0.0]
             self.at(path + ("center",), props.get("center", tw))
-            d["center"] = [_clean(sum(m[i][j] * c[j] for j in range(3)) + m[i][3]) for i in range(3)]
+            d["center"] = [clean(sum(m[i][j] * c[j] for j in range(3)) + m[i][3]) for i in range(3)]
             d["radius"] = self.scalar(props, "radius", 1.0, path + ("radius",)) * s[0]
         elif kind in ("cube", "rectangle", "disk"):
             d.update(type={"cube": "box"}.get(kind, kind), translate=t, rotate=r)
@@ -371,7 +319,7 @@ class _Conv:
             elif kind == "rectangle":
                 d["size"], rest = [2 * s[0], 2 * s[1]], [1.0, 1.0, s[2]]
             else:
-                d["radius"], rest = s[0], [1.0, _clean(s[1] / s[0]), s[2]]
+                d["radius"], rest = s[0], [1.0, clean(s[1] / s[0]), s[2]]
             if kind != "cube" and not one(rest):
                 d["scale"] = rest
         else:

@@ -30,8 +30,8 @@ import os
 from typing import Any, Callable, Sequence
 
 from ..camera import Camera
-from .model import (LIGHT_TYPES, SHAPE_TYPES, Light, Material, Scene, SceneError, Shape, frame_z_to, freeze4,
-                    matmul4, rotate4, scale4, translate4)
+from .model import LIGHT_TYPES, SHAPE_TYPES, Light, Material, Scene, SceneError, Shape
+from .transforms import frame_z_to, freeze4, matmul4, rotate4, scale4, translate4
 
 Path = tuple
 Locator = Callable[[Path], str]

@@ -10,8 +10,8 @@ import sys
 import pytest
 
 from ssbench.scenes import SceneError, load
-from ssbench.scenes.mitsuba_xml import decompose, parse_mitsuba_xml
-from ssbench.scenes.model import matmul4, rotate4, scale4, translate4
+from ssbench.scenes.mitsuba_xml import parse_mitsuba_xml
+from ssbench.scenes.transforms import decompose, matmul4, rotate4, scale4, translate4
 
 TRI_OBJ = "v -1 0 -1\nv 1 0 -1\nv 0 1.5 0.5\nv 0 0 1\nf 1 2 3\nf 2 4 3\nf 4 1 3\n"
 

@@ -1,0 +1,30 @@
+"""Screen-space passes: pure functions of (GBuffer, params, generator) with thin ``nn.Module`` wrappers.
+
+No Mitsuba import and no file I/O here. Every pass module declares the G-buffer channels it reads in
+``REQUIRES``. :data:`AO_METHODS` maps a method name to ``"module:function:ParamsClass"``; use
+:func:`ao_method` to resolve it.
+"""
+from __future__ import annotations
+
+import importlib
+
+from .common import AOResult
+
+AO_METHODS: dict[str, str] = {
+    "crytek": "ssbench.passes.ssao_crytek:crytek_ssao:CrytekSSAOParams",
+    "ssao": "ssbench.passes.ssao:hemisphere_ssao:HemisphereSSAOParams",
+    "hbao": "ssbench.passes.hbao:hbao:HBAOParams",
+    "gtao": "ssbench.passes.gtao:gtao:GTAOParams",
+}
+
+
+def ao_method(name: str):
+    """``(function, ParamsClass, REQUIRES)`` of an AO method by name."""
+    if name not in AO_METHODS:
+        raise KeyError(f"method: unknown AO method {name!r}; known: {', '.join(AO_METHODS)}")
+    mod, fn, params = AO_METHODS[name].split(":")
+    m = importlib.import_module(mod)
+    return getattr(m, fn), getattr(m, params), getattr(m, "REQUIRES")
+
+
+__all__ = ["AOResult", "AO_METHODS", "ao_method"]

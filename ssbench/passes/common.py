@@ -1,0 +1,89 @@
+"""Shared pieces of the screen-space passes: the result type, texture fetches and seeded generators.
+
+Texture fetches follow GL semantics on ssbench images (row 0 at the top, see ``CONVENTIONS.md``): a shader
+``texture2D(tex, uv)`` with ``NEAREST`` filtering and ``CLAMP_TO_EDGE`` reads texel
+``(clamp(floor(u·W)), clamp(floor((1 − v)·H)))``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Optional
+
+import torch
+
+from .. import checks
+
+
+@dataclass(frozen=True)
+class AOResult:
+    """Output of an ambient-occlusion pass.
+
+    Attributes:
+        ao: :math:`(B, 1, H, W)` ambient visibility in [0, 1] (1 = unoccluded; background pixels are 1).
+        bent_normal: optional :math:`(B, 3, H, W)` unit view-space bent normals (GTAO).
+        debug: named extra buffers, e.g. ``"samples"`` (per-pixel sample count) or ``"horizons"``.
+    """
+
+    ao: torch.Tensor
+    bent_normal: Optional[torch.Tensor] = None
+    debug: dict = field(default_factory=dict)
+
+
+def make_generator(seed: int, generator: Optional[torch.Generator], device=None) -> torch.Generator:
+    """``generator`` if given, else a CPU generator seeded with ``seed`` (same seed → same bits)."""
+    if generator is not None:
+        return generator
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ValueError(f"seed: must be a non-negative integer, got {seed!r}")
+    g = torch.Generator(device="cpu")
+    g.manual_seed(seed)
+    return g
+
+
+def uv_to_texel(uv: torch.Tensor, height: int, width: int, dim: int = 1) -> tuple[torch.Tensor, torch.Tensor]:
+    """Integer ``(col, row)`` of the ``NEAREST``/``CLAMP_TO_EDGE`` texel a shader reads at ``uv`` (v up)."""
+    u, v = uv.unbind(dim)
+    col = torch.floor(u * width).clamp(0, width - 1).long()
+    row = torch.floor((1.0 - v) * height).clamp(0, height - 1).long()
+    return col, row
+
+
+def fetch(tex: torch.Tensor, col: torch.Tensor, row: torch.Tensor) -> torch.Tensor:
+    """Gather texels of ``tex`` :math:`(B, C, H, W)` at integer ``col``/``row`` of shape :math:`(B, *S)`.
+
+    Returns :math:`(B, C, *S)`.
+    """
+    B, C, H, W = tex.shape
+    flat = (row * W + col).reshape(B, 1, -1).expand(B, C, -1)               # (B, C, N)
+    return tex.reshape(B, C, H * W).gather(2, flat).reshape(B, C, *col.shape[1:])
+
+
+def fetch_uv(tex: torch.Tensor, uv: torch.Tensor, dim: int = 1) -> torch.Tensor:
+    """``texture2D(tex, uv)`` with nearest filtering; ``uv`` :math:`(B, 2, *S)` → :math:`(B, C, *S)`."""
+    col, row = uv_to_texel(uv, tex.shape[-2], tex.shape[-1], dim)
+    return fetch(tex, col, row)
+
+
+def check_radius(value: float, name: str = "radius") -> None:
+    if not checks.checks_enabled():
+        return
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
+        raise ValueError(f"{name}: must be a number > 0, got {value!r}")
+
+
+def check_count(value: int, name: str) -> None:
+    if not checks.checks_enabled():
+        return
+    if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
+        raise ValueError(f"{name}: must be a positive integer, got {value!r}")
+
+
+def check_unit_normals(normal: torch.Tensor, mask: torch.Tensor, name: str = "normal", tol: float = 1e-3) -> None:
+    """Normals on ``mask`` must have unit length (background zeros are allowed)."""
+    if not checks.checks_enabled():
+        return
+    length = normal.norm(dim=1, keepdim=True)
+    bad = mask & ((length - 1).abs() > tol)
+    if bool(bad.any()):
+        raise ValueError(f"{name}: {int(bad.sum())} normals on geometry are not unit length "
+                         f"(max |len-1| = {float((length - 1).abs()[mask].max()):.3g})")

@@ -9,3 +9,7 @@ from .color import color
 from .gbuffer import DEFAULT_CHANNELS, gbuffer
 
 __all__ = ["gbuffer", "color", "DEFAULT_CHANNELS"]
+
+from .ao import AOReference, ambient_occlusion, screen_space_oracle  # noqa: E402
+
+__all__ += ["ambient_occlusion", "screen_space_oracle", "AOReference"]

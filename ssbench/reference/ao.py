@@ -1,0 +1,216 @@
+"""Ray-traced ambient-occlusion ground truth, and the screen-space oracle.
+
+Three flavours, each the quantity one family of screen-space passes estimates:
+
+========== ===================================== ===============================================
+weighting  directions over the hemisphere        per-ray visibility
+========== ===================================== ===============================================
+uniform    uniform in solid angle                1 if nothing within ``radius`` else 0
+cosine     cosine-weighted (``cos θ / π``)       1 if nothing within ``radius`` else 0
+obscurance uniform in solid angle                ``1 − ρ(t)``, ``ρ(t) = 1 − (t/R)²`` for a hit at
+                                                 ``t < R`` (HBAO's ``W(r) = 1 − r²``), else 1
+========== ===================================== ===============================================
+
+AO is the mean over ``rays`` samples per pixel; ``stderr`` is the sample standard deviation / √rays.
+Directions are drawn in the **view-space** frame of the pixel's normal from a PCG32 stream per pixel, so the
+full ground truth and the oracle use the same directions (paired comparison) and the same seed gives the same
+bits. Origins are offset by Mitsuba's ``spawn_ray`` so an open plane gives exactly 1.
+
+:func:`screen_space_oracle` traces the same rays against the *depth buffer as a height-field mesh* (every
+pixel centre a vertex, background at the far plane, neighbouring pixels joined across discontinuities): the
+only geometry a screen-space pass can see. ``oracle − full`` is the information loss; ``method − oracle`` is
+the estimator's own error.
+"""
+from __future__ import annotations
+
+import hashlib
+import time
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+import torch
+
+from ..gbuffer import GBuffer
+from ..scenes import load as load_scene
+from . import backend, cache, convert
+
+WEIGHTINGS = ("uniform", "cosine", "obscurance")
+_KERNEL_VERSION = 1
+
+
+@dataclass(frozen=True)
+class AOReference:
+    """Ground-truth AO: ``ao`` and ``stderr`` are :math:`(1, 1, H, W)` float32 (background: 1 and 0)."""
+
+    ao: torch.Tensor
+    stderr: torch.Tensor
+    weighting: str
+    radius: float
+    rays: int
+    seconds: float = 0.0
+
+
+def _check(gbuffer: GBuffer, radius: float, rays: int, weighting: str, seed: int) -> None:
+    if not isinstance(gbuffer, GBuffer):
+        raise TypeError(f"gbuffer: expected a GBuffer, got {type(gbuffer).__name__}")
+    if isinstance(radius, bool) or not isinstance(radius, (int, float)) or not radius > 0:
+        raise ValueError(f"radius: must be a number > 0, got {radius!r}")
+    if isinstance(rays, bool) or not isinstance(rays, int) or rays < 2:
+        raise ValueError(f"rays: must be an integer >= 2 (for a standard error), got {rays!r}")
+    if weighting not in WEIGHTINGS:
+        raise ValueError(f"weighting: expected one of {WEIGHTINGS}, got {weighting!r}")
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ValueError(f"seed: must be a non-negative integer, got {seed!r}")
+    if gbuffer.batch_size != 1:
+        raise ValueError(f"gbuffer: batch size must be 1, got {gbuffer.batch_size}")
+
+
+def _estimate(mi, dr, mscene, origin_si, n_view, R_v2s, active, radius, rays, weighting, seed, N):
+    """Accumulate per-pixel mean and variance over ``rays`` directions (one evaluated kernel per ray)."""
+    frame = mi.Frame3f(n_view)
+    rng = mi.PCG32(size=N, initstate=dr.opaque(mi.UInt64, seed), initseq=dr.arange(mi.UInt64, N))
+    s1, s2 = dr.zeros(mi.Float, N), dr.zeros(mi.Float, N)
+    R = dr.opaque(mi.Float, radius)
+    for _ in range(rays):
+        u = mi.Point2f(rng.next_float32(), rng.next_float32())
+        local = (mi.warp.square_to_cosine_hemisphere(u) if weighting == "cosine"
+                 else mi.warp.square_to_uniform_hemisphere(u))
+        d = R_v2s @ frame.to_world(local)                          # view frame -> tracing space
+        ray = origin_si.spawn_ray(d)
+        ray.maxt = R
+        if weighting == "obscurance":
+            pi = mscene.ray_intersect_preliminary(ray, active=active)
+            x = dr.clip(pi.t / R, 0.0, 1.0)
+            v = dr.select(pi.is_valid(), x * x, 1.0)               # 1 − ρ(t) = (t/R)²
+        else:
+            v = dr.select(mscene.ray_test(ray, active), 0.0, 1.0)
+        s1 += v
+        s2 += v * v
+        dr.eval(s1, s2, rng.state)
+    mean = s1 / rays
+    var = dr.maximum((s2 - rays * mean * mean) / (rays - 1), 0.0)
+    return mean, dr.sqrt(var / rays)
+
+
+def _to_torch(mi, dr, mean, err, hit, H, W) -> tuple[torch.Tensor, torch.Tensor]:
+    ao = dr.select(hit, mean, 1.0).torch().reshape(1, 1, H, W).clone()
+    se = dr.select(hit, err, 0.0).torch().reshape(1, 1, H, W).clone()
+    return ao, se
+
+
+def _v2w(mi, cam):
+    """View → world rotation as a Dr.Jit transform (directions only)."""
+    m = cam.camera_to_world().tolist()
+    return mi.Transform4f([[m[0][0], m[0][1], m[0][2], 0.0], [m[1][0], m[1][1], m[1][2], 0.0],
+                           [m[2][0], m[2][1], m[2][2], 0.0], [0.0, 0.0, 0.0, 1.0]])
+
+
+def ambient_occlusion(scene, gbuffer: GBuffer, radius: float, rays: int = 256, weighting: str = "cosine",
+                      seed: int = 0, *, use_cache: bool = True) -> AOReference:
+    """Ray-traced AO of every G-buffer pixel against the full scene.
+
+    Args:
+        scene: the scene ``gbuffer`` was rendered from (Scene, catalog name, file or dict).
+        gbuffer: a batch-1 reference G-buffer; its camera picks the pixel centres (rays are re-traced).
+        radius: occlusion radius ``R`` in world units.
+        rays: directions per pixel (≥ 2).
+        weighting: ``"uniform"``, ``"cosine"`` or ``"obscurance"`` (see the module docstring).
+        seed: PCG32 seed; same seed → same bits.
+
+    Returns:
+        :class:`AOReference` with ``ao`` and ``stderr`` of shape :math:`(1, 1, H, W)`.
+    """
+    _check(gbuffer, radius, rays, weighting, seed)
+    sc, cam = load_scene(scene), gbuffer.camera
+    key = cache.make_key("ao", _KERNEL_VERSION, sc.content_hash(), cam, float(radius), rays, weighting, seed)
+    hit_c = cache.load(key) if use_cache else None
+    if hit_c is not None:
+        return AOReference(torch.from_numpy(hit_c["ao"]), torch.from_numpy(hit_c["stderr"]), weighting,
+                           float(radius), rays, float(hit_c["seconds"]))
+    if not backend.is_jit():
+        raise RuntimeError("ambient_occlusion needs a vectorised Mitsuba variant (llvm_ad_rgb or cuda_ad_rgb); "
+                           "install libllvm19: apt-get install -y libllvm19")
+    t0 = time.perf_counter()
+    mi = backend.mitsuba()
+    import drjit as dr
+    mscene = convert.load(sc, cam)
+    W, H = cam.width, cam.height
+    idx = dr.arange(mi.UInt32, W * H)
+    pos = mi.Point2f((mi.Float(idx % W) + 0.5) / W, (mi.Float(idx // W) + 0.5) / H)
+    ray, _ = mscene.sensors()[0].sample_ray(0.0, 0.0, pos, mi.Point2f(0.5, 0.5))
+    si = mscene.ray_intersect(ray)
+    hit = si.is_valid()
+    v2w = _v2w(mi, cam)
+    w2v = v2w.inverse()
+    n_view = dr.normalize(w2v @ mi.Vector3f(si.sh_frame.n))
+    d_view = w2v @ mi.Vector3f(ray.d)
+    n_view = dr.select(dr.dot(n_view, d_view) > 0, -n_view, n_view)            # face the camera
+    mean, err = _estimate(mi, dr, mscene, si, n_view, v2w, hit, float(radius), rays, weighting, seed, W * H)
+    ao, se = _to_torch(mi, dr, mean, err, hit, H, W)
+    secs = time.perf_counter() - t0
+    if use_cache:
+        cache.store(key, {"ao": ao.numpy(), "stderr": se.numpy(), "seconds": np.array(secs)})
+    return AOReference(ao, se, weighting, float(radius), rays, secs)
+
+
+def heightfield_mesh(gbuffer: GBuffer) -> tuple[np.ndarray, np.ndarray]:
+    """View-space vertices :math:`(H·W, 3)` (pixel-centre positions; background on the far plane) and
+    triangle indices :math:`(2(H−1)(W−1), 3)` joining every 2×2 block of pixels, counter-clockwise as seen
+    from the camera."""
+    gbuffer.require("position")
+    H, W = gbuffer.height, gbuffer.width
+    verts = gbuffer.position[0].permute(1, 2, 0).reshape(-1, 3).double().numpy().astype(np.float32)
+    j, i = np.meshgrid(np.arange(H - 1), np.arange(W - 1), indexing="ij")
+    a = (j * W + i).ravel()                       # top-left of each block (row 0 is the top)
+    b, c, d = a + 1, a + W, a + W + 1              # top-right, bottom-left, bottom-right
+    faces = np.concatenate([np.stack([a, c, b], 1), np.stack([b, c, d], 1)]).astype(np.uint32)
+    return verts, faces
+
+
+def screen_space_oracle(gbuffer: GBuffer, radius: float, rays: int = 256, weighting: str = "cosine",
+                        seed: int = 0, *, use_cache: bool = True) -> AOReference:
+    """AO traced against the depth buffer as a height-field mesh (what a screen-space pass can know).
+
+    Uses the G-buffer's own ``position``, ``normal`` and ``mask`` (view space), the same per-pixel
+    directions as :func:`ambient_occlusion` for the same ``seed``, and the same origin offset.
+    """
+    _check(gbuffer, radius, rays, weighting, seed)
+    gbuffer.require("position", "normal", "mask")
+    h = hashlib.sha256()
+    for t in (gbuffer.position, gbuffer.normal, gbuffer.mask):
+        h.update(t.contiguous().numpy().tobytes())
+    key = cache.make_key("oracle", _KERNEL_VERSION, h.hexdigest(), gbuffer.camera, float(radius), rays,
+                         weighting, seed)
+    hit_c = cache.load(key) if use_cache else None
+    if hit_c is not None:
+        return AOReference(torch.from_numpy(hit_c["ao"]), torch.from_numpy(hit_c["stderr"]), weighting,
+                           float(radius), rays, float(hit_c["seconds"]))
+    if not backend.is_jit():
+        raise RuntimeError("screen_space_oracle needs a vectorised Mitsuba variant; apt-get install -y libllvm19")
+    t0 = time.perf_counter()
+    mi = backend.mitsuba()
+    import drjit as dr
+    H, W = gbuffer.height, gbuffer.width
+    verts, faces = heightfield_mesh(gbuffer)
+    mesh = mi.Mesh("heightfield", len(verts), len(faces), has_vertex_normals=False)
+    params = mi.traverse(mesh)
+    params["vertex_positions"] = mi.Float(verts.ravel())
+    params["faces"] = mi.UInt32(faces.ravel())
+    params.update()
+    mscene = mi.load_dict({"type": "scene", "heightfield": mesh})
+    p = gbuffer.position[0].reshape(3, -1).float()
+    n = gbuffer.normal[0].reshape(3, -1).float()
+    hit = mi.Bool(gbuffer.mask.reshape(-1).contiguous())
+    origin = dr.zeros(mi.SurfaceInteraction3f, W * H)   # spawn_ray reads p, n (geometric), time, wavelengths
+    origin.p = mi.Point3f(mi.Float(p[0].contiguous()), mi.Float(p[1].contiguous()), mi.Float(p[2].contiguous()))
+    n_view = mi.Vector3f(mi.Float(n[0].contiguous()), mi.Float(n[1].contiguous()), mi.Float(n[2].contiguous()))
+    origin.n = mi.Normal3f(n_view)
+    identity = mi.Transform4f()
+    mean, err = _estimate(mi, dr, mscene, origin, n_view, identity, hit, float(radius), rays, weighting, seed,
+                          W * H)
+    ao, se = _to_torch(mi, dr, mean, err, hit, H, W)
+    secs = time.perf_counter() - t0
+    if use_cache:
+        cache.store(key, {"ao": ao.numpy(), "stderr": se.numpy(), "seconds": np.array(secs)})
+    return AOReference(ao, se, weighting, float(radius), rays, secs)

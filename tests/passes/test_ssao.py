@@ -4,7 +4,6 @@ Unit tests use analytic G-buffers: infinite planes intersected with the camera's
 """
 from __future__ import annotations
 
-import time
 from dataclasses import replace
 
 import pytest

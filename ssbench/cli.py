@@ -1,4 +1,4 @@
-"""The ``ssbench`` command: ``info``, ``scenes``, ``render`` and ``report``.
+"""The ``ssbench`` command: ``info``, ``scenes``, ``render``, ``ao`` and ``report``.
 
 ``main(argv)`` returns the exit status instead of exiting, so it can be called in-process; user errors print
 ``ssbench: error: ...`` to stderr (exit status 2 for bad arguments, 1 for a failed run) without a traceback
@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 import time
@@ -72,6 +73,87 @@ def _scene_list(s: str) -> list[str]:
     return names
 
 
+def _positive_float(s: str) -> float:
+    try:
+        v = float(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number > 0, got {s!r}") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {s!r}")
+    return v
+
+
+def _rays(s: str) -> int:
+    try:
+        v = int(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 2, got {s!r}") from None
+    if v < 2:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 2 (for a standard error), got {v}")
+    return v
+
+
+_BOOLS = {"true": True, "yes": True, "on": True, "false": False, "no": False, "off": False}
+
+
+def parse_value(text: str):
+    """A ``--param`` value as bool (true/false/yes/no/on/off), int, float or else str; never ``eval``."""
+    t = text.strip()
+    if t.lower() in _BOOLS:
+        return _BOOLS[t.lower()]
+    try:
+        return int(t, 10)
+    except ValueError:
+        pass
+    try:
+        v = float(t)
+    except ValueError:
+        return t
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"value {text!r} is not a finite number")
+    return v
+
+
+def _param(s: str) -> tuple[str, object]:
+    name, sep, value = s.partition("=")
+    name = name.strip()
+    if not sep or not name.isidentifier() or not value.strip():
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE (e.g. radius=0.5), got {s!r}")
+    return name, parse_value(value)
+
+
+def coerce_params(params_cls, pairs, method: str) -> dict:
+    """``--param`` pairs checked against the pass's params dataclass: known names, no repeats, and values
+    of the default's type (an int is accepted for a float; anything else is an error naming the parameter)."""
+    import dataclasses
+    defaults = params_cls()
+    known = {f.name: getattr(defaults, f.name) for f in dataclasses.fields(params_cls)}
+    out: dict = {}
+    for name, value in pairs:
+        if name not in known:
+            raise _UsageError(f"argument --param: unknown parameter {name!r} for {method}; "
+                              f"known: {', '.join(known)}")
+        if name in out:
+            raise _UsageError(f"argument --param: {name} given twice")
+        d = known[name]
+        if isinstance(d, bool):
+            ok = isinstance(value, bool)
+        elif isinstance(d, int):
+            ok = isinstance(value, int) and not isinstance(value, bool)
+        elif isinstance(d, float):
+            ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+            value = float(value) if ok else value
+        elif isinstance(d, str):
+            ok, value = True, str(value)
+        else:
+            ok = d is None or isinstance(value, type(d))
+        if not ok:
+            raise _UsageError(f"argument --param: {name} expects {type(d).__name__} (default {d!r}), "
+                              f"got {value!r}")
+        out[name] = value
+    return out
+
+
 def _parser() -> _Parser:
     from . import __version__
     p = _Parser(prog="ssbench", description="Screen-space rendering passes vs Mitsuba 3 ground truth.")
@@ -92,6 +174,25 @@ def _parser() -> _Parser:
     q.add_argument("--channels", type=_channels, default=tuple(CHANNELS),
                    help=f"comma-separated channels (default: all of {','.join(CHANNELS)})")
     q.add_argument("--no-cache", action="store_true", help="do not read or write the render cache")
+    from .passes import AO_METHODS
+    q = sub.add_parser("ao", help="run one AO method on a scene and score it against the ray-traced GT")
+    q.add_argument("scene", metavar="SCENE", help="catalog name or scene file (.yaml, .toml, .xml)")
+    q.add_argument("--method", required=True, choices=list(AO_METHODS), help="AO method")
+    q.add_argument("--param", type=_param, action="append", default=[], metavar="NAME=VALUE",
+                   help="override a pass parameter (repeatable), e.g. --param num_steps=8")
+    q.add_argument("--radius", type=_positive_float, help="radius of the pass and the GT (default: the pass's)")
+    q.add_argument("--weighting", choices=("uniform", "cosine", "obscurance"),
+                   help="GT flavour to score against (default: the one the pass approximates)")
+    q.add_argument("--blur", choices=("box", "cross_bilateral", "joint_bilateral"),
+                   help="blur the pass output before scoring (noise_raw/banding_raw keep the raw AO)")
+    q.add_argument("--width", type=_positive("width"), default=320)
+    q.add_argument("--height", type=_positive("height"), default=240)
+    q.add_argument("--rays", type=_rays, default=256, help="GT rays per pixel, >= 2 (default 256)")
+    q.add_argument("--seed", type=_non_negative, default=0)
+    q.add_argument("--repeats", type=_positive("repeats"), default=3, help="timed runs after a warm-up")
+    q.add_argument("--out", metavar="DIR", help="write ao.png, gt.png, error maps and row.json here")
+    q.add_argument("--json", action="store_true", help="print the row as JSON")
+    q.add_argument("--no-cache", action="store_true", help="do not read or write the render cache")
     q = sub.add_parser("report", help="render the built-in scenes into an HTML report")
     q.add_argument("--out", default="reports", metavar="DIR", help="reports root (default: reports)")
     q.add_argument("--width", type=_positive("width"), default=320)
@@ -100,6 +201,9 @@ def _parser() -> _Parser:
     q.add_argument("--seed", type=_non_negative, default=0)
     q.add_argument("--scenes", type=_scene_list, default=None, help="comma-separated subset of the catalog")
     q.add_argument("--cache", action="store_true", help="use the render cache (timings then measure the cache)")
+    q.add_argument("--no-ao", action="store_true", help="leave out the ambient-occlusion section")
+    q.add_argument("--ao-radius", type=_positive_float, default=0.5, help="AO radius of the report (0.5)")
+    q.add_argument("--ao-rays", type=_rays, default=128, help="AO GT rays per pixel (128)")
     return p
 
 
@@ -188,16 +292,83 @@ def _cmd_render(args) -> int:
     return 0
 
 
+def _ao_table(row: dict) -> str:
+    from .evaluate import TARGET_METRICS
+    from .report.ao_section import fmt
+    blur = f" · blur {row['blur']} ({fmt(row['blur_seconds'], '{:.4f}')} s)" if row["blur"] else ""
+    head = (f"{row['scene']} · {row['method']} · {row['width']}x{row['height']} · radius {row['radius']} "
+            f"({row['radius_param']}) · flavour {row['weighting']} · {row['rays']} GT rays · seed {row['seed']}\n"
+            f"params: {', '.join(f'{k}={v}' for k, v in row['params'].items())}{blur}\n"
+            f"time {fmt(row['seconds'], '{:.4f}')} s (median of {row['repeats']}, {row['threads']} threads)\n")
+    cols = ("cos", "flavour", "oracle")
+    lines = [f"{'metric':<16}" + "".join(f"{c:>12}" for c in cols)]
+    for m in TARGET_METRICS:
+        lines.append(f"{m:<16}" + "".join(f"{fmt(row[f'{m}_{c}']):>12}" for c in cols))
+    extra = [("banding", "{:.4f}"), ("noise", "{:.3e}"), ("info_loss_rmse", "{:.4f}"), ("estimator_rmse", "{:.4f}"),
+             ("gt_stderr_cos", "{:.4f}")]
+    if row["blur"]:
+        extra += [("banding_raw", "{:.4f}"), ("noise_raw", "{:.3e}")]
+    lines += [f"{k:<16}{fmt(row[k], spec):>12}" for k, spec in extra]
+    if not row["oracle"] and row.get("oracle_error"):
+        lines.append(f"oracle unavailable: {row['oracle_error']}")
+    return head + "\n".join(lines)
+
+
+def _cmd_ao(args) -> int:
+    from . import evaluate
+    from .passes import ao_method
+    sc = _load_scene(args.scene)
+    try:
+        _, params_cls, _ = ao_method(args.method)
+    except (ImportError, AttributeError) as e:
+        raise _UsageError(f"argument --method: {args.method} is not importable ({type(e).__name__}: {e})", 1)
+    params = coerce_params(params_cls, args.param, args.method)
+    rname = evaluate.radius_param(params_cls, sys.modules.get(params_cls.__module__))
+    if args.radius is not None and rname in params:
+        raise _UsageError(f"argument --radius: conflicts with --param {rname}={params[rname]}; give one of them")
+    try:
+        evaluate.resolve_params(params_cls, params, args.method)     # the dataclass's own checks, up front
+    except (ValueError, TypeError) as e:
+        raise _UsageError(f"argument --param: {e}") from None
+    try:
+        ev = evaluate.run_ao(sc, args.method, params, width=args.width, height=args.height, radius=args.radius,
+                             rays=args.rays, weighting=args.weighting, seed=args.seed, repeats=args.repeats,
+                             blur=args.blur, use_cache=not args.no_cache)
+    except RuntimeError as e:                                # e.g. no vectorised Mitsuba variant for the GT
+        if os.environ.get("SSBENCH_DEBUG"):
+            raise
+        raise _UsageError(str(e), 1) from None
+    row = ev.row
+    print(json.dumps(row, indent=2, default=str) if args.json else _ao_table(row))
+    if args.out:
+        from .report.ao_section import ao_rgb, error_rgb, write_png
+        mask = ev.gbuffer.mask
+        write_png(os.path.join(args.out, "ao.png"), ao_rgb(ev.ao, mask))
+        for t, r in ev.references.items():
+            write_png(os.path.join(args.out, f"gt_{t}.png"), ao_rgb(r.ao, mask))
+            write_png(os.path.join(args.out, f"error_{t}.png"), error_rgb(ev.ao - r.ao, mask))
+        tmp = os.path.join(args.out, ".row.json.tmp")
+        with open(tmp, "w", encoding="utf-8") as f:
+            json.dump(row, f, indent=2, default=str)
+            f.write("\n")
+        os.replace(tmp, os.path.join(args.out, "row.json"))
+        if not args.json:
+            print(f"wrote {2 * len(ev.references) + 2} files to {args.out}")
+    return 0
+
+
 def _cmd_report(args) -> int:
     from .report.build import build_report
     index = build_report(args.out, scenes=args.scenes, width=args.width, height=args.height, spp=args.spp,
-                         seed=args.seed, use_cache=args.cache)
+                         seed=args.seed, use_cache=args.cache, ao=not args.no_ao, ao_radius=args.ao_radius,
+                         ao_rays=args.ao_rays)
     print(f"report: {index}")
     print(f"latest: {os.path.join(os.path.abspath(args.out), 'latest', 'index.html')}")
     return 0
 
 
-_COMMANDS = {"info": _cmd_info, "scenes": _cmd_scenes, "render": _cmd_render, "report": _cmd_report}
+_COMMANDS = {"info": _cmd_info, "scenes": _cmd_scenes, "render": _cmd_render, "ao": _cmd_ao,
+             "report": _cmd_report}
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:

@@ -161,12 +161,31 @@ def _rows(meta: dict) -> list[tuple[str, str]]:
             ("backend start-up s", _fmt(meta["backend_init_s"])), ("total wall time s", _fmt(meta["total_s"]))]
 
 
+def _ao_section(run_dir, scenes, width, height, enabled, radius, rays, seed, use_cache, progress) -> dict:
+    """The AO section's metadata (see :mod:`.ao_section`); a note instead whenever it cannot run."""
+    if not enabled:
+        return {"available": False, "note": "AO section turned off.", "notes": [], "summary_md": ""}
+    try:
+        from . import ao_section
+        out = ao_section.build_ao_section(run_dir, scenes, width, height, radius=radius, rays=rays, seed=seed,
+                                          use_cache=use_cache, progress=progress)
+        out["summary_md"] = ao_section.summary_md(out)
+    except Exception as e:                                   # the report must not crash on the AO slice
+        note = f"AO section failed: {type(e).__name__}: {e}"
+        out = {"available": False, "note": note, "notes": [], "summary_md": f"\n## Ambient occlusion\n\n{note}\n"}
+    return out
+
+
 def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = None, width: int = 320,
                  height: int = 240, spp: int = 64, seed: int = 0, *, use_cache: bool = False,
-                 progress: Optional[bool] = None) -> str:
+                 progress: Optional[bool] = None, ao: bool = True, ao_radius: float = 0.5,
+                 ao_rays: int = 128) -> str:
     """Render every catalog scene (or ``scenes``) and write a report run; returns the run's ``index.html``.
 
     ``use_cache=False`` (default) renders afresh so the timings measure rendering, not the disk cache.
+    ``ao`` adds the ambient-occlusion section (:mod:`ssbench.report.ao_section`; scenes: ``scenes`` or its
+    small default subset) at radius ``ao_radius`` with ``ao_rays`` ground-truth rays per pixel; it never
+    fails the report (problems show as notes in the page).
     """
     import jinja2
     from tqdm import tqdm
@@ -208,6 +227,7 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
             "width": width, "height": height, "spp": spp, "seed": seed, "use_cache": use_cache,
             "git": git_state(), "environment": env, "backend_init_s": backend_init_s, "scenes": rows,
             "preview_row": list(PREVIEW_ROW)}
+    meta["ao"] = _ao_section(run_dir, scenes, width, height, ao, ao_radius, ao_rays, seed, use_cache, progress)
     meta["total_s"] = time.perf_counter() - t_start
     meta["metadata_rows"] = _rows(meta)
     tpl_env = jinja2.Environment(loader=jinja2.FileSystemLoader(os.path.join(os.path.dirname(__file__),
@@ -217,7 +237,7 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
     html = tpl_env.get_template("index.html.j2").render(meta=meta, fmt=_fmt)
     index = os.path.join(run_dir, "index.html")
     _write_text(index, html)
-    _write_text(os.path.join(run_dir, "summary.md"), _summary_md(meta))
+    _write_text(os.path.join(run_dir, "summary.md"), _summary_md(meta) + meta["ao"]["summary_md"])
     _write_text(os.path.join(run_dir, "meta.json"), json.dumps(meta, indent=2, default=str) + "\n")
     refresh_latest(run_dir, out_root)
     return index

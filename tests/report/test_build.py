@@ -1,4 +1,4 @@
-"""build_report: run dir + latest copy, relative image links that resolve, metadata, summary.md."""
+"""build_report: run dir + latest copy, relative image links that resolve, metadata, summary.md, AO section."""
 import json
 import os
 import re
@@ -48,7 +48,7 @@ def test_latest_images_resolve(report):
     latest = report[0] / "latest"
     html = (latest / "index.html").read_text()
     srcs = re.findall(r'<img[^>]*\ssrc="([^"]+)"', html)
-    assert len(srcs) == len(SCENES) * (1 + len(PREVIEW_ROW))
+    assert len([s for s in srcs if not s.startswith("img/ao/")]) == len(SCENES) * (1 + len(PREVIEW_ROW))
     for src in srcs:
         assert not os.path.isabs(src) and "://" not in src
         path = latest / src
@@ -99,3 +99,139 @@ def test_unknown_scene_is_rejected_before_rendering(tmp_path):
 
 def test_git_state_outside_a_repo(tmp_path):
     assert git_state(str(tmp_path)) == {"commit": "unknown", "dirty": None}
+
+
+# ------------------------------------------------------------------------------------------ AO section
+@pytest.mark.slow
+@pytest.mark.mitsuba
+def test_ao_section_in_the_report(report):
+    import matplotlib.image as mimage
+    latest = report[0] / "latest"
+    meta = json.loads((latest / "meta.json").read_text())
+    html = (latest / "index.html").read_text()
+    ao = meta["ao"]
+    assert "Ambient occlusion" in html and "Ambient occlusion" in (latest / "summary.md").read_text()
+    if not ao["available"]:                                                # passes still being written
+        assert ao["note"] and ao["note"] in html
+        return
+    assert [s["name"] for s in ao["scenes"]] == SCENES                     # the report's own scene list
+    assert {(r["scene"], r["method"]) for r in ao["rows"]} == {(s, m) for s in SCENES for m in ao["methods"]}
+    for r in ao["rows"]:
+        assert r["width"] == 48 and r["height"] == 36 and r["radius"] == 0.5 and r["nonfinite"] == 0
+    srcs = [s for s in re.findall(r'<img[^>]*\ssrc="([^"]+)"', html) if s.startswith("img/ao/")]
+    per_method = sum(4 + (r["weighting"] != "cosine") for r in ao["rows"])   # AO, errors, residual, spectrum
+    assert len(srcs) == len(SCENES) * 6 + per_method                       # GT x3, oracle, 2 regions per scene
+    for src in srcs:
+        assert (latest / src).is_file(), src
+    assert mimage.imread(str(latest / srcs[0])).shape[:2] == (36, 48)
+    for m in ao["methods"]:
+        assert f"<strong>{m}</strong>" in html
+
+
+def _stub_ao(monkeypatch, fail_scene=None):
+    """Stub method registry + reference so the AO section runs in a blink without Mitsuba."""
+    import dataclasses
+    import sys
+    import types
+
+    import torch
+
+    from ssbench import passes, reference
+    from ssbench.camera import Camera
+    from ssbench.gbuffer import GBuffer
+
+    @dataclasses.dataclass(frozen=True)
+    class P:
+        radius: float = 0.3
+
+    mod = types.ModuleType("ssbench_report_stub_ao")
+
+    def stub(gbuffer, params, *, generator=None, debug=False):
+        return passes.AOResult(torch.where(gbuffer.mask, 0.5, 1.0))
+
+    stub.__module__ = mod.__name__
+    mod.stub, mod.P, mod.REQUIRES = stub, P, ("view_z", "mask")
+    monkeypatch.setitem(sys.modules, mod.__name__, mod)
+    monkeypatch.setattr(passes, "AO_METHODS", {"stub": f"{mod.__name__}:stub:P",
+                                               "missing": "ssbench_no_such_module:f:P"})
+    cam = Camera.from_look_at((0, 0, 5), (0, 0, 0), (0, 1, 0), 45.0, 16, 12, 0.1, 100.0)
+    mask = torch.ones(1, 1, 12, 16, dtype=torch.bool)
+    z = torch.full((1, 1, 12, 16), -5.0)
+    z[..., 8:] = -9.0
+
+    def gbuffer(scene, w=None, h=None, channels=None, **k):
+        if getattr(scene, "name", scene) == fail_scene:
+            raise RuntimeError("renderer exploded")
+        return GBuffer(cam, view_z=z, position=cam.uv_to_view(cam.uv_grid()[None], z), mask=mask,
+                       normal=torch.tensor([0.0, 0.0, 1.0]).view(1, 3, 1, 1).expand(1, 3, 12, 16).contiguous())
+
+    def gt(*a, weighting="cosine", **k):
+        return reference.AOReference(torch.full((1, 1, 12, 16), 0.75), torch.zeros(1, 1, 12, 16), weighting,
+                                     0.5, 4)
+
+    monkeypatch.setattr(reference, "gbuffer", gbuffer)
+    monkeypatch.setattr(reference, "ambient_occlusion",
+                        lambda sc, g, r, rays=256, weighting="cosine", seed=0, **k: gt(weighting=weighting))
+    monkeypatch.setattr(reference, "screen_space_oracle",
+                        lambda g, r, rays=256, weighting="cosine", seed=0, **k: gt(weighting=weighting))
+
+
+def _render_section(ao: dict) -> str:
+    import jinja2
+
+    from ssbench.report import build
+    env = jinja2.Environment(loader=jinja2.FileSystemLoader(os.path.join(os.path.dirname(build.__file__),
+                                                                         "templates")),
+                             autoescape=True, undefined=jinja2.StrictUndefined)
+    return env.get_template("ao_section.html.j2").render(ao=ao, fmt=build._fmt)
+
+
+def test_ao_section_with_stubs(tmp_path, monkeypatch):
+    from ssbench.report.ao_section import build_ao_section, summary_md
+    _stub_ao(monkeypatch, fail_scene="stairs")
+    ao = build_ao_section(str(tmp_path), ["crease", "stairs"], 16, 12, radius=0.5, rays=4, progress=False)
+    assert ao["available"] and ao["methods"] == ["stub"] and [s["name"] for s in ao["scenes"]] == ["crease"]
+    assert any("missing skipped" in n for n in ao["notes"])                # an unimportable pass is a note
+    assert any("stairs skipped" in n and "renderer exploded" in n for n in ao["notes"])
+    row = ao["rows"][0]
+    assert row["radius"] == 0.5 and row["params"] == {"radius": 0.5}       # the report's radius, shared
+    assert row["over_darkening_cos"] == pytest.approx(2.0) and row["rmse_cos"] == pytest.approx(0.25)
+    html = _render_section(ao)
+    assert "<strong>stub</strong>" in html and "missing skipped" in html and "renderer exploded" in html
+    srcs = re.findall(r'<img[^>]*\ssrc="([^"]+)"', html)
+    assert len(srcs) == 6 + 4 and all((tmp_path / s).is_file() for s in srcs)     # cosine flavour: one error map
+    assert "| stub | 0.2500" in summary_md(ao)
+
+
+def test_ao_section_skips_without_the_reference(tmp_path, monkeypatch):
+    from ssbench import reference
+    from ssbench.report.ao_section import build_ao_section, summary_md
+    monkeypatch.delattr(reference, "ambient_occlusion")
+    ao = build_ao_section(str(tmp_path), ["crease"], 16, 12, progress=False)
+    assert not ao["available"] and "reference AO is not importable" in ao["note"]
+    import html
+    assert html.escape(ao["note"]).replace("&#x27;", "&#39;") in _render_section(ao) and ao["note"] in summary_md(ao)
+    assert not os.listdir(tmp_path)
+
+
+def test_ao_section_skips_without_passes(tmp_path, monkeypatch):
+    from ssbench import passes
+    from ssbench.report.ao_section import build_ao_section
+    monkeypatch.setattr(passes, "AO_METHODS", {"gone": "ssbench_no_such_module:f:P"})
+    ao = build_ao_section(str(tmp_path), ["crease"], 16, 12, progress=False)
+    assert not ao["available"] and "no AO method is importable" in ao["note"]
+    assert any("gone skipped" in n for n in ao["notes"])
+    assert "no AO method is importable" in _render_section(ao)
+
+
+def test_ao_section_failure_never_crashes_the_report(tmp_path, monkeypatch):
+    from ssbench.report import ao_section, build
+
+    def boom(*a, **k):
+        raise RuntimeError("kaboom")
+    monkeypatch.setattr(ao_section, "build_ao_section", boom)
+    out = build._ao_section(str(tmp_path), None, 16, 12, True, 0.5, 4, 0, False, False)
+    assert not out["available"] and "kaboom" in out["note"] and "kaboom" in out["summary_md"]
+    off = build._ao_section(str(tmp_path), None, 16, 12, False, 0.5, 4, 0, False, False)
+    assert not off["available"] and off["summary_md"] == ""
+    assert "turned off" in _render_section(off)

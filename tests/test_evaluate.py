@@ -1,0 +1,288 @@
+"""ssbench.evaluate.ao: one tidy row, with a stub pass and a stub ground truth (fast, no Mitsuba)."""
+import dataclasses
+import math
+import sys
+import types
+
+import pytest
+import torch
+
+from ssbench import evaluate, reference
+from ssbench.camera import Camera
+from ssbench.gbuffer import GBuffer
+from ssbench.passes import AO_METHODS, AOResult
+
+H, W = 12, 16
+GT = 0.7                 # stub ground truth on the left half (the right half and background: 1)
+
+
+def _gbuffer(channels=("view_z", "position", "normal", "mask")) -> GBuffer:
+    cam = Camera.from_look_at((0, 0, 5), (0, 0, 0), (0, 1, 0), 45.0, W, H, 0.1, 100.0)
+    z = torch.full((1, 1, H, W), -5.0)
+    z[..., W // 2:] = -9.0                                                   # a depth step in the middle
+    mask = torch.ones(1, 1, H, W, dtype=torch.bool)
+    mask[..., :2, :] = False                                                 # two rows of background
+    z[~mask] = -100.0
+    pos = cam.uv_to_view(cam.uv_grid()[None], z)
+    normal = torch.zeros(1, 3, H, W)
+    normal[:, 2] = 1.0
+    normal[~mask.expand(1, 3, H, W)] = 0.0
+    full = dict(view_z=z, position=pos, normal=normal, mask=mask)
+    return GBuffer(cam, **{k: v for k, v in full.items() if k in channels})
+
+
+def _gt_map(value=GT) -> torch.Tensor:
+    g = _gbuffer()
+    ao = torch.ones(1, 1, H, W)
+    ao[..., : W // 2] = value
+    ao[~g.mask] = 1.0
+    return ao
+
+
+@dataclasses.dataclass(frozen=True)
+class StubParams:
+    radius: float = 0.5
+    strength: float = 2.0                         # occlusion = strength × GT occlusion
+    num_samples: int = 8
+
+    def __post_init__(self):
+        if not self.radius > 0:
+            raise ValueError(f"radius: must be > 0, got {self.radius}")
+
+
+class Calls:
+    def __init__(self):
+        self.passes, self.gt, self.oracle, self.gbuffer = [], [], [], []
+
+
+@pytest.fixture
+def stub(monkeypatch):
+    """Register a stub AO method and stub the reference (G-buffer, ground truth, oracle)."""
+    calls = Calls()
+    mod = types.ModuleType("ssbench_stub_ao")
+
+    def stub_ao(gbuffer, params, *, generator=None, debug=False):
+        calls.passes.append((gbuffer.channels, params, generator))
+        noise = 0.01 * torch.rand(1, 1, H, W, generator=generator)
+        ao = (1 - params.strength * (1 - _gt_map())).clamp(0, 1) - noise * gbuffer.mask
+        return AOResult(ao.clamp(0, 1))
+
+    stub_ao.__module__ = mod.__name__
+    mod.stub_ao, mod.StubParams, mod.REQUIRES, mod.FLAVOUR = stub_ao, StubParams, ("view_z", "mask"), "obscurance"
+    monkeypatch.setitem(sys.modules, mod.__name__, mod)
+    monkeypatch.setitem(AO_METHODS, "stub", "ssbench_stub_ao:stub_ao:StubParams")
+
+    def fake_gbuffer(scene, width=None, height=None, channels=None, **kw):
+        calls.gbuffer.append((width, height, tuple(channels)))
+        return _gbuffer()
+
+    def fake_ao(scene, gbuffer, radius, rays=256, weighting="cosine", seed=0, *, use_cache=True):
+        calls.gt.append((weighting, radius, rays, seed))
+        return reference.AOReference(_gt_map(), torch.full((1, 1, H, W), 0.01), weighting, radius, rays)
+
+    def fake_oracle(gbuffer, radius, rays=256, weighting="cosine", seed=0, *, use_cache=True):
+        calls.oracle.append((weighting, radius, rays, seed))
+        return reference.AOReference(_gt_map(0.8), torch.zeros(1, 1, H, W), weighting, radius, rays)
+
+    monkeypatch.setattr(reference, "gbuffer", fake_gbuffer)
+    monkeypatch.setattr(reference, "ambient_occlusion", fake_ao)
+    monkeypatch.setattr(reference, "screen_space_oracle", fake_oracle)
+    return calls, mod
+
+
+def test_row_holds_settings_timings_and_metrics(stub):
+    calls, _ = stub
+    row = evaluate.ao("crease", "stub", width=W, height=H, rays=32, seed=3, repeats=2)
+    assert row["scene"] == "crease" and row["method"] == "stub"
+    assert row["params"] == {"radius": 0.5, "strength": 2.0, "num_samples": 8}
+    assert (row["width"], row["height"], row["rays"], row["seed"]) == (W, H, 32, 3)
+    assert row["radius"] == 0.5 and row["radius_param"] == "radius" and row["weighting"] == "obscurance"
+    assert row["threads"] == torch.get_num_threads() and row["repeats"] == 2
+    assert len(row["seconds_runs"]) == 2 and row["seconds"] > 0
+    assert len(calls.passes) == 3                                            # one warm-up + 2 timed runs
+    # the pass sees only its REQUIRES channels; every run gets a fresh generator seeded with `seed`
+    assert {c[0] for c in calls.passes} == {("view_z", "mask")}
+    assert all(c[2].initial_seed() == 3 for c in calls.passes)
+    assert calls.gbuffer == [(W, H, ("view_z", "mask", "position", "normal"))]
+    # ground truth: the pass's flavour and cosine; the oracle in the flavour
+    assert sorted(c[0] for c in calls.gt) == ["cosine", "obscurance"]
+    assert calls.oracle == [("obscurance", 0.5, 32, 3)]
+    for t in ("cos", "flavour", "oracle"):
+        for m in evaluate.TARGET_METRICS:
+            assert isinstance(row[f"{m}_{t}"], float), (m, t)
+    for k in ("banding", "noise", "info_loss_rmse", "info_loss_mae", "info_loss_bias", "estimator_rmse",
+              "estimator_mae", "gt_stderr_cos", "coverage", "nonfinite", "oracle"):
+        assert k in row, k
+    assert row["oracle"] is True and row["nonfinite"] == 0
+    assert row["coverage"] == pytest.approx((H - 2) / H)
+
+
+def test_metric_values_in_closed_form(stub):
+    row = evaluate.ao("crease", "stub", {"num_samples": 4}, width=W, height=H, repeats=1)
+    # stub: occlusion = 2 × GT occlusion (0.3 → 0.6) on the left, minus tiny noise; GT 1 on the right
+    assert row["over_darkening_cos"] == pytest.approx(2.0, rel=0.05)
+    assert row["bias_cos"] == pytest.approx(-0.3 / 2, abs=0.01)
+    assert row["mae_flavour"] == pytest.approx(0.3 / 2, abs=0.01)
+    assert row["flat_bias_cos"] == pytest.approx(0.005, abs=0.005)            # right half: only the noise
+    assert row["info_loss_mae"] == pytest.approx(0.1 / 2, abs=1e-6)           # oracle 0.8 vs GT 0.7 on half
+    assert row["info_loss_bias"] == pytest.approx(0.05, abs=1e-6)
+    assert row["estimator_rmse"] == row["rmse_oracle"]
+    assert row["gt_stderr_cos"] == pytest.approx(0.01)
+    assert row["psnr_cos"] > 0 and 0 < row["ssim_cos"] < 1 and 0 < row["flip_cos"] < 1
+    assert row["halo_band_cos"] > 0 and math.isfinite(row["halo_ratio_cos"])
+
+
+def test_params_dataclass_dict_and_errors(stub):
+    row = evaluate.ao("crease", "stub", StubParams(strength=1.0), width=W, height=H, repeats=1)
+    assert row["params"]["strength"] == 1.0
+    assert row["over_darkening_cos"] == pytest.approx(1.0, rel=0.05)
+    with pytest.raises(ValueError, match="'bogus'"):
+        evaluate.ao("crease", "stub", {"bogus": 1, "strength": 1.0}, width=W, height=H)
+    with pytest.raises(TypeError, match="params"):
+        evaluate.ao("crease", "stub", [("strength", 1.0)], width=W, height=H)
+    with pytest.raises(ValueError, match="radius"):                          # the dataclass's own validation
+        evaluate.ao("crease", "stub", {"radius": -1.0}, width=W, height=H)
+    with pytest.raises(ValueError, match="repeats"):
+        evaluate.ao("crease", "stub", width=W, height=H, repeats=0)
+    with pytest.raises(ValueError, match="weighting"):
+        evaluate.ao("crease", "stub", width=W, height=H, weighting="ambient")
+    with pytest.raises(KeyError, match="method"):
+        evaluate.ao("crease", "no_such_method", width=W, height=H)
+
+
+def test_radius_sets_pass_and_ground_truth(stub):
+    calls, _ = stub
+    row = evaluate.ao("crease", "stub", width=W, height=H, radius=2.0, repeats=1)
+    assert row["params"]["radius"] == 2.0 and row["radius"] == 2.0
+    assert calls.passes[-1][1].radius == 2.0
+    assert {c[1] for c in calls.gt} == {2.0} and calls.oracle[-1][1] == 2.0
+    with pytest.raises(ValueError, match="conflicts"):
+        evaluate.ao("crease", "stub", {"radius": 1.0}, width=W, height=H, radius=2.0)
+    with pytest.raises(ValueError, match="radius"):
+        evaluate.ao("crease", "stub", width=W, height=H, radius=0)
+
+
+def test_radius_param_lookup(stub):
+    @dataclasses.dataclass(frozen=True)
+    class KernelParams:
+        kernel_radius: float = 8.0
+
+    @dataclasses.dataclass(frozen=True)
+    class NoRadius:
+        strength: float = 1.0
+
+    assert evaluate.radius_param(KernelParams) == "kernel_radius"
+    assert evaluate.radius_param(NoRadius) is None
+    assert evaluate.radius_param(NoRadius, types.SimpleNamespace(RADIUS_PARAM="strength")) == "strength"
+    _, mod = stub
+    mod.StubParams = NoRadius
+    with pytest.raises(ValueError, match="no radius parameter"):
+        evaluate.ao("crease", "stub", width=W, height=H, repeats=1)
+
+
+def test_default_flavour_is_cosine_and_gt_is_traced_once(stub, monkeypatch):
+    calls, mod = stub
+    monkeypatch.delattr(mod, "FLAVOUR")
+    row = evaluate.ao("crease", "stub", width=W, height=H, repeats=1)
+    assert row["weighting"] == "cosine"
+    assert [c[0] for c in calls.gt] == ["cosine"]
+    assert row["rmse_cos"] == row["rmse_flavour"]
+    calls.gt.clear()
+    row = evaluate.ao("crease", "stub", width=W, height=H, repeats=1, weighting="uniform")
+    assert sorted(c[0] for c in calls.gt) == ["cosine", "uniform"] and row["weighting"] == "uniform"
+
+
+def test_shared_references_memo(stub):
+    calls, _ = stub
+    memo = {}
+    g = _gbuffer()
+    for _ in range(2):
+        evaluate.ao("crease", "stub", width=W, height=H, repeats=1, references=memo, gbuffer=g)
+    assert len(calls.gt) == 2 and len(calls.oracle) == 1 and calls.gbuffer == []
+
+
+def test_gbuffer_must_hold_the_channels(stub):
+    with pytest.raises(ValueError, match="position"):
+        evaluate.ao("crease", "stub", repeats=1, gbuffer=_gbuffer(("view_z", "mask", "normal")))
+
+
+def test_missing_oracle_gives_nan(stub, monkeypatch):
+    def broken(*a, **k):
+        raise NotImplementedError("no oracle here")
+    monkeypatch.setattr(reference, "screen_space_oracle", broken)
+    row = evaluate.ao("crease", "stub", width=W, height=H, repeats=1)
+    assert row["oracle"] is False and "no oracle here" in row["oracle_error"]
+    assert math.isnan(row["rmse_oracle"]) and math.isnan(row["info_loss_rmse"])
+    assert math.isfinite(row["rmse_cos"])
+    row = evaluate.ao("crease", "stub", width=W, height=H, repeats=1, oracle=False, flip=False)
+    assert row["oracle"] is False and math.isnan(row["flip_cos"])
+
+
+def test_blur_scores_the_blurred_map(stub):
+    import kornia
+    calls, _ = stub
+    seen = []
+
+    def box(ao, gbuffer):
+        seen.append(gbuffer.channels)
+        return kornia.filters.box_blur(ao, 5)
+
+    row = evaluate.ao("crease", "stub", width=W, height=H, repeats=2, blur=box)
+    assert row["blur"] == "box" and row["blur_seconds"] > 0 and len(seen) == 3
+    assert row["noise"] < row["noise_raw"]
+    with pytest.raises(TypeError, match="blur"):
+        evaluate.ao("crease", "stub", width=W, height=H, blur=3)
+
+
+def test_run_ao_returns_the_images(stub):
+    ev = evaluate.run_ao("crease", "stub", width=W, height=H, repeats=1)
+    assert ev.ao.shape == (1, 1, H, W) and torch.equal(ev.ao, ev.ao_raw)
+    assert set(ev.references) == {"cos", "flavour", "oracle"}
+    assert ev.row["rmse_cos"] == pytest.approx(float((ev.ao - ev.references["cos"].ao)[ev.gbuffer.mask]
+                                                     .square().mean().sqrt()), rel=1e-6)
+
+
+def test_wrong_output_shape_is_an_error(stub):
+    _, mod = stub
+
+    def bad(gbuffer, params, *, generator=None, debug=False):
+        return AOResult(torch.ones(1, 1, H, W - 1))
+    bad.__module__ = mod.__name__
+    mod.stub_ao = bad
+    with pytest.raises(ValueError, match="shape"):
+        evaluate.ao("crease", "stub", width=W, height=H, repeats=1)
+
+
+@pytest.mark.slow
+@pytest.mark.mitsuba
+@pytest.mark.parametrize("method", ["hbao", "gtao", "ssao", "crytek"])
+def test_real_pass_against_real_reference(method, tmp_path, monkeypatch):
+    """End to end on a tiny image: the real pass, G-buffer and ray-traced ground truth."""
+    monkeypatch.setenv("SSBENCH_CACHE_DIR", str(tmp_path / "cache"))
+    from ssbench.passes import ao_method
+    try:
+        ao_method(method)
+    except (ImportError, AttributeError) as e:
+        pytest.skip(f"{method} not importable yet: {e}")
+    row = evaluate.ao("crease", method, width=32, height=24, rays=16, repeats=1)
+    assert row["nonfinite"] == 0 and 0 <= row["mae_cos"] <= 1
+    assert math.isfinite(row["rmse_oracle"]) and math.isfinite(row["info_loss_rmse"])
+
+
+@pytest.mark.parametrize("name", evaluate.BLUR_NAMES)
+def test_named_blurs(stub, name):
+    row = evaluate.ao("crease", "stub", width=W, height=H, repeats=1, blur=name)
+    assert row["blur"] == name and row["noise"] < row["noise_raw"]
+
+
+def test_unknown_blur_name(stub):
+    calls, _ = stub
+    with pytest.raises(ValueError, match="blur: unknown blur 'gauss'; known: box"):
+        evaluate.ao("crease", "stub", width=W, height=H, blur="gauss")
+    assert not calls.passes and not calls.gbuffer                          # checked before any work
+
+
+def test_no_warmup(stub):
+    calls, _ = stub
+    row = evaluate.ao("crease", "stub", width=W, height=H, repeats=1, warmup=False)
+    assert len(calls.passes) == 1 and row["warmup"] is False

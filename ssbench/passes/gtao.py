@@ -36,6 +36,7 @@ from .. import checks
 from ..gbuffer import GBuffer
 from .common import AOResult, check_count, check_radius, check_unit_normals, fetch, make_generator
 
+FLAVOUR = "cosine"  # the ground-truth weighting this pass estimates (ssbench.reference.ao)
 REQUIRES = ("view_z", "normal", "mask")
 QUALITY_PRESETS = {"low": (1, 2), "medium": (2, 2), "high": (3, 3), "ultra": (9, 3)}  # slices, steps per side
 NOISE_KINDS = ("hash", "hilbert", "none")

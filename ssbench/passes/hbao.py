@@ -45,6 +45,7 @@ from .. import checks
 from ..gbuffer import GBuffer
 from .common import AOResult, check_count, check_radius, fetch_uv, make_generator
 
+FLAVOUR = "obscurance"  # the ground-truth weighting this pass estimates (ssbench.reference.ao)
 REQUIRES = ("view_z", "mask")
 POSITION_FROM = ("depth", "view_z")
 

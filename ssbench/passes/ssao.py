@@ -44,6 +44,7 @@ from ..gbuffer import GBuffer
 from .common import AOResult, check_count, check_radius, check_unit_normals, fetch_uv, make_generator
 from .sampling import hemisphere_kernel, noise_texel, noise_texture
 
+FLAVOUR = "uniform"  # the ground-truth weighting this pass estimates (ssbench.reference.ao)
 REQUIRES = ("view_z", "normal", "mask")
 POSITION_FROM = ("depth", "view_z")
 

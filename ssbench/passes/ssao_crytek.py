@@ -38,6 +38,7 @@ from .common import AOResult, make_generator
 from .sampling import noise_texel, noise_texture, sphere_kernel
 from .ssao import check_gbuffer, check_ssao_params, occlusion_to_ao, range_check_count, view_position
 
+FLAVOUR = "uniform"  # the ground-truth weighting this pass estimates (ssbench.reference.ao)
 REQUIRES = ("view_z", "mask")
 
 

@@ -26,7 +26,6 @@ from __future__ import annotations
 import hashlib
 import time
 from dataclasses import dataclass
-from typing import Optional
 
 import numpy as np
 import torch

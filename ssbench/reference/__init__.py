@@ -13,3 +13,7 @@ __all__ = ["gbuffer", "color", "DEFAULT_CHANNELS"]
 from .ao import AOReference, ambient_occlusion, screen_space_oracle  # noqa: E402
 
 __all__ += ["ambient_occlusion", "screen_space_oracle", "AOReference"]
+
+from .reflections import ReflectionReference, reflections  # noqa: E402
+
+__all__ += ["reflections", "ReflectionReference"]

@@ -1,4 +1,4 @@
-"""The ``ssbench`` command: ``info``, ``scenes``, ``render``, ``ao`` and ``report``.
+"""The ``ssbench`` command: ``info``, ``scenes``, ``render``, ``ao``, ``ssr`` and ``report``.
 
 ``main(argv)`` returns the exit status instead of exiting, so it can be called in-process; user errors print
 ``ssbench: error: ...`` to stderr (exit status 2 for bad arguments, 1 for a failed run) without a traceback
@@ -193,6 +193,23 @@ def _parser() -> _Parser:
     q.add_argument("--out", metavar="DIR", help="write ao.png, gt.png, error maps and row.json here")
     q.add_argument("--json", action="store_true", help="print the row as JSON")
     q.add_argument("--no-cache", action="store_true", help="do not read or write the render cache")
+    from .passes import SSR_METHODS
+    q = sub.add_parser("ssr", help="run one SSR method on a scene and classify it against the exact reflections")
+    q.add_argument("scene", metavar="SCENE", help="catalog name or scene file (.yaml, .toml, .xml)")
+    q.add_argument("--method", required=True, choices=list(SSR_METHODS), help="SSR method")
+    q.add_argument("--param", type=_param, action="append", default=[], metavar="NAME=VALUE",
+                   help="override a pass parameter (repeatable), e.g. --param pixel_stride=4")
+    q.add_argument("--width", type=_positive("width"), default=320)
+    q.add_argument("--height", type=_positive("height"), default=240)
+    q.add_argument("--spp", type=_positive("spp"), default=16,
+                   help="samples per pixel of the colour buffer and the mirror radiance (default 16)")
+    q.add_argument("--k-px", type=_positive_float, default=1.5, dest="k_px",
+                   help="hit tolerance in pixels for a correct hit (default 1.5)")
+    q.add_argument("--seed", type=_non_negative, default=0)
+    q.add_argument("--repeats", type=_positive("repeats"), default=3, help="timed runs after a warm-up")
+    q.add_argument("--out", metavar="DIR", help="write colour, class, visit and error maps and row.json here")
+    q.add_argument("--json", action="store_true", help="print the row as JSON")
+    q.add_argument("--no-cache", action="store_true", help="do not read or write the render cache")
     q = sub.add_parser("report", help="render the built-in scenes into an HTML report")
     q.add_argument("--out", default="reports", metavar="DIR", help="reports root (default: reports)")
     q.add_argument("--width", type=_positive("width"), default=320)
@@ -204,6 +221,9 @@ def _parser() -> _Parser:
     q.add_argument("--no-ao", action="store_true", help="leave out the ambient-occlusion section")
     q.add_argument("--ao-radius", type=_positive_float, default=0.5, help="AO radius of the report (0.5)")
     q.add_argument("--ao-rays", type=_rays, default=128, help="AO GT rays per pixel (128)")
+    q.add_argument("--no-ssr", action="store_true", help="leave out the screen-space reflections section")
+    q.add_argument("--ssr-spp", type=_positive("ssr-spp"), default=16,
+                   help="samples per pixel of the SSR mirror radiance (16)")
     return p
 
 
@@ -357,18 +377,98 @@ def _cmd_ao(args) -> int:
     return 0
 
 
+def _ssr_table(row: dict) -> str:
+    from .metrics.ssr import CLASS_NAMES
+    from .report.ao_section import fmt
+    head = (f"{row['scene']} · {row['method']} · {row['width']}x{row['height']} · {row['spp']} spp · "
+            f"k {row['k_px']} px · seed {row['seed']}\n"
+            f"params: {', '.join(f'{k}={v}' for k, v in row['params'].items())}\n"
+            f"time {fmt(row['seconds'], '{:.4f}')} s (median of {row['repeats']}, {row['threads']} threads); "
+            f"exact reflections {fmt(row['gt_seconds'], '{:.3f}')} s\n"
+            f"reflective pixels {row['reflective_pixels']} ({fmt(row['coverage'], '{:.1%}')} of the image); "
+            f"pass hits {fmt(row['hit_rate'], '{:.1%}')}, truth hits {fmt(row['truth_hit_rate'], '{:.1%}')}\n")
+    lines = [f"{'class':<20}{'share':>10}{'pass hit':>10}"]
+    for key in CLASS_NAMES.values():
+        if key == "not_reflective":
+            continue
+        extra = row.get(f"frac_{key}_pass_hit")
+        lines.append(f"{key:<20}{fmt(row[f'frac_{key}'], '{:.2%}'):>10}"
+                     + (f"{fmt(extra, '{:.2%}'):>10}" if extra is not None else ""))
+    lines.append(f"{'hit error':<20}{'px':>10}{'view':>10}   (over {int(row['hit_err_n'])} hit pairs)")
+    for s in ("mean", "median", "p95", "max"):
+        lines.append(f"  {s:<18}{fmt(row[f'hit_err_px_{s}'], '{:.3f}'):>10}"
+                     f"{fmt(row[f'hit_err_view_{s}'], '{:.4f}'):>10}")
+    lines.append(f"{'colour':<20}{'raw':>10}{'faded':>10}")
+    for m, spec in (("mae", "{:.4f}"), ("rmse", "{:.4f}"), ("psnr", "{:.2f}"), ("flip", "{:.4f}")):
+        lines.append(f"  {m:<18}{fmt(row[f'{m}_raw'], spec):>10}{fmt(row[f'{m}_faded'], spec):>10}")
+    lines.append(f"  {'mae (truth hits)':<18}{fmt(row['mae_raw_truth_hit'], '{:.4f}'):>10}"
+                 f"{fmt(row['mae_faded_truth_hit'], '{:.4f}'):>10}")
+    terms = ", ".join(f"{k[5:]} {fmt(v, '{:.1%}')}" for k, v in row.items() if k.startswith("term_"))
+    lines.append(f"terminations: {terms}; steps mean {fmt(row['steps_mean'], '{:.1f}')}, max {row['steps_max']}")
+    return head + "\n".join(lines)
+
+
+def _cmd_ssr(args) -> int:
+    from . import evaluate
+    from .passes import ssr_method
+    sc = _load_scene(args.scene)
+    try:
+        _, params_cls, _ = ssr_method(args.method)
+    except (ImportError, AttributeError) as e:
+        raise _UsageError(f"argument --method: {args.method} is not importable ({type(e).__name__}: {e})", 1)
+    params = coerce_params(params_cls, args.param, args.method)
+    try:
+        evaluate.resolve_params(params_cls, params, args.method)     # the dataclass's own checks, up front
+    except (ValueError, TypeError) as e:
+        raise _UsageError(f"argument --param: {e}") from None
+    try:
+        ev = evaluate.run_ssr(sc, args.method, params, width=args.width, height=args.height, seed=args.seed,
+                              repeats=args.repeats, spp=args.spp, k_px=args.k_px, debug=bool(args.out),
+                              use_cache=not args.no_cache)
+    except (RuntimeError, ImportError) as e:                 # e.g. no vectorised Mitsuba variant for the truth
+        if os.environ.get("SSBENCH_DEBUG"):
+            raise
+        raise _UsageError(str(e), 1) from None
+    row = ev.row
+    print(json.dumps(row, indent=2, default=str) if args.json else _ssr_table(row))
+    if args.out:
+        from .metrics import ssr as M
+        from .report.ao_section import write_png
+        from .report.ssr_section import ERR_RANGE, color_rgb, magma_rgb, visits_rgb
+        res, truth = ev.result, ev.truth
+        valid = truth.valid.bool()
+        images = {"color.png": color_rgb(res.color, valid), "raw_color.png": color_rgb(res.raw_color, valid),
+                  "truth.png": color_rgb(truth.radiance, valid),
+                  "truth_classes.png": M.class_rgb(M.truth_classes(truth, ev.gbuffer)),
+                  "classes.png": M.class_rgb(ev.classes, res.hit.bool()),
+                  "error.png": magma_rgb(M.color_error_map(res.raw_color, truth.radiance), valid, ERR_RANGE)}
+        visits = ev.debug.get("visits")
+        if hasattr(visits, "dim") and visits.dim() == 4:
+            images["visits.png"] = visits_rgb(visits[:1, :1])[0]
+        for name, rgb in images.items():
+            write_png(os.path.join(args.out, name), rgb)
+        tmp = os.path.join(args.out, ".row.json.tmp")
+        with open(tmp, "w", encoding="utf-8") as f:
+            json.dump(row, f, indent=2, default=str)
+            f.write("\n")
+        os.replace(tmp, os.path.join(args.out, "row.json"))
+        if not args.json:
+            print(f"wrote {len(images) + 1} files to {args.out}")
+    return 0
+
+
 def _cmd_report(args) -> int:
     from .report.build import build_report
     index = build_report(args.out, scenes=args.scenes, width=args.width, height=args.height, spp=args.spp,
                          seed=args.seed, use_cache=args.cache, ao=not args.no_ao, ao_radius=args.ao_radius,
-                         ao_rays=args.ao_rays)
+                         ao_rays=args.ao_rays, ssr=not args.no_ssr, ssr_spp=args.ssr_spp)
     print(f"report: {index}")
     print(f"latest: {os.path.join(os.path.abspath(args.out), 'latest', 'index.html')}")
     return 0
 
 
 _COMMANDS = {"info": _cmd_info, "scenes": _cmd_scenes, "render": _cmd_render, "ao": _cmd_ao,
-             "report": _cmd_report}
+             "ssr": _cmd_ssr, "report": _cmd_report}
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:

@@ -286,3 +286,219 @@ def test_no_warmup(stub):
     calls, _ = stub
     row = evaluate.ao("crease", "stub", width=W, height=H, repeats=1, warmup=False)
     assert len(calls.passes) == 1 and row["warmup"] is False
+
+
+# ------------------------------------------------------------------------------------------ SSR rows
+from ssbench.metrics import ssr as SSRM  # noqa: E402
+from ssbench.passes import SSR_METHODS  # noqa: E402
+from ssbench.passes.ssr_common import HIT, MAX_DISTANCE, NO_RAY, OUT_OF_STEPS, SSRResult  # noqa: E402
+
+SH, SW = 10, 16          # rows 0-1 background; left half: truth hits visibly (3 px up); right half: sky
+
+
+@dataclasses.dataclass(frozen=True)
+class StubSSRParams:
+    thickness: float = 0.1
+    use_back_face_depth: bool = False
+    miss_rows: int = 2                      # the pass misses the last `miss_rows` rows of the left half
+    fade: float = 0.5
+
+    def __post_init__(self):
+        if not self.thickness > 0:
+            raise ValueError(f"thickness: must be > 0, got {self.thickness}")
+
+
+@dataclasses.dataclass(frozen=True)
+class StubTruth:
+    valid: torch.Tensor
+    hit: torch.Tensor
+    hit_view: torch.Tensor
+    hit_pixel: torch.Tensor
+    on_screen: torch.Tensor
+    visible: torch.Tensor
+    back_face: torch.Tensor
+    hit_shape: torch.Tensor
+    radiance: torch.Tensor
+    seconds: float = 0.25
+
+
+def _ssr_full_gbuffer() -> GBuffer:
+    cam = Camera.from_look_at((0, 0, 5), (0, 0, 0), (0, 1, 0), 45.0, SW, SH, 0.1, 100.0)
+    mask = torch.ones(1, 1, SH, SW, dtype=torch.bool)
+    mask[..., :2, :] = False
+    z = torch.where(mask, -5.0, -100.0)
+    n = torch.where(mask, torch.tensor([0.0, 1.0, 0.0]).view(1, 3, 1, 1), 0.0)
+    return GBuffer(cam, view_z=z, position=cam.uv_to_view(cam.uv_grid()[None], z), normal=n, mask=mask,
+                   shape_id=torch.where(mask, 0, -1).int(), color=torch.full((1, 3, SH, SW), 0.4),
+                   back_z=torch.where(mask, -5.5, -math.inf), albedo=torch.zeros(1, 3, SH, SW),
+                   roughness=torch.zeros(1, 1, SH, SW), metallic=torch.ones(1, 1, SH, SW))
+
+
+def _stub_truth(g: GBuffer) -> StubTruth:
+    mask = g.mask
+    left = torch.zeros_like(mask)
+    left[..., : SW // 2] = True
+    hit = mask & left
+    px = g.camera.pixel_centers()[None] + torch.tensor([0.0, -3.0]).view(1, 2, 1, 1)
+    return StubTruth(valid=mask.clone(), hit=hit, hit_view=torch.where(hit, g.position - 1.0, 0.0),
+                     hit_pixel=torch.where(hit, px, -1.0), on_screen=hit.clone(), visible=hit.clone(),
+                     back_face=torch.zeros_like(hit), hit_shape=torch.where(hit, 1, -1).int(),
+                     radiance=torch.where(mask, 0.4, 0.0).expand(1, 3, SH, SW).contiguous())
+
+
+class SSRCalls:
+    def __init__(self):
+        self.passes, self.gbuffer, self.truth = [], [], []
+
+
+@pytest.fixture
+def stub_ssr(monkeypatch):
+    """Register a stub SSR method ('stub') and stub the reference (G-buffer channels, reflections)."""
+    calls = SSRCalls()
+    mod = types.ModuleType("ssbench_stub_ssr")
+
+    def stub(gbuffer, params, *, generator=None, debug=False):
+        calls.passes.append((gbuffer.channels, params, generator, debug))
+        truth = _stub_truth(_ssr_full_gbuffer())
+        hit = truth.hit.clone()
+        if params.miss_rows:
+            hit[..., SH - params.miss_rows:, :] = False
+        term = torch.where(hit, HIT, MAX_DISTANCE).to(torch.int8)
+        term[..., SH - 1, SW // 2:] = OUT_OF_STEPS
+        term[~gbuffer.mask] = NO_RAY
+        raw = torch.where(hit, gbuffer.color, 0.0)
+        fade = torch.full((1, 1, SH, SW), params.fade)
+        extra = {"visits": torch.ones(1, 1, SH, SW, dtype=torch.int32)} if debug else {}
+        return SSRResult(color=raw * fade, hit=hit, hit_pixel=torch.where(hit, truth.hit_pixel, -1.0),
+                         hit_view=torch.where(hit, truth.hit_view, 0.0),
+                         steps=torch.where(gbuffer.mask, 7, 0).int(), termination=term, fade=fade,
+                         raw_color=raw, debug=extra)
+
+    stub.__module__ = mod.__name__
+    mod.stub, mod.StubSSRParams = stub, StubSSRParams
+    mod.REQUIRES = ("view_z", "normal", "mask", "color")
+    mod.REQUIRES_BACKFACE = mod.REQUIRES + ("back_z",)
+    monkeypatch.setitem(sys.modules, mod.__name__, mod)
+    monkeypatch.setitem(SSR_METHODS, "stub", f"{mod.__name__}:stub:StubSSRParams")
+
+    def fake_gbuffer(scene, width=None, height=None, channels=None, spp=64, seed=0, **kw):
+        calls.gbuffer.append((width, height, tuple(channels), spp, seed))
+        return _ssr_full_gbuffer().select(tuple(channels))
+
+    def fake_reflections(scene, gbuffer, *, spp=16, seed=0, use_cache=True):
+        calls.truth.append((gbuffer.channels, spp, seed))
+        return _stub_truth(_ssr_full_gbuffer())
+
+    monkeypatch.setattr(reference, "gbuffer", fake_gbuffer)
+    monkeypatch.setattr(reference, "reflections", fake_reflections, raising=False)
+    return calls, mod
+
+
+def test_ssr_row_settings_classes_and_metrics(stub_ssr):
+    calls, _ = stub_ssr
+    row = evaluate.ssr("reflective_floor", "stub", width=SW, height=SH, seed=2, repeats=2, spp=4)
+    assert row["scene"] == "reflective_floor" and row["method"] == "stub"
+    assert row["params"] == {"thickness": 0.1, "use_back_face_depth": False, "miss_rows": 2, "fade": 0.5}
+    assert (row["width"], row["height"], row["seed"], row["spp"], row["k_px"]) == (SW, SH, 2, 4, 1.5)
+    assert len(calls.passes) == 3 and len(row["seconds_runs"]) == 2 and row["seconds"] > 0
+    assert {c[0] for c in calls.passes} == {("view_z", "normal", "mask", "color")}   # only REQUIRES
+    assert all(c[2].initial_seed() == 2 and c[3] is False for c in calls.passes)
+    assert calls.gbuffer == [(SW, SH, ("view_z", "normal", "mask", "color", "position", "shape_id"), 4, 2)]
+    assert [c[1:] for c in calls.truth] == [(4, 2)]
+    assert row["channels"] == ["view_z", "normal", "mask", "color"] and row["back_face_depth"] is False
+    # closed form: 8 reflective rows x 16; left half: truth hits, pass misses the last 2 rows; right half: sky
+    n = 8 * SW
+    assert row["reflective_pixels"] == n and row["coverage"] == pytest.approx(n / (SH * SW))
+    assert row["frac_correct"] == pytest.approx(6 * 8 / n) and row["frac_missed"] == pytest.approx(2 * 8 / n)
+    assert row["frac_true_miss"] == pytest.approx(0.5) and row["frac_false_hit"] == 0.0
+    assert row["frac_unfixable"] == 0.0 and row["frac_off_screen_target_pass_hit"] == 0.0
+    assert row["hit_rate"] == pytest.approx(48 / n) and row["truth_hit_rate"] == pytest.approx(0.5)
+    assert row["hit_err_n"] == 48 and row["hit_err_px_max"] == 0.0 and row["hit_err_correct_view_mean"] == 0.0
+    # colour: raw 0.4 where hit (radiance 0.4 on every reflective pixel, 0 for misses), faded × 0.5
+    assert row["mae_raw"] == pytest.approx(0.4 * (n - 48) / n, rel=1e-5)
+    assert row["mae_faded"] == pytest.approx((0.4 * (n - 48) + 0.2 * 48) / n, rel=1e-5)
+    assert row["psnr_raw"] > row["psnr_faded"] and 0 < row["flip_raw"] < row["flip_faded"]
+    assert row["mae_raw_truth_hit"] == pytest.approx(0.4 * 16 / 64, rel=1e-5)      # left half only: no sky
+    assert row["mae_faded_truth_hit"] == pytest.approx((0.4 * 16 + 0.2 * 48) / 64, rel=1e-5)
+    assert row["term_hit"] == pytest.approx(48 / n) and row["term_out_of_steps"] == pytest.approx(8 / n)
+    assert row["steps_mean"] == 7.0 and row["steps_max"] == 7 and row["nonfinite"] == 0
+    assert row["gt_seconds"] == 0.25 and row["threads"] == torch.get_num_threads()
+
+
+def test_ssr_back_face_depth_adds_its_channels(stub_ssr):
+    calls, _ = stub_ssr
+    row = evaluate.ssr("fence", "stub", {"use_back_face_depth": True}, width=SW, height=SH, repeats=1)
+    assert row["back_face_depth"] is True and row["channels"][-1] == "back_z"
+    assert "back_z" in calls.gbuffer[-1][2] and "back_z" in calls.passes[-1][0]
+
+
+def test_ssr_pass_channels_prefers_the_module_function():
+    mod = types.SimpleNamespace(REQUIRES=("view_z",), required_channels=lambda p: ("view_z", "position"))
+    assert evaluate.pass_channels(mod, StubSSRParams()) == ("view_z", "position")
+    mod = types.SimpleNamespace(REQUIRES=("view_z", "color"))
+    assert evaluate.pass_channels(mod, StubSSRParams(use_back_face_depth=True)) == ("view_z", "color", "back_z")
+
+
+def test_ssr_params_and_argument_errors(stub_ssr):
+    calls, _ = stub_ssr
+    with pytest.raises(ValueError, match="'bogus'"):
+        evaluate.ssr("fence", "stub", {"bogus": 1}, width=SW, height=SH)
+    with pytest.raises(ValueError, match="thickness"):
+        evaluate.ssr("fence", "stub", {"thickness": 0.0}, width=SW, height=SH)
+    for kw, name in (({"repeats": 0}, "repeats"), ({"seed": -1}, "seed"), ({"spp": 0}, "spp"),
+                     ({"k_px": 0}, "k_px"), ({"reflective": "some"}, "reflective")):
+        with pytest.raises(ValueError, match=name):
+            evaluate.ssr("fence", "stub", width=SW, height=SH, **kw)
+    with pytest.raises(KeyError, match="method"):
+        evaluate.ssr("fence", "no_such_method", width=SW, height=SH)
+    assert not calls.passes and not calls.gbuffer                            # checked before any work
+
+
+def test_ssr_reuses_gbuffer_and_truth_and_collects_visits(stub_ssr):
+    calls, _ = stub_ssr
+    g = _ssr_full_gbuffer()
+    truth = _stub_truth(g)
+    ev = evaluate.run_ssr("fence", "stub", gbuffer=g, truth=truth, repeats=1, warmup=False, debug=True,
+                          flip=False)
+    assert not calls.gbuffer and not calls.truth
+    assert [c[3] for c in calls.passes] == [False, True]                    # the timed run, then the debug run
+    assert ev.debug["visits"].shape == (1, 1, SH, SW) and ev.classes.shape == (1, 1, SH, SW)
+    assert ev.truth is truth and math.isnan(ev.row["flip_raw"]) and ev.row["warmup"] is False
+    with pytest.raises(ValueError, match="shape_id"):
+        evaluate.ssr("fence", "stub", gbuffer=g.select(("view_z", "normal", "mask", "color", "position")),
+                     truth=truth, repeats=1)
+
+
+def test_ssr_marched_pixels_only(stub_ssr):
+    _, mod = stub_ssr
+    row = evaluate.ssr("fence", "stub", width=SW, height=SH, repeats=1, reflective="marched", flip=False)
+    assert row["reflective"] == "marched" and row["reflective_pixels"] == 8 * SW      # NO_RAY only off mask
+
+
+def test_ssr_wrong_output_shape_is_an_error(stub_ssr):
+    _, mod = stub_ssr
+
+    def bad(gbuffer, params, *, generator=None, debug=False):
+        r = SSRResult(*(torch.zeros(1, c, SH, SW - 1) for c in (3, 1, 2, 3, 1, 1, 1, 3)))
+        return dataclasses.replace(r, hit=r.hit.bool())
+    bad.__module__ = mod.__name__
+    mod.stub = bad
+    with pytest.raises(ValueError, match="shape"):
+        evaluate.ssr("fence", "stub", width=SW, height=SH, repeats=1)
+
+
+@pytest.mark.slow
+@pytest.mark.mitsuba
+@pytest.mark.parametrize("method", ["linear", "dda"])
+def test_real_ssr_pass_against_real_reflections(method, tmp_path, monkeypatch):
+    """End to end on a tiny image: the real pass, G-buffer and exact reflections."""
+    monkeypatch.setenv("SSBENCH_CACHE_DIR", str(tmp_path / "cache"))
+    from ssbench.passes import ssr_method
+    try:
+        ssr_method(method)
+    except (ImportError, AttributeError) as e:
+        pytest.skip(f"{method} not importable yet: {e}")
+    row = evaluate.ssr("reflective_floor", method, width=40, height=30, spp=2, repeats=1, flip=False)
+    assert row["nonfinite"] == 0 and row["reflective_pixels"] > 0
+    total = sum(row[f"frac_{k}"] for k in SSRM.CLASS_NAMES.values() if k != "not_reflective")
+    assert total == pytest.approx(1.0)

@@ -1,8 +1,8 @@
 """Screen-space passes: pure functions of (GBuffer, params, generator) with thin ``nn.Module`` wrappers.
 
 No Mitsuba import and no file I/O here. Every pass module declares the G-buffer channels it reads in
-``REQUIRES``. :data:`AO_METHODS` maps a method name to ``"module:function:ParamsClass"``; use
-:func:`ao_method` to resolve it.
+``REQUIRES``. :data:`AO_METHODS` and :data:`SSR_METHODS` map a method name to ``"module:function:ParamsClass"``;
+use :func:`ao_method` / :func:`ssr_method` to resolve it.
 """
 from __future__ import annotations
 
@@ -27,4 +27,20 @@ def ao_method(name: str):
     return getattr(m, fn), getattr(m, params), getattr(m, "REQUIRES")
 
 
-__all__ = ["AOResult", "AO_METHODS", "ao_method"]
+SSR_METHODS: dict[str, str] = {
+    "linear": "ssbench.passes.ssr_linear:ssr_linear:LinearSSRParams",
+    "dda": "ssbench.passes.ssr_dda:ssr_dda:DDASSRParams",
+}
+
+
+def ssr_method(name: str):
+    """``(function, ParamsClass, REQUIRES)`` of an SSR method by name (the module may also declare
+    ``REQUIRES_BACKFACE``, the extra channels its back-face depth option reads)."""
+    if name not in SSR_METHODS:
+        raise KeyError(f"method: unknown SSR method {name!r}; known: {', '.join(SSR_METHODS)}")
+    mod, fn, params = SSR_METHODS[name].split(":")
+    m = importlib.import_module(mod)
+    return getattr(m, fn), getattr(m, params), getattr(m, "REQUIRES")
+
+
+__all__ = ["AOResult", "AO_METHODS", "ao_method", "SSR_METHODS", "ssr_method"]

@@ -22,6 +22,8 @@ from ..gbuffer import CHANNELS, GBuffer
 from ..io import _umask_mode
 
 #: G-buffer previews shown under each scene's colour image, in this order
+#: scenes of the SSR section when the report names none (mirrors ``ssr_section.SSR_SCENES``)
+_SSR_SCENES = ("reflective_floor", "fence")
 PREVIEW_ROW = ("view_z", "normal", "position", "albedo", "roughness", "metallic", "shape_id", "mask", "back_z")
 ALL_CHANNELS = tuple(CHANNELS)
 _REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -176,16 +178,34 @@ def _ao_section(run_dir, scenes, width, height, enabled, radius, rays, seed, use
     return out
 
 
+def _ssr_section(run_dir, scenes, width, height, enabled, spp, seed, use_cache, gbuffers, progress) -> dict:
+    """The SSR section's metadata (see :mod:`.ssr_section`); a note instead whenever it cannot run."""
+    if not enabled:
+        return {"available": False, "note": "SSR section turned off.", "notes": [], "summary_md": ""}
+    try:
+        from . import ssr_section
+        out = ssr_section.build_ssr_section(run_dir, scenes, width, height, spp=spp, seed=seed,
+                                            use_cache=use_cache, gbuffers=gbuffers, progress=progress)
+        out["summary_md"] = ssr_section.summary_md(out)
+    except Exception as e:                                   # the report must not crash on the SSR slice
+        note = f"SSR section failed: {type(e).__name__}: {e}"
+        out = {"available": False, "note": note, "notes": [],
+               "summary_md": f"\n## Screen-space reflections\n\n{note}\n"}
+    return out
+
+
 def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = None, width: int = 320,
                  height: int = 240, spp: int = 64, seed: int = 0, *, use_cache: bool = False,
                  progress: Optional[bool] = None, ao: bool = True, ao_radius: float = 0.5,
-                 ao_rays: int = 128) -> str:
+                 ao_rays: int = 128, ssr: bool = True, ssr_spp: int = 16) -> str:
     """Render every catalog scene (or ``scenes``) and write a report run; returns the run's ``index.html``.
 
     ``use_cache=False`` (default) renders afresh so the timings measure rendering, not the disk cache.
     ``ao`` adds the ambient-occlusion section (:mod:`ssbench.report.ao_section`; scenes: ``scenes`` or its
-    small default subset) at radius ``ao_radius`` with ``ao_rays`` ground-truth rays per pixel; it never
-    fails the report (problems show as notes in the page).
+    small default subset) at radius ``ao_radius`` with ``ao_rays`` ground-truth rays per pixel; ``ssr`` the
+    screen-space reflections section (:mod:`ssbench.report.ssr_section`; scenes: ``scenes`` or
+    reflective_floor and fence) with ``ssr_spp`` samples for the mirror radiance, reusing the G-buffers
+    rendered here. Neither section ever fails the report (problems show as notes in the page).
     """
     import jinja2
     from tqdm import tqdm
@@ -207,10 +227,12 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
     backend_init_s = time.perf_counter() - t0
     run, run_dir = _new_run_dir(out_root)
     descriptions = catalog.describe()
-    rows = []
+    rows, gbuffers = [], {}
     for name in tqdm(names, desc="report", unit="scene", disable=None if progress is None else not progress):
         sc = load(name)
         g, timings = render_scene(sc, width, height, ALL_CHANNELS, spp=spp, seed=seed, use_cache=use_cache)
+        if ssr and (scenes is not None or name in _SSR_SCENES):
+            gbuffers[name] = g                              # reused by the SSR section
         t0 = time.perf_counter()
         images = {}
         for ch in ("color",) + PREVIEW_ROW:
@@ -228,6 +250,8 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
             "git": git_state(), "environment": env, "backend_init_s": backend_init_s, "scenes": rows,
             "preview_row": list(PREVIEW_ROW)}
     meta["ao"] = _ao_section(run_dir, scenes, width, height, ao, ao_radius, ao_rays, seed, use_cache, progress)
+    meta["ssr"] = _ssr_section(run_dir, scenes, width, height, ssr, ssr_spp, seed, use_cache, gbuffers, progress)
+    del gbuffers
     meta["total_s"] = time.perf_counter() - t_start
     meta["metadata_rows"] = _rows(meta)
     tpl_env = jinja2.Environment(loader=jinja2.FileSystemLoader(os.path.join(os.path.dirname(__file__),
@@ -237,7 +261,8 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
     html = tpl_env.get_template("index.html.j2").render(meta=meta, fmt=_fmt)
     index = os.path.join(run_dir, "index.html")
     _write_text(index, html)
-    _write_text(os.path.join(run_dir, "summary.md"), _summary_md(meta) + meta["ao"]["summary_md"])
+    _write_text(os.path.join(run_dir, "summary.md"), _summary_md(meta) + meta["ao"]["summary_md"]
+                + meta["ssr"]["summary_md"])
     _write_text(os.path.join(run_dir, "meta.json"), json.dumps(meta, indent=2, default=str) + "\n")
     refresh_latest(run_dir, out_root)
     return index

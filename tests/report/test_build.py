@@ -48,7 +48,7 @@ def test_latest_images_resolve(report):
     latest = report[0] / "latest"
     html = (latest / "index.html").read_text()
     srcs = re.findall(r'<img[^>]*\ssrc="([^"]+)"', html)
-    assert len([s for s in srcs if not s.startswith("img/ao/")]) == len(SCENES) * (1 + len(PREVIEW_ROW))
+    assert len([s for s in srcs if not s.startswith(("img/ao/", "img/ssr/"))]) == len(SCENES) * (1 + len(PREVIEW_ROW))
     for src in srcs:
         assert not os.path.isabs(src) and "://" not in src
         path = latest / src
@@ -235,3 +235,191 @@ def test_ao_section_failure_never_crashes_the_report(tmp_path, monkeypatch):
     off = build._ao_section(str(tmp_path), None, 16, 12, False, 0.5, 4, 0, False, False)
     assert not off["available"] and off["summary_md"] == ""
     assert "turned off" in _render_section(off)
+
+
+# ------------------------------------------------------------------------------------------ SSR section
+@pytest.mark.slow
+@pytest.mark.mitsuba
+def test_ssr_section_in_the_report(report):
+    latest = report[0] / "latest"
+    meta = json.loads((latest / "meta.json").read_text())
+    html = (latest / "index.html").read_text()
+    ssr = meta["ssr"]
+    assert "Screen-space reflections" in html and "Screen-space reflections" in (latest / "summary.md").read_text()
+    if not ssr["available"]:                                               # passes still being written
+        assert ssr["note"] and ssr["note"] in html
+        return
+    assert [s["name"] for s in ssr["scenes"]] == SCENES
+    for src in re.findall(r'<img[^>]*\ssrc="(img/ssr/[^"]+)"', html):
+        assert (latest / src).is_file(), src
+    for r in ssr["rows"]:
+        assert r["width"] == 48 and r["nonfinite"] == 0
+
+
+def _stub_ssr(monkeypatch, fail_scene=None, visits=True):
+    """Stub SSR registry + reference so the SSR section runs in a blink without Mitsuba."""
+    import dataclasses
+    import sys
+    import types
+
+    import torch
+
+    from ssbench import passes, reference
+    from ssbench.camera import Camera
+    from ssbench.gbuffer import GBuffer
+    from ssbench.passes.ssr_common import HIT, MAX_DISTANCE, SSRResult
+
+    @dataclasses.dataclass(frozen=True)
+    class P:
+        thickness: float = 0.1
+
+    @dataclasses.dataclass(frozen=True)
+    class Truth:
+        valid: torch.Tensor
+        hit: torch.Tensor
+        hit_view: torch.Tensor
+        hit_pixel: torch.Tensor
+        on_screen: torch.Tensor
+        visible: torch.Tensor
+        back_face: torch.Tensor
+        hit_shape: torch.Tensor
+        radiance: torch.Tensor
+        seconds: float = 0.1
+
+    H, W = 12, 16
+    cam = Camera.from_look_at((0, 0, 5), (0, 0, 0), (0, 1, 0), 45.0, W, H, 0.1, 100.0)
+    mask = torch.ones(1, 1, H, W, dtype=torch.bool)
+    z = torch.full((1, 1, H, W), -5.0)
+    full = GBuffer(cam, view_z=z, position=cam.uv_to_view(cam.uv_grid()[None], z), mask=mask,
+                   normal=torch.tensor([0.0, 1.0, 0.0]).view(1, 3, 1, 1).expand(1, 3, H, W).contiguous(),
+                   color=torch.full((1, 3, H, W), 0.5), shape_id=torch.zeros(1, 1, H, W, dtype=torch.int32))
+    top = torch.zeros_like(mask)
+    top[..., : H // 2, :] = True
+    off = mask & ~top
+    px = cam.pixel_centers()[None]
+    truth = Truth(valid=mask, hit=mask.clone(), hit_view=full.position - 1, hit_pixel=px, on_screen=top.clone(),
+                  visible=top.clone(), back_face=torch.zeros_like(mask), hit_shape=torch.ones_like(z).int(),
+                  radiance=torch.full((1, 3, H, W), 0.5))
+    mod = types.ModuleType("ssbench_report_stub_ssr")
+
+    def stub(gbuffer, params, *, generator=None, debug=False):
+        hit = top.clone()
+        hit[..., :2, :] = False                                             # two rows missed
+        hit |= off & (torch.arange(W) < 4)                                  # a hit on an off-screen target
+        raw = torch.where(hit, gbuffer.color, 0.0)
+        dbg = {"visits": torch.arange(H * W).reshape(1, 1, H, W) % 3} if debug and visits else {}
+        return SSRResult(color=raw * 0.5, hit=hit, hit_pixel=torch.where(hit, px, -1.0),
+                         hit_view=torch.where(hit, truth.hit_view, 0.0), steps=torch.ones_like(z).int(),
+                         termination=torch.where(hit, HIT, MAX_DISTANCE).to(torch.int8),
+                         fade=torch.full_like(z, 0.5), raw_color=raw, debug=dbg)
+
+    stub.__module__ = mod.__name__
+    mod.stub, mod.P, mod.REQUIRES = stub, P, ("view_z", "normal", "mask", "color")
+    monkeypatch.setitem(sys.modules, mod.__name__, mod)
+    monkeypatch.setattr(passes, "SSR_METHODS", {"stub": f"{mod.__name__}:stub:P",
+                                                "missing": "ssbench_no_such_module:f:P"})
+    calls = []
+
+    def gbuffer(scene, w=None, h=None, channels=None, **k):
+        calls.append(getattr(scene, "name", scene))
+        if getattr(scene, "name", scene) == fail_scene:
+            raise RuntimeError("renderer exploded")
+        return full.select(tuple(channels))
+
+    monkeypatch.setattr(reference, "gbuffer", gbuffer)
+    monkeypatch.setattr(reference, "reflections", lambda sc, g, **k: truth, raising=False)
+    return full, calls
+
+
+def _render_ssr_section(ssr: dict) -> str:
+    import jinja2
+
+    from ssbench.report import build
+    env = jinja2.Environment(loader=jinja2.FileSystemLoader(os.path.join(os.path.dirname(build.__file__),
+                                                                         "templates")),
+                             autoescape=True, undefined=jinja2.StrictUndefined)
+    return env.get_template("ssr_section.html.j2").render(ssr=ssr, fmt=build._fmt)
+
+
+def test_ssr_section_with_stubs(tmp_path, monkeypatch):
+    from ssbench.report.ssr_section import build_ssr_section, summary_md
+    full, calls = _stub_ssr(monkeypatch, fail_scene="fence")
+    ssr = build_ssr_section(str(tmp_path), None, 16, 12, spp=2, progress=False)
+    assert ssr["available"] and ssr["methods"] == ["stub"]
+    assert [s["name"] for s in ssr["scenes"]] == ["reflective_floor"] and calls == ["reflective_floor", "fence"]
+    assert any("missing skipped" in n for n in ssr["notes"])                 # an unimportable pass is a note
+    assert any("fence skipped" in n and "renderer exploded" in n for n in ssr["notes"])
+    row = ssr["rows"][0]
+    n = 16 * 12
+    assert row["frac_correct"] == pytest.approx(4 * 16 / n) and row["frac_missed"] == pytest.approx(2 * 16 / n)
+    assert row["frac_off_screen_target"] == pytest.approx(0.5)
+    assert row["frac_off_screen_target_pass_hit"] == pytest.approx(6 * 4 / n)
+    s = ssr["scenes"][0]
+    assert s["truth_cells"]["correct"] == "50.0%" and s["methods"][0]["visits_max"] == 2
+    html = _render_ssr_section(ssr)
+    assert "<strong>stub</strong>" in html and "missing skipped" in html and "renderer exploded" in html
+    assert "punch-through" in html and "back-face target" in html and "pixelZSize" in html
+    srcs = re.findall(r'<img[^>]*\ssrc="([^"]+)"', html)
+    assert len(srcs) == 2 + 4 and all((tmp_path / src).is_file() for src in srcs)
+    import matplotlib.image as mimage
+    assert mimage.imread(str(tmp_path / srcs[0])).shape[:2] == (12, 16)
+    assert ssr["thickness"]["rows"][0]["cells"][0] == "0.1"                  # kode80: the slab itself
+    assert "| stub | 33.3% / 16.7%" in summary_md(ssr)
+
+
+def test_ssr_section_reuses_report_gbuffers_and_notes_missing_visits(tmp_path, monkeypatch):
+    from ssbench.report.ssr_section import build_ssr_section
+    full, calls = _stub_ssr(monkeypatch, visits=False)
+    ssr = build_ssr_section(str(tmp_path), ["fence"], 16, 12, progress=False, gbuffers={"fence": full})
+    assert ssr["available"] and calls == []                                  # no second render
+    assert any("no visit map" in n for n in ssr["scenes"][0]["notes"])
+    assert "visits (max" not in _render_ssr_section(ssr)
+
+
+def test_ssr_section_skips_without_the_reference(tmp_path, monkeypatch):
+    from ssbench import reference
+    from ssbench.report.ssr_section import build_ssr_section, summary_md
+    monkeypatch.delattr(reference, "reflections", raising=False)
+    ssr = build_ssr_section(str(tmp_path), ["fence"], 16, 12, progress=False)
+    assert not ssr["available"] and "reference reflections are not importable" in ssr["note"]
+    import html
+    assert html.escape(ssr["note"]).replace("&#x27;", "&#39;") in _render_ssr_section(ssr)
+    assert ssr["note"] in summary_md(ssr) and not os.listdir(tmp_path)
+
+
+def test_ssr_section_skips_without_passes(tmp_path, monkeypatch):
+    from ssbench import passes
+    from ssbench.report.ssr_section import build_ssr_section
+    _stub_ssr(monkeypatch)
+    monkeypatch.setattr(passes, "SSR_METHODS", {"gone": "ssbench_no_such_module:f:P"})
+    ssr = build_ssr_section(str(tmp_path), ["fence"], 16, 12, progress=False)
+    assert not ssr["available"] and "no SSR method is importable" in ssr["note"]
+    assert any("gone skipped" in n for n in ssr["notes"])
+    html = _render_ssr_section(ssr)
+    assert "no SSR method is importable" in html and "gone skipped" in html
+
+
+def test_ssr_section_failure_never_crashes_the_report(tmp_path, monkeypatch):
+    from ssbench.report import build, ssr_section
+
+    def boom(*a, **k):
+        raise RuntimeError("kaboom")
+    monkeypatch.setattr(ssr_section, "build_ssr_section", boom)
+    out = build._ssr_section(str(tmp_path), None, 16, 12, True, 2, 0, False, {}, False)
+    assert not out["available"] and "kaboom" in out["note"] and "kaboom" in out["summary_md"]
+    off = build._ssr_section(str(tmp_path), None, 16, 12, False, 2, 0, False, {}, False)
+    assert not off["available"] and off["summary_md"] == ""
+    assert "turned off" in _render_ssr_section(off)
+
+
+def test_report_cli_passes_no_ssr(monkeypatch, tmp_path, capsys):
+    from ssbench import cli
+    from ssbench.report import build
+    seen = {}
+
+    def fake(out, **kw):
+        seen.update(kw)
+        return str(tmp_path / "index.html")
+    monkeypatch.setattr(build, "build_report", fake)
+    assert cli.main(["report", "--out", str(tmp_path), "--no-ssr", "--ssr-spp", "8"]) == 0
+    assert seen["ssr"] is False and seen["ssr_spp"] == 8 and seen["ao"] is True

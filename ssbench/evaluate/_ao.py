@@ -21,13 +21,13 @@ import dataclasses
 import importlib
 import math
 import statistics
-import time
-from typing import Any, Callable, Mapping, Optional, Union
+from typing import Any, Callable, Mapping, Optional
 
 import torch
 
-from . import metrics
-from .gbuffer import GBuffer
+from .. import metrics
+from ..gbuffer import GBuffer
+from ._common import _as_dict, _f, _timed, resolve_params
 
 __all__ = ["ao", "run_ao", "AOEvaluation", "resolve_params", "radius_param", "flavour", "score", "blur_fn",
            "RADIUS_NAMES", "GT_CHANNELS", "BLUR_NAMES"]
@@ -64,27 +64,6 @@ class AOEvaluation:
     result: Any
 
 
-# ------------------------------------------------------------------------------------------ parameters
-def resolve_params(params_cls: type, params: Union[None, Mapping[str, Any], Any] = None, method: str = "method"):
-    """A ``params_cls`` instance from ``None`` (defaults), an instance, or a dict of overrides.
-
-    Overrides go through :func:`dataclasses.replace`, so the class's own validation runs; an unknown name
-    raises ``ValueError`` naming it.
-    """
-    if params is None:
-        return params_cls()
-    if isinstance(params, params_cls):
-        return params
-    if isinstance(params, Mapping):
-        known = [f.name for f in dataclasses.fields(params_cls)]
-        unknown = [k for k in params if k not in known]
-        if unknown:
-            raise ValueError(f"params: unknown parameter(s) {', '.join(map(repr, unknown))} for {method} "
-                             f"({params_cls.__name__}); known: {', '.join(known)}")
-        return dataclasses.replace(params_cls(), **dict(params))
-    raise TypeError(f"params: expected None, a dict or a {params_cls.__name__}, got {type(params).__name__}")
-
-
 def radius_param(params_cls: type, module=None) -> Optional[str]:
     """Name of the pass's radius parameter: ``module.RADIUS_PARAM`` if set, else the first of
     :data:`RADIUS_NAMES` among the dataclass fields (``None`` when there is none)."""
@@ -98,19 +77,6 @@ def radius_param(params_cls: type, module=None) -> Optional[str]:
 def flavour(fn: Callable) -> str:
     """The AO flavour a pass approximates: its module's ``FLAVOUR`` (default ``"cosine"``)."""
     return getattr(importlib.import_module(fn.__module__), "FLAVOUR", "cosine")
-
-
-def _as_dict(p) -> dict:
-    out = {}
-    for f in dataclasses.fields(p):
-        v = getattr(p, f.name)
-        out[f.name] = list(v) if isinstance(v, tuple) else v
-    return out
-
-
-# ------------------------------------------------------------------------------------------ metrics
-def _f(x) -> float:
-    return float(x) if x is not None else math.nan
 
 
 def score(pred: torch.Tensor, target: torch.Tensor, mask: torch.Tensor, view_z: torch.Tensor, suffix: str,
@@ -131,27 +97,6 @@ def _nan_scores(suffix: str) -> dict:
     return {f"{k}_{suffix}": math.nan for k in TARGET_METRICS}
 
 
-# ------------------------------------------------------------------------------------------ running
-def _sync(device) -> None:
-    if torch.device(device).type == "cuda":
-        torch.cuda.synchronize()
-
-
-def _timed(call: Callable[[], Any], repeats: int, device, warmup: bool = True) -> tuple[Any, list[float]]:
-    """One untimed warm-up call (unless ``warmup=False``), then ``repeats`` timed calls; returns the last
-    output and the times."""
-    if warmup:
-        call()
-        _sync(device)
-    out, times = None, []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = call()
-        _sync(device)
-        times.append(time.perf_counter() - t0)
-    return out, times
-
-
 #: named blurs (``blur=`` of :func:`ao`): ``ssbench.passes.blur`` at the article's settings
 BLUR_NAMES = ("box", "cross_bilateral", "joint_bilateral")
 
@@ -160,7 +105,7 @@ def blur_fn(name: str) -> Callable:
     """The named blur as ``fn(ao, gbuffer) -> ao``: ``"box"`` (the seed's 5×5 box, not depth-aware),
     ``"cross_bilateral"`` (the seed's 2-pass blur guided by ``view_z``, radius 15) or ``"joint_bilateral"``
     (kornia's joint bilateral guided by the linear depth, background masked out)."""
-    from .passes import blur as B
+    from ..passes import blur as B
     table = {"box": lambda ao, g: B.box_blur(ao, 5),
              "cross_bilateral": lambda ao, g: B.cross_bilateral_blur(ao, g.view_z),
              "joint_bilateral": lambda ao, g: B.joint_bilateral_blur(ao, g.linear_depth, mask=g.mask)}
@@ -199,9 +144,9 @@ def run_ao(scene, method: str, params=None, *, width: int = 320, height: int = 2
         flip: compute ꟻLIP (the slowest metric).
         use_cache: let the reference read/write its disk cache.
     """
-    from . import reference
-    from .passes import ao_method
-    from .scenes import load as load_scene
+    from .. import reference
+    from ..passes import ao_method
+    from ..scenes import load as load_scene
 
     fn, params_cls, requires = ao_method(method)
     module = importlib.import_module(fn.__module__)

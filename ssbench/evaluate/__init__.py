@@ -1,0 +1,20 @@
+"""Evaluate one screen-space pass on one scene against its ground truth: one tidy row per run.
+
+* :func:`ao` / :func:`run_ao` (:mod:`ssbench.evaluate._ao`) — an AO pass against ray-traced AO in three targets
+  (cosine, the pass's own flavour, the screen-space oracle);
+* :func:`ssr` / :func:`run_ssr` (:mod:`ssbench.evaluate._ssr`) — an SSR pass against the exact mirror
+  reflection (``ssbench.reference.reflections``): per-pixel classes, hit error, colour error, timings.
+
+Shared helpers (:func:`resolve_params`, timing) live in :mod:`ssbench.evaluate._common`. No files are written
+here (the reference's disk cache aside: ``use_cache=False`` turns it off).
+"""
+from __future__ import annotations
+
+from ._ao import (BLUR_NAMES, GT_CHANNELS, RADIUS_NAMES, TARGET_METRICS, TARGETS, AOEvaluation, ao, blur_fn,
+                  flavour, radius_param, run_ao, score)
+from ._common import resolve_params
+from ._ssr import SSR_GT_CHANNELS, SSREvaluation, pass_channels, run_ssr, ssr
+
+__all__ = ["ao", "run_ao", "AOEvaluation", "resolve_params", "radius_param", "flavour", "score", "blur_fn",
+           "RADIUS_NAMES", "GT_CHANNELS", "TARGET_METRICS", "TARGETS", "BLUR_NAMES",
+           "ssr", "run_ssr", "SSREvaluation", "pass_channels", "SSR_GT_CHANNELS"]

@@ -1,0 +1,234 @@
+"""The report's screen-space reflections section: exact mirror truth, every SSR method at its defaults.
+
+Per scene (default :data:`SSR_SCENES`; a report run with an explicit scene list uses that list) it takes one
+G-buffer (the report's own render when it has one, else a fresh one), traces the exact reflections
+(``ssbench.reference.reflections``), runs every method of :data:`ssbench.passes.SSR_METHODS` through
+:func:`ssbench.evaluate.run_ssr` at its default parameters (one untimed debug run for the visit map), and writes
+
+* ``img/ssr/<scene>/truth.png`` — path-traced radiance along the mirror ray (linear → sRGB);
+* ``truth_classes.png`` — what a perfect screen-space pass would get: visible target (green), off-screen /
+  occluded / back-face target, sky (the class colours of :mod:`ssbench.metrics.ssr`);
+* ``<method>.png`` — the pass's reflection colour with its fades; ``<method>_classes.png`` — its per-pixel
+  classes (stippled: an unfixable target where the pass still reported a hit); ``<method>_visits.png`` —
+  ``debug["visits"]`` (depth fetches per texel, log scale, seed Fig. 11); ``<method>_error.png`` — mean
+  absolute RGB error of the raw (fade-free) colour against the truth radiance (magma, saturating at
+  :data:`ERR_RANGE`).
+
+plus the class-fraction table with times and a table mapping one physical thickness onto each anchor's
+"thickness" knob (:mod:`ssbench.metrics.thickness`). Nothing here may crash the report: a missing reference
+or pass, or a failing run, becomes a visible note.
+"""
+from __future__ import annotations
+
+import os
+import time
+import traceback
+from typing import Iterable, Optional
+
+import numpy as np
+import torch
+
+from .ao_section import fmt, write_png
+
+#: scenes of the SSR section when the report names none
+SSR_SCENES = ("reflective_floor", "fence")
+#: colour-error range of the error maps (linear radiance)
+ERR_RANGE = 0.5
+#: physical thickness and depths of the thickness-knob table
+THICKNESS, THICKNESS_DEPTHS = 0.1, (1.0, 3.0, 10.0, 30.0)
+#: (row key, column label, format) of the per-scene table
+TABLE = (("seconds", "time s", "{:.3f}"), ("frac_correct", "correct", "{:.1%}"),
+         ("frac_missed", "missed", "{:.1%}"), ("frac_false_hit", "false hit", "{:.1%}"),
+         ("frac_punch_through", "punch-through", "{:.1%}"), ("frac_off_screen_target", "off-screen", "{:.1%}"),
+         ("frac_occluded_target", "occluded", "{:.1%}"), ("frac_back_face_target", "back-face", "{:.1%}"),
+         ("frac_true_miss", "true miss", "{:.1%}"), ("hit_err_px_median", "hit err px (median)", "{:.2f}"),
+         ("hit_err_view_median", "hit err view (median)", "{:.3f}"), ("mae_raw", "MAE raw", "{:.4f}"),
+         ("mae_raw_truth_hit", "MAE raw (GT hits)", "{:.4f}"),
+         ("mae_faded", "MAE faded", "{:.4f}"), ("psnr_raw", "PSNR raw dB", "{:.2f}"),
+         ("flip_raw", "ꟻLIP raw", "{:.3f}"), ("steps_mean", "steps mean", "{:.1f}"),
+         ("term_out_of_steps", "out of steps", "{:.1%}"))
+
+
+# ------------------------------------------------------------------------------------------ pictures
+def _hw(x: torch.Tensor) -> np.ndarray:
+    return x.detach().float().cpu().reshape(x.shape[-2], x.shape[-1]).numpy()
+
+
+def color_rgb(color: torch.Tensor, mask: Optional[torch.Tensor] = None) -> np.ndarray:
+    """``(H, W, 3)`` uint8 linear RGB → sRGB (background black when ``mask`` is given)."""
+    from ..io import preview_rgb
+    return preview_rgb("color", color[0], mask=None if mask is None else mask[0])
+
+
+def magma_rgb(x: torch.Tensor, mask: torch.Tensor, vmax: float) -> np.ndarray:
+    """``(H, W, 3)`` uint8 ``x / vmax`` on magma, background black."""
+    import matplotlib
+    v, m = np.nan_to_num(_hw(x)), _hw(mask) > 0.5
+    rgb = matplotlib.colormaps["magma"](np.clip(v / vmax, 0, 1))[..., :3]
+    return (np.where(m[..., None], rgb, 0.0) * 255 + 0.5).astype(np.uint8)
+
+
+def visits_rgb(visits: torch.Tensor) -> tuple[np.ndarray, int]:
+    """``(H, W, 3)`` uint8 visit counts on viridis over ``log(1 + n)`` (0 visits black) and the max count."""
+    import matplotlib
+    v = np.nan_to_num(_hw(visits.float()))
+    top = float(v.max()) if v.size else 0.0
+    t = np.log1p(v) / np.log1p(top) if top > 0 else np.zeros_like(v)
+    rgb = matplotlib.colormaps["viridis"](t)[..., :3]
+    return (np.where((v > 0)[..., None], rgb, 0.0) * 255 + 0.5).astype(np.uint8), int(top)
+
+
+# ------------------------------------------------------------------------------------------ section
+def _unavailable(note: str, **extra) -> dict:
+    from ..metrics.ssr import legend_entries
+    d = {"available": False, "note": note, "notes": [], "methods": [], "scenes": [], "rows": [],
+         "columns": [(k, label) for k, label, _ in TABLE], "overview": [], "legend": legend_entries(),
+         "thickness": None, "seconds": 0.0, "err_range": ERR_RANGE, "spp": None, "k_px": None}
+    d.update(extra)
+    return d
+
+
+def _methods() -> tuple[list[str], list[str], tuple[str, ...]]:
+    """Importable SSR methods, notes for those that are not, and the channels they read at their defaults."""
+    import importlib
+
+    from ..evaluate import pass_channels
+    from ..passes import SSR_METHODS, ssr_method
+    ok, notes, channels = [], [], []
+    for name in SSR_METHODS:
+        try:
+            fn, params_cls, _ = ssr_method(name)
+            channels += list(pass_channels(importlib.import_module(fn.__module__), params_cls()))
+            ok.append(name)
+        except Exception as e:                                       # a pass being written, or broken
+            notes.append(f"method {name} skipped: {type(e).__name__}: {e}")
+    return ok, notes, tuple(dict.fromkeys(channels))
+
+
+def thickness_rows(camera, thickness: float = THICKNESS, depths: Iterable[float] = THICKNESS_DEPTHS) -> dict:
+    """The thickness-knob table for ``camera`` (report cells already formatted)."""
+    from ..metrics import thickness as T
+    rows = T.thickness_table(thickness, depths, camera)
+    return {"thickness": thickness, "columns": [(k, *T.KNOBS[k]) for k in T.KNOBS],
+            "rows": [{"depth": fmt(r["depth"], "{:g}"), "cells": [fmt(r[k], "{:.4g}") for k in T.KNOBS]}
+                     for r in rows],
+            "size": f"{camera.width}×{camera.height}", "fovy": camera.fovy_deg}
+
+
+def build_ssr_section(run_dir: str, scenes: Optional[Iterable[str]] = None, width: int = 320, height: int = 240,
+                      *, spp: int = 16, seed: int = 0, k_px: float = 1.5, use_cache: bool = False,
+                      gbuffers: Optional[dict] = None, progress: Optional[bool] = None) -> dict:
+    """Run the SSR section into ``run_dir`` (images under ``img/ssr/``); returns its metadata for the template.
+
+    ``gbuffers`` maps scene names to G-buffers already rendered by the report (reused when they hold every
+    channel needed). Each method runs once, timed without warm-up. Never raises: failures become notes.
+    """
+    t_start = time.perf_counter()
+    try:
+        from .. import evaluate
+        from ..evaluate._ssr import _reflections
+        reflections = _reflections()
+    except Exception as e:
+        return _unavailable(f"SSR section skipped: the reference reflections are not importable "
+                            f"({type(e).__name__}: {e}).")
+    try:
+        methods, notes, channels = _methods()
+    except Exception as e:
+        return _unavailable(f"SSR section skipped: the SSR passes are not importable ({type(e).__name__}: {e}).")
+    if not methods:
+        return _unavailable("SSR section skipped: no SSR method is importable yet.", notes=notes)
+    from tqdm import tqdm
+    names = list(SSR_SCENES if scenes is None else dict.fromkeys(scenes))
+    out_scenes, rows, cam = [], [], None
+    for name in tqdm(names, desc="SSR", unit="scene", disable=None if progress is None else not progress):
+        try:
+            s, r, g = _scene(run_dir, name, methods, channels, width, height, spp, seed, k_px, use_cache,
+                             (gbuffers or {}).get(name), evaluate, reflections)
+            out_scenes.append(s)
+            rows += r
+            cam = cam or g.camera
+        except Exception as e:
+            notes.append(f"scene {name} skipped: {type(e).__name__}: {e}")
+            if os.environ.get("SSBENCH_DEBUG"):
+                traceback.print_exc()
+
+    def pick(s, m, k):
+        return next((r.get(k) for r in rows if r["scene"] == s["name"] and r["method"] == m), None)
+
+    overview = [{"method": m, "cells": [fmt(pick(s, m, "frac_correct"), "{:.1%}") for s in out_scenes],
+                 "missed": [fmt(pick(s, m, "frac_missed"), "{:.1%}") for s in out_scenes],
+                 "seconds": [fmt(pick(s, m, "seconds"), "{:.3f}") for s in out_scenes]} for m in methods]
+    from ..metrics.ssr import legend_entries
+    return {"available": bool(out_scenes), "note": "" if out_scenes else "SSR section: every scene failed.",
+            "notes": notes, "methods": methods, "scenes": out_scenes, "rows": rows,
+            "columns": [(k, label) for k, label, _ in TABLE], "overview": overview, "legend": legend_entries(),
+            "thickness": thickness_rows(cam) if cam is not None else None, "spp": spp, "k_px": k_px,
+            "seconds": time.perf_counter() - t_start, "err_range": ERR_RANGE, "threads": torch.get_num_threads()}
+
+
+def _scene(run_dir, name, methods, channels, width, height, spp, seed, k_px, use_cache, g, evaluate, reflections):
+    from .. import reference
+    from ..metrics import ssr as M
+    from ..scenes import load
+    sc = load(name)
+    d = os.path.join(run_dir, "img", "ssr", name)
+    rel = f"img/ssr/{name}"
+    need = tuple(dict.fromkeys(channels + evaluate.SSR_GT_CHANNELS))
+    if g is None or (g.width, g.height) != (width, height) or any(getattr(g, c) is None for c in need):
+        g = reference.gbuffer(sc, width, height, channels=need, spp=spp, seed=seed, use_cache=use_cache)
+    t0 = time.perf_counter()
+    truth = reflections(sc, g, spp=spp, seed=seed, use_cache=use_cache)
+    gt_s = time.perf_counter() - t0
+    valid = truth.valid.bool()
+    tclasses = M.truth_classes(truth, g)
+    images = {"truth": f"{rel}/truth.png", "truth_classes": f"{rel}/truth_classes.png"}
+    write_png(os.path.join(d, "truth.png"), color_rgb(truth.radiance, valid))
+    write_png(os.path.join(d, "truth_classes.png"), M.class_rgb(tclasses))
+    tf = M.class_fractions(tclasses)
+    method_rows, rows, notes = [], [], []
+    for m in methods:
+        try:
+            ev = evaluate.run_ssr(sc, m, seed=seed, spp=spp, k_px=k_px, repeats=1, warmup=False, gbuffer=g,
+                                  truth=truth, debug=True, use_cache=use_cache)
+        except Exception as e:
+            notes.append(f"{m}: {type(e).__name__}: {e}")
+            continue
+        row, res = ev.row, ev.result
+        files = {"color": color_rgb(res.color, valid), "classes": M.class_rgb(ev.classes, res.hit.bool()),
+                 "error": magma_rgb(M.color_error_map(res.raw_color, truth.radiance), valid, ERR_RANGE)}
+        visits = ev.debug.get("visits")
+        vmax = None
+        if isinstance(visits, torch.Tensor) and visits.dim() == 4 and tuple(visits.shape[-2:]) == (g.height, g.width):
+            files["visits"], vmax = visits_rgb(visits[:1, :1])
+        else:
+            notes.append(f"{m}: no visit map (debug['visits'] missing)")
+        imgs = {}
+        for k, rgb in files.items():
+            fn = f"{m}.png" if k == "color" else f"{m}_{k}.png"
+            write_png(os.path.join(d, fn), rgb)
+            imgs[k] = f"{rel}/{fn}"
+        rows.append(row)
+        method_rows.append({"method": m, "images": imgs, "visits_max": vmax,
+                            "params": ", ".join(f"{k}={v}" for k, v in row["params"].items()),
+                            "cells": [fmt(row.get(k), spec) for k, _, spec in TABLE]})
+    return ({"name": name, "description": sc.description, "images": images, "methods": method_rows,
+             "notes": notes, "gt_seconds": gt_s,
+             "truth_cells": {k: fmt(tf.get(k), "{:.1%}") for k in ("correct", "off_screen_target",
+                                                                   "occluded_target", "back_face_target",
+                                                                   "true_miss")}}, rows, g)
+
+
+def summary_md(ssr: dict) -> str:
+    """The SSR section of ``summary.md``: correct / missed share and time per method and scene."""
+    lines = ["", "## Screen-space reflections", ""]
+    if not ssr.get("available"):
+        note = ssr.get("note") or "SSR section unavailable."
+        return "\n".join(lines + [note] + [f"- {n}" for n in ssr["notes"]]) + "\n"
+    lines += [f"Each method at its defaults; {ssr['spp']} spp truth radiance, hit tolerance {ssr['k_px']} px. "
+              "Correct / missed share of reflective pixels (time s).", "",
+              "| method | " + " | ".join(s["name"] for s in ssr["scenes"]) + " |",
+              "|---|" + "---:|" * len(ssr["scenes"])]
+    for o in ssr["overview"]:
+        lines.append(f"| {o['method']} | " + " | ".join(f"{c} / {mi} ({t})" for c, mi, t in
+                                                       zip(o["cells"], o["missed"], o["seconds"])) + " |")
+    return "\n".join(lines + [f"- {n}" for n in ssr["notes"]]) + "\n"

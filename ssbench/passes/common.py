@@ -83,7 +83,7 @@ def check_unit_normals(normal: torch.Tensor, mask: torch.Tensor, name: str = "no
     if not checks.checks_enabled():
         return
     length = normal.norm(dim=1, keepdim=True)
-    bad = mask & ((length - 1).abs() > tol)
+    bad = mask & (~torch.isfinite(length) | ((length - 1).abs() > tol))
     if bool(bad.any()):
         raise ValueError(f"{name}: {int(bad.sum())} normals on geometry are not unit length "
                          f"(max |len-1| = {float((length - 1).abs()[mask].max()):.3g})")

@@ -334,22 +334,33 @@ def _ao_table(row: dict) -> str:
     return head + "\n".join(lines)
 
 
+def _scene_and_params(args, resolve):
+    """Scene, parameter class and ``--param`` overrides of an ``ao``/``ssr`` command."""
+    sc = _load_scene(args.scene)
+    try:
+        _, params_cls, _ = resolve(args.method)
+    except (ImportError, AttributeError) as e:
+        raise _UsageError(f"argument --method: {args.method} is not importable ({type(e).__name__}: {e})", 1)
+    return sc, params_cls, coerce_params(params_cls, args.param, args.method)
+
+
+def _check_params(params_cls, params, method) -> None:
+    """The parameter dataclass's own checks, up front, as a usage error."""
+    from . import evaluate
+    try:
+        evaluate.resolve_params(params_cls, params, method)
+    except (ValueError, TypeError) as e:
+        raise _UsageError(f"argument --param: {e}") from None
+
+
 def _cmd_ao(args) -> int:
     from . import evaluate
     from .passes import ao_method
-    sc = _load_scene(args.scene)
-    try:
-        _, params_cls, _ = ao_method(args.method)
-    except (ImportError, AttributeError) as e:
-        raise _UsageError(f"argument --method: {args.method} is not importable ({type(e).__name__}: {e})", 1)
-    params = coerce_params(params_cls, args.param, args.method)
+    sc, params_cls, params = _scene_and_params(args, ao_method)
     rname = evaluate.radius_param(params_cls, sys.modules.get(params_cls.__module__))
     if args.radius is not None and rname in params:
         raise _UsageError(f"argument --radius: conflicts with --param {rname}={params[rname]}; give one of them")
-    try:
-        evaluate.resolve_params(params_cls, params, args.method)     # the dataclass's own checks, up front
-    except (ValueError, TypeError) as e:
-        raise _UsageError(f"argument --param: {e}") from None
+    _check_params(params_cls, params, args.method)
     try:
         ev = evaluate.run_ao(sc, args.method, params, width=args.width, height=args.height, radius=args.radius,
                              rays=args.rays, weighting=args.weighting, seed=args.seed, repeats=args.repeats,
@@ -411,16 +422,8 @@ def _ssr_table(row: dict) -> str:
 def _cmd_ssr(args) -> int:
     from . import evaluate
     from .passes import ssr_method
-    sc = _load_scene(args.scene)
-    try:
-        _, params_cls, _ = ssr_method(args.method)
-    except (ImportError, AttributeError) as e:
-        raise _UsageError(f"argument --method: {args.method} is not importable ({type(e).__name__}: {e})", 1)
-    params = coerce_params(params_cls, args.param, args.method)
-    try:
-        evaluate.resolve_params(params_cls, params, args.method)     # the dataclass's own checks, up front
-    except (ValueError, TypeError) as e:
-        raise _UsageError(f"argument --param: {e}") from None
+    sc, params_cls, params = _scene_and_params(args, ssr_method)
+    _check_params(params_cls, params, args.method)
     try:
         ev = evaluate.run_ssr(sc, args.method, params, width=args.width, height=args.height, seed=args.seed,
                               repeats=args.repeats, spp=args.spp, k_px=args.k_px, debug=bool(args.out),

@@ -502,3 +502,15 @@ def test_real_ssr_pass_against_real_reflections(method, tmp_path, monkeypatch):
     assert row["nonfinite"] == 0 and row["reflective_pixels"] > 0
     total = sum(row[f"frac_{k}"] for k in SSRM.CLASS_NAMES.values() if k != "not_reflective")
     assert total == pytest.approx(1.0)
+
+
+@pytest.mark.slow
+def test_ssr_specular_mask_counts_only_mirror_pixels():
+    from ssbench.evaluate import ssr
+    from ssbench.reference import gbuffer
+    g = gbuffer("reflective_floor", 64, 48, channels=["metallic", "roughness", "mask"])
+    want = int((g.mask & ((g.metallic >= 0.5) | (g.roughness <= 0.5))).sum())
+    row = ssr("reflective_floor", "linear", width=64, height=48, repeats=1, reflective="specular", spp=2)
+    assert row["reflective_pixels"] == want and 0 < want < 64 * 48
+    with pytest.raises(ValueError, match="reflective"):
+        ssr("reflective_floor", "linear", width=64, height=48, repeats=1, reflective="shiny")

@@ -127,7 +127,9 @@ def run_ssr(scene, method: str, params=None, *, width: int = 320, height: int = 
             :data:`SSR_GT_CHANNELS`); ``None`` renders one.
         truth: a ``ReflectionReference`` of that G-buffer to reuse; ``None`` traces it.
         reflective: ``None`` (every G-buffer hit), ``"marched"`` (pixels where the pass marched a ray,
-            termination ≠ NO_RAY) or a :math:`(1, 1, H, W)` bool mask; the other pixels are not reflective.
+            termination ≠ NO_RAY), ``"specular"`` (hits with ``metallic ≥ 0.5`` or ``roughness ≤ 0.5``: the
+            surfaces a renderer would give screen-space reflections) or a :math:`(1, 1, H, W)` bool mask; the
+            other pixels are not reflective.
         flip: compute ꟻLIP (the slowest metric).
         debug: one extra untimed run with ``debug=True`` (when the pass takes it) for ``debug["visits"]``.
         use_cache: let the reference read/write its disk cache.
@@ -146,12 +148,13 @@ def run_ssr(scene, method: str, params=None, *, width: int = 320, height: int = 
     _check_int(seed, "seed", 0)
     _check_int(spp, "spp", 1)
     M._k(k_px)
-    if not (reflective is None or reflective == "marched" or isinstance(reflective, torch.Tensor)):
-        raise ValueError(f"reflective: expected None, 'marched' or a bool mask, got {reflective!r}")
+    if not (reflective is None or reflective in ("marched", "specular") or isinstance(reflective, torch.Tensor)):
+        raise ValueError(f"reflective: expected None, 'marched', 'specular' or a bool mask, got {reflective!r}")
 
     sc = load_scene(scene)
     needs = pass_channels(module, p)
-    chans = tuple(dict.fromkeys(needs + SSR_GT_CHANNELS))
+    chans = tuple(dict.fromkeys(needs + SSR_GT_CHANNELS
+                                + (("metallic", "roughness") if reflective == "specular" else ())))
     if gbuffer is None:
         gbuffer = reference.gbuffer(sc, width, height, channels=chans, spp=spp, seed=seed, use_cache=use_cache)
     else:
@@ -179,7 +182,10 @@ def run_ssr(scene, method: str, params=None, *, width: int = 320, height: int = 
     if truth is None:
         truth = _reflections()(sc, gbuffer, spp=spp, seed=seed, use_cache=use_cache)
     g_cpu = gbuffer.to("cpu")
-    refl = result.termination != NO_RAY if isinstance(reflective, str) else reflective
+    if reflective == "specular":
+        refl = g_cpu.mask & ((g_cpu.metallic >= 0.5) | (g_cpu.roughness <= 0.5))
+    else:
+        refl = result.termination != NO_RAY if isinstance(reflective, str) else reflective
     classes, _ = M.classify(result, truth, g_cpu, k_px, reflective=refl)
     valid = classes != M.NOT_REFLECTIVE
     frac = M.class_fractions(classes, result.hit.bool())

@@ -31,12 +31,14 @@ def main() -> None:
     ap.add_argument("--height", type=int, default=360)
     ap.add_argument("--budgets", default="16,32,64")
     ap.add_argument("--distance", type=float, default=10.0)
+    ap.add_argument("--reflective", default="specular", help="'specular' (mirror/smooth pixels) or 'all'")
+    ap.add_argument("--skip-timing", action="store_true")
     a = ap.parse_args()
     g = gbuffer(a.scene, a.width, a.height, channels=["view_z", "normal", "position", "mask", "color"], spp=16)
     gen = torch.Generator().manual_seed(0)
     print(f"{a.scene} {a.width}x{a.height}, torch threads {torch.get_num_threads()}")
     print(f"  {'method':7s} {'median ms':>10s} {'IQR':>6s} {'reads/px':>9s} {'floor ms':>9s} {'ratio':>6s}")
-    for name in SSR_METHODS:
+    for name in () if a.skip_timing else SSR_METHODS:
         fn, Params, _ = ssr_method(name)
         p = Params()
         res = fn(g, p)
@@ -57,7 +59,8 @@ def main() -> None:
         configs += [("dda", {"max_steps": budget, "pixel_stride": s, "max_ray_distance": a.distance})
                     for s in (1.0, 2.0, 4.0, 8.0)]
         for method, params in configs:
-            row = evaluate_ssr(a.scene, method, params, width=a.width, height=a.height, repeats=1, spp=16)
+            row = evaluate_ssr(a.scene, method, params, width=a.width, height=a.height, repeats=1, spp=16,
+                               reflective=None if a.reflective == "all" else a.reflective)
             label = f"{method} " + ",".join(f"{k}={v:g}" for k, v in params.items() if k != "max_ray_distance")
             print(f"  {label:28s} {row['seconds'] * 1e3:7.1f} "
                   + " ".join(f"{row.get('frac_' + c, float('nan')):9.4f}" for c in CLASSES))

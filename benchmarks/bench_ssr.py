@@ -3,8 +3,8 @@
 Part 1 times each marcher at its defaults (``torch.utils.benchmark`` blocked autorange, median and IQR) next to
 the **gather floor**: a pure ``torch.gather`` of as many depth texels as the pass actually read (its mean
 ``steps``) per pixel, measured in the same run. Part 2 compares the linear march and the DDA at equal budgets
-of depth reads per ray (``iterations`` vs ``max_steps``, same ``max_ray_distance``), per-pixel classes against
-the exact mirror reflections (``ssbench.evaluate.ssr``).
+of depth reads per ray (``iterations`` vs ``max_steps``: fixed strides and ``fit_stride_to_steps``; same
+``max_ray_distance``), per-pixel classes against the exact mirror reflections (``ssbench.evaluate.ssr``).
 
 Run: ``.venv/bin/python benchmarks/bench_ssr.py [--scene reflective_floor --width 640 --height 360]``.
 """
@@ -53,16 +53,18 @@ def main() -> None:
               f"{t.median / fl.median:6.1f}")
 
     print(f"\nequal budgets of depth reads per ray (max_ray_distance {a.distance}); class fractions of reflective px")
-    print("  " + f"{'config':28s} {'ms':>7s} " + " ".join(f"{c[:9]:>9s}" for c in CLASSES))
+    print("  " + f"{'config':36s} {'ms':>7s} " + " ".join(f"{c[:9]:>9s}" for c in CLASSES))
     for budget in (int(b) for b in a.budgets.split(",")):
         configs = [("linear", {"iterations": budget, "max_ray_distance": a.distance})]
         configs += [("dda", {"max_steps": budget, "pixel_stride": s, "max_ray_distance": a.distance})
                     for s in (1.0, 2.0, 4.0, 8.0)]
+        configs += [("dda", {"max_steps": budget, "fit_stride_to_steps": True, "max_ray_distance": a.distance})]
         for method, params in configs:
             row = evaluate_ssr(a.scene, method, params, width=a.width, height=a.height, repeats=1, spp=16,
                                reflective=None if a.reflective == "all" else a.reflective)
-            label = f"{method} " + ",".join(f"{k}={v:g}" for k, v in params.items() if k != "max_ray_distance")
-            print(f"  {label:28s} {row['seconds'] * 1e3:7.1f} "
+            label = f"{method} " + ",".join(k if v is True else f"{k}={v:g}" for k, v in params.items()
+                                            if k != "max_ray_distance")
+            print(f"  {label:36s} {row['seconds'] * 1e3:7.1f} "
                   + " ".join(f"{row.get('frac_' + c, float('nan')):9.4f}" for c in CLASSES))
 
 

@@ -21,7 +21,10 @@ Fixes and choices (anchors: ``/work/shared/notes/ssr_anchors.md``):
 * ``P`` is in pixels (py down, ``CONVENTIONS.md``): the 0.01 px nudge and the stride are pixels, not NDC units.
   ``pixel_stride`` is pixels per step near the camera, ``1 + s·(pixel_stride − 1)``, ``s = 1 − min(1, −rayOrg.z /
   PixelStrideZCutoff)`` (kode80's ``1 + s·PixelStride`` is one more than its comment says). The PDF's
-  ``dP += pixelStride`` is ``*=`` (web twin, G3D).
+  ``dP += pixelStride`` is ``*=`` (web twin, G3D). ``fit_stride_to_steps`` (ours) raises each ray's stride to
+  ``ceil(|P1 − P0|_major / max_steps)`` (after near clipping), so ``max_steps`` samples span the whole segment:
+  ``OUT_OF_STEPS`` only if sample ``max_steps`` lands exactly on ``P1``; the cutoff scales only the
+  ``pixel_stride`` floor, so it never shrinks a stride below the fitted one.
 * The article and G3D start the interval at the origin (``zB = Q0.z``, homogeneous, in the text; ``rayOrg.z``
   in code), which self-hits a wall facing the camera on step 1; here ``prevZMaxEstimate`` starts at the first
   sample's footprint edge ``z(P0 + (jitter + ½)·dP)``.
@@ -70,6 +73,8 @@ class DDASSRParams:
         max_steps: ``Iterations`` / ``maxSteps``, the most DDA samples per ray.
         pixel_stride: pixels per step near the camera (≥ 1); ``pixel_stride_z_cutoff``: ``PixelStrideZCutoff``,
             origins at ``z ≤ −cutoff`` step 1 px (``math.inf``: ``pixel_stride`` everywhere).
+        fit_stride_to_steps: per ray, stride = max(that stride, ``ceil(major-axis px of the clipped segment /
+            max_steps)``): the budget always reaches ``P1`` (at the default ``pixel_stride=1``: ``max(1, ceil(…))``).
         z_thickness: ``zThickness`` / ``PixelZSize``, view-space depth of every depth texel.
         jitter: the start moves ``jitter·U[0, 1)`` strides along the ray (0 = off); ``seed`` seeds it.
         binary_search_iterations, refinement: ``"binary"`` (article, that many probes), ``"remarch"`` (G3D) or
@@ -81,6 +86,7 @@ class DDASSRParams:
     max_steps: int = 256
     pixel_stride: float = 1.0
     pixel_stride_z_cutoff: float = 100.0
+    fit_stride_to_steps: bool = False
     z_thickness: float = 0.1
     jitter: float = 0.0
     binary_search_iterations: int = 4
@@ -97,6 +103,8 @@ class DDASSRParams:
         n = self.binary_search_iterations
         if isinstance(n, bool) or not isinstance(n, int) or n < 0:
             raise ValueError(f"binary_search_iterations: must be an integer >= 0, got {n!r}")
+        if not isinstance(self.fit_stride_to_steps, bool):
+            raise ValueError(f"fit_stride_to_steps: must be a bool, got {self.fit_stride_to_steps!r}")
         for name, lo, strict in (("max_ray_distance", 0, 1), ("pixel_stride", 1, 0), ("pixel_stride_z_cutoff", 0, 1),
                                  ("z_thickness", 0, 0), ("jitter", 0, 0), ("edge_distance", 0, 0),
                                  ("edge_exponent", 0, 1), ("fade_distance", 0, 1), ("fade_exponent", 0, 1)):
@@ -163,6 +171,8 @@ def _rays(gbuffer: GBuffer, params: DDASSRParams, jitter: torch.Tensor):
     dP = torch.stack([stepDir, delta[:, 1] * invdx], 1)
     strideScalar = 1.0 - torch.clamp(-o[:, 2] / params.pixel_stride_z_cutoff, max=1.0)
     pixelStride = 1.0 + strideScalar * (params.pixel_stride - 1.0)
+    if params.fit_stride_to_steps:                                                # max_steps samples reach P1
+        pixelStride = torch.maximum(pixelStride, torch.ceil(delta[:, 0].abs() / params.max_steps))
     dP, dQ, dk = dP * pixelStride[:, None], dQ * pixelStride[:, None], dk * pixelStride
     j = jitter.to(dtype=dt, device=dev).reshape(-1)[sel]
     P0p, Q0, k0 = P0p + dP * j[:, None], Q0 + dQ * j[:, None], k0 + dk * j

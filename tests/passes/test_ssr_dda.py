@@ -10,7 +10,7 @@ from ssbench.camera import Camera
 from ssbench.gbuffer import GBuffer
 from ssbench.passes.ssr_common import (BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS,
                                        reflection_rays)
-from ssbench.passes.ssr_dda import (DDASSR, REQUIRES, DDASSRParams, crossed_pixels, project_to_pixel_matrix,
+from ssbench.passes.ssr_dda import (DDASSR, REQUIRES, DDASSRParams, _rays, crossed_pixels, project_to_pixel_matrix,
                                     ssr_dda, visit_map)
 from ssbench.passes.teaching.ssr_dda_basic import ssr_dda_basic
 
@@ -293,6 +293,50 @@ def test_out_of_steps_is_never_a_hit():
     assert torch.equal(short.hit_pixel[near.expand(-1, 2, -1, -1)], full.hit_pixel[near.expand(-1, 2, -1, -1)])
 
 
+@pytest.mark.parametrize("refinement", ["none", "binary"])
+def test_fit_stride_reaches_long_rays_within_budget(refinement):
+    """max_steps = 8: long floor → wall rays run out at stride 1, the fitted stride reaches their target."""
+    g, K = room(), 8
+    full = ssr_dda(g, DDASSRParams(max_ray_distance=50.0))
+    short = ssr_dda(g, DDASSRParams(max_ray_distance=50.0, max_steps=K))
+    fit = ssr_dda(g, DDASSRParams(max_ray_distance=50.0, max_steps=K, fit_stride_to_steps=True, refinement=refinement))
+    target, ok = analytic(g, [FLOOR, WALL])
+    pix = g.camera.view_to_pixel(target)
+    inside = ok & (g.shape_id == 0) & (pix[:, :1] > 1) & (pix[:, :1] < g.width - 1) & (pix[:, 1:] > 1) & \
+        (pix[:, 1:] < g.height - 1)
+    far = inside & full.hit & (full.steps > K)
+    assert int(far.sum()) > 300 and bool((short.termination[far] == OUT_OF_STEPS).all())
+    assert bool(fit.hit[far].all())
+    err = (fit.hit_pixel - pix).norm(dim=1, keepdim=True)[far]
+    assert float(err.max()) < (0.5 if refinement == "binary" else 4.0), float(err.max())
+    if refinement == "none":
+        assert int(fit.steps.max()) <= K                                  # DDA samples only: within the budget
+
+
+@pytest.mark.parametrize("kw", [dict(), dict(jitter=1.0), dict(pixel_stride=3.0, pixel_stride_z_cutoff=2.0)])
+def test_fit_stride_spans_the_segment(kw):
+    g, zero = room(), torch.zeros(1, 1, 36, 48, dtype=F64)
+    for K in (3, 8, 20):
+        p = DDASSRParams(max_ray_distance=50.0, max_steps=K, fit_stride_to_steps=True, **kw)
+        s, sel, P0, P1 = _rays(g, p, zero)
+        fixed = _rays(g, DDASSRParams(max_ray_distance=50.0, max_steps=K, **kw), zero)[0]["stride"]
+        L = (P1 - P0).abs().amax(1)                                       # major-axis pixels, after clipping
+        assert torch.equal(s["stride"], torch.maximum(fixed, torch.ceil(L / K)))   # the cutoff only scales the floor
+        assert bool((s["stride"] * K >= L).all())                         # K samples reach P1 …
+        if "pixel_stride" not in kw:
+            assert bool((s["stride"] <= L.clamp(min=1.0)).all())          # … and the first never jumps past it
+        assert OUT_OF_STEPS not in ssr_dda(g, p).termination.unique().tolist()
+
+
+def test_fit_stride_changes_nothing_when_the_budget_suffices():
+    g = room()
+    for kw in (dict(), dict(pixel_stride=2.0, jitter=1.0)):
+        a = ssr_dda(g, DDASSRParams(max_ray_distance=50.0, max_steps=4096, **kw))
+        b = ssr_dda(g, DDASSRParams(max_ray_distance=50.0, max_steps=4096, fit_stride_to_steps=True, **kw))
+        assert torch.equal(a.termination, b.termination) and torch.equal(a.hit_pixel, b.hit_pixel)
+        assert torch.equal(a.steps, b.steps)
+
+
 # ----------------------------------------------------------------------------- precision, seeds, API
 def test_float32_matches_float64():
     g = room(64, 48)
@@ -329,7 +373,11 @@ def test_module_batch_and_debug():
 
 @pytest.mark.parametrize("kw", [dict(), dict(pixel_stride=3.0, jitter=1.0),
                                 dict(pixel_stride=3.0, jitter=0.5, refinement="remarch", edge_fade_mode="circular"),
-                                dict(pixel_stride=2.5, refinement="none", max_steps=5, pixel_stride_z_cutoff=10.0)])
+                                dict(pixel_stride=2.5, refinement="none", max_steps=5, pixel_stride_z_cutoff=10.0),
+                                dict(fit_stride_to_steps=True, max_steps=4),
+                                dict(fit_stride_to_steps=True, max_steps=6, jitter=1.0, refinement="remarch"),
+                                dict(fit_stride_to_steps=True, max_steps=3, pixel_stride=2.0,
+                                     pixel_stride_z_cutoff=5.0, refinement="none")])
 def test_teaching_twin_equals_vectorised(kw):
     g = room(16, 12)
     p = DDASSRParams(max_ray_distance=30.0, **kw)
@@ -345,7 +393,8 @@ def test_teaching_twin_equals_vectorised(kw):
     (dict(max_ray_distance=0.0), "max_ray_distance"), (dict(pixel_stride_z_cutoff=0.0), "pixel_stride_z_cutoff"),
     (dict(jitter=math.nan), "jitter"), (dict(binary_search_iterations=-1), "binary_search_iterations"),
     (dict(refinement="secant"), "refinement"), (dict(fade_exponent=0.0), "fade_exponent"), (dict(seed=-1), "seed"),
-    (dict(edge_fade_mode="square"), "edge_fade_mode")])
+    (dict(edge_fade_mode="square"), "edge_fade_mode"), (dict(fit_stride_to_steps=1), "fit_stride_to_steps"),
+    (dict(fit_stride_to_steps="auto"), "fit_stride_to_steps")])
 def test_bad_params(kw, name):
     with pytest.raises(ValueError, match=name):
         ssr_dda(room(8, 6), DDASSRParams(**kw))

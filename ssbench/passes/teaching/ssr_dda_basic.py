@@ -113,6 +113,8 @@ def ssr_dda_basic(gbuffer: GBuffer, params: DDASSRParams = DDASSRParams(),
         # Pixel stride, smaller for distant origins. FIX: stride = PixelStride pixels at the camera
         strideScalar = 1.0 - min(1.0, -rayOrg[2] / PixelStrideZCutoff)
         pixelStride = 1.0 + strideScalar * (PixelStride - 1.0)
+        if params.fit_stride_to_steps:                   # ours: Iterations samples span the whole clipped segment
+            pixelStride = max(pixelStride, float(math.ceil(abs(delta[0]) / Iterations)))
         # FIX (PDF): dP *= pixelStride, not +=
         dP, dQ, dk = [c * pixelStride for c in dP], [c * pixelStride for c in dQ], dk * pixelStride
         P0 = [P0[i] + dP[i] * jitter for i in range(2)]

@@ -71,6 +71,8 @@ class GTAOParams:
             sequence along a 64² Hilbert curve, frame 0), ``"none"`` (0.5, the R2 value at index 0), or a tile
             ``(2, 4, 4)`` (slice, step noise) or ``(4, 4)`` (both) in [0, 1) read at ``[row % 4, col % 4]``.
         seed: seeds ``"hash"`` noise when no generator is passed.
+        denoise_passes: XeGTAO's 3×3 edge-aware denoise passes (``gtao_denoise``) applied *before* the final
+            clip to [0.03, 1], so values that overshoot 1 average out (XeGTAO's default is 1; 0 = raw).
     """
 
     quality: str = "high"
@@ -85,6 +87,7 @@ class GTAOParams:
     min_offset_pixels: float = 1.3
     noise: NoiseSpec = "hash"
     seed: int = 0
+    denoise_passes: int = 0
 
     def __post_init__(self) -> None:
         if self.quality not in QUALITY_PRESETS:
@@ -107,6 +110,9 @@ class GTAOParams:
                 raise ValueError(f"noise: a tile must have shape (4, 4) or (2, 4, 4) with values in [0, 1), "
                                  f"got shape {tuple(t.shape)}")
         make_generator(self.seed, None)                      # validates seed
+        if isinstance(self.denoise_passes, bool) or not isinstance(self.denoise_passes, int) \
+                or self.denoise_passes < 0:
+            raise ValueError(f"denoise_passes: must be an integer >= 0, got {self.denoise_passes!r}")
 
     @property
     def slices(self) -> int:
@@ -315,7 +321,12 @@ def gtao(gbuffer: GBuffer, params: GTAOParams = GTAOParams(), *, generator: Opti
             dbg_v.append(local)
 
     # ---- Final value ----
-    vis = ((vis / S).clamp_min(0.0) ** params.final_value_power).clamp(0.03, 1.0)
+    vis = (vis / S).clamp_min(0.0) ** params.final_value_power
+    if params.denoise_passes:                     # before the clip, as XeGTAO: overshoot above 1 averages out
+        from .gtao_denoise import gtao_denoise
+        vis = gtao_denoise(torch.where(mask, vis, torch.ones_like(vis)), gbuffer.view_z, mask,
+                           passes=params.denoise_passes)
+    vis = vis.clamp(0.03, 1.0)
     ao = torch.where(mask, vis, torch.ones_like(vis))
     out_bent = (None if bent is None else
                 torch.where(mask, torch.cat(_unit(tuple(bent)), 1), torch.zeros_like(gbuffer.normal)))

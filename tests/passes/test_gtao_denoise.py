@@ -144,3 +144,15 @@ class TestDenoise:
         if name in ("view_z", "mask"):
             with pytest.raises(ValueError, match=name):
                 gtao_edges(args["view_z"], args["mask"])
+
+
+def test_denoise_inside_gtao_runs_before_the_clip():
+    g = open_plane_gbuffer()
+    raw = gtao(g, GTAOParams(noise="hash")).ao[g.mask]
+    inside = gtao(g, GTAOParams(noise="hash", denoise_passes=1)).ao[g.mask]
+    after = gtao_denoise(gtao(g, GTAOParams(noise="hash")).ao, g.view_z, g.mask)[g.mask]
+    assert (inside >= 0.99).float().mean() >= (raw >= 0.99).float().mean()
+    assert inside.mean() >= after.mean() - 1e-6            # overshoot above 1 is averaged, not clipped first
+    assert float(inside.min()) >= 0.03 and float(inside.max()) <= 1.0
+    with pytest.raises(ValueError, match="denoise_passes"):
+        GTAOParams(denoise_passes=-1)

@@ -31,27 +31,26 @@ class _Parser(argparse.ArgumentParser):
         raise _UsageError(message)
 
 
-def _positive(name: str):
+def _int_at_least(lo: int, what: str, why: str = "", name: str = "int"):
+    """argparse type: an integer >= ``lo``; errors read ``expected <what>[<why>], got ...``."""
     def parse(s: str) -> int:
         try:
             v = int(s)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a positive integer, got {s!r}") from None
-        if v <= 0:
-            raise argparse.ArgumentTypeError(f"expected a positive integer, got {v}")
+            raise argparse.ArgumentTypeError(f"expected {what}, got {s!r}") from None
+        if v < lo:
+            raise argparse.ArgumentTypeError(f"expected {what}{why}, got {v}")
         return v
     parse.__name__ = name
     return parse
 
 
-def _non_negative(s: str) -> int:
-    try:
-        v = int(s)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {s!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {v}")
-    return v
+def _positive(name: str):
+    return _int_at_least(1, "a positive integer", name=name)
+
+
+_non_negative = _int_at_least(0, "a non-negative integer", name="non_negative")
+_rays = _int_at_least(2, "an integer >= 2", " (for a standard error)", name="rays")
 
 
 def _channels(s: str) -> tuple[str, ...]:
@@ -80,16 +79,6 @@ def _positive_float(s: str) -> float:
         raise argparse.ArgumentTypeError(f"expected a number > 0, got {s!r}") from None
     if not (math.isfinite(v) and v > 0):
         raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {s!r}")
-    return v
-
-
-def _rays(s: str) -> int:
-    try:
-        v = int(s)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 2, got {s!r}") from None
-    if v < 2:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 2 (for a standard error), got {v}")
     return v
 
 

@@ -159,6 +159,19 @@ def occlusion_to_ao(count: torch.Tensor, kernel_size: int, strength: float, mask
     return torch.where(mask, ao, torch.ones_like(ao))
 
 
+def ssao_result(count: torch.Tensor, p, mask: torch.Tensor, dtype: torch.dtype, debug: bool,
+                row: torch.Tensor, col: torch.Tensor, kernel: torch.Tensor, noise: torch.Tensor) -> AOResult:
+    """AO from the range-check ``count`` plus, with ``debug``, the per-pixel sample count, noise index,
+    kernel and noise (shared by both SSAO passes)."""
+    ao = occlusion_to_ao(count, p.kernel_size, p.strength, mask, dtype)
+    extra = {}
+    if debug:
+        extra = {"samples": torch.where(mask, count, torch.zeros_like(count)),
+                 "noise_index": (row * p.noise_size + col).expand(mask.shape),
+                 "kernel": kernel, "noise": noise}
+    return AOResult(ao=ao, debug=extra)
+
+
 def hemisphere_ssao(gbuffer: GBuffer, params: HemisphereSSAOParams = HemisphereSSAOParams(), *,
                     generator: torch.Generator | None = None, debug: bool = False) -> AOResult:
     r"""Hemisphere SSAO of seed 002 §2.2 (see the module docstring for the algorithm and edge cases).
@@ -220,13 +233,7 @@ def hemisphere_ssao(gbuffer: GBuffer, params: HemisphereSSAOParams = HemisphereS
     sample_point = position.unsqueeze(2) + sample_vector * p.kernel_radius         # (B, 3, K, H, W)
     count = range_check_count(cam, sample_point, texture, p.position_from == "depth",
                               p.min_distance, p.max_distance)                      # (B, 1, H, W)
-    ao = occlusion_to_ao(count, p.kernel_size, p.strength, mask, dtype)
-    extra = {}
-    if debug:
-        extra = {"samples": torch.where(mask, count, torch.zeros_like(count)),
-                 "noise_index": (row * p.noise_size + col).expand(mask.shape),
-                 "kernel": kernel, "noise": noise}
-    return AOResult(ao=ao, debug=extra)
+    return ssao_result(count, p, mask, dtype, debug, row, col, kernel, noise)
 
 
 class HemisphereSSAO(nn.Module):

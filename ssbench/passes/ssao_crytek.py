@@ -36,7 +36,7 @@ from torch import nn
 from ..gbuffer import GBuffer
 from .common import AOResult, make_generator
 from .sampling import noise_texel, noise_texture, sphere_kernel
-from .ssao import check_gbuffer, check_ssao_params, occlusion_to_ao, range_check_count, view_position
+from .ssao import check_gbuffer, check_ssao_params, range_check_count, ssao_result, view_position
 
 FLAVOUR = "uniform"  # the ground-truth weighting this pass estimates (ssbench.reference.ao)
 REQUIRES = ("view_z", "mask")
@@ -113,13 +113,7 @@ def crytek_ssao(gbuffer: GBuffer, params: CrytekSSAOParams = CrytekSSAOParams(),
     reflected = k - 2.0 * (k * random).sum(1, keepdim=True) * random               # (1, 3, K, H, W)
     sample_point = position.unsqueeze(2) + reflected * p.kernel_radius             # (B, 3, K, H, W)
     count = range_check_count(cam, sample_point, texture, False, p.min_distance, p.max_distance)
-    ao = occlusion_to_ao(count, p.kernel_size, p.strength, mask, dtype)
-    extra = {}
-    if debug:
-        extra = {"samples": torch.where(mask, count, torch.zeros_like(count)),
-                 "noise_index": (row * p.noise_size + col).expand(mask.shape),
-                 "kernel": kernel, "noise": noise}
-    return AOResult(ao=ao, debug=extra)
+    return ssao_result(count, p, mask, dtype, debug, row, col, kernel, noise)
 
 
 class CrytekSSAO(nn.Module):

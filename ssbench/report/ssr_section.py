@@ -173,7 +173,7 @@ def _scene(run_dir, name, methods, channels, width, height, spp, seed, k_px, use
     sc = load(name)
     d = os.path.join(run_dir, "img", "ssr", name)
     rel = f"img/ssr/{name}"
-    need = tuple(dict.fromkeys(channels + evaluate.SSR_GT_CHANNELS))
+    need = tuple(dict.fromkeys(channels + evaluate.SSR_GT_CHANNELS + ("metallic", "roughness")))
     if g is None or (g.width, g.height) != (width, height) or any(getattr(g, c) is None for c in need):
         g = reference.gbuffer(sc, width, height, channels=need, spp=spp, seed=seed, use_cache=use_cache)
     t0 = time.perf_counter()
@@ -189,7 +189,8 @@ def _scene(run_dir, name, methods, channels, width, height, spp, seed, k_px, use
     for m in methods:
         try:
             ev = evaluate.run_ssr(sc, m, seed=seed, spp=spp, k_px=k_px, repeats=1, warmup=False, gbuffer=g,
-                                  truth=truth, debug=True, use_cache=use_cache)
+                                  truth=truth, debug=True, use_cache=use_cache,
+                                  reflective="specular")
         except Exception as e:
             notes.append(f"{m}: {type(e).__name__}: {e}")
             continue

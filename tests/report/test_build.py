@@ -292,7 +292,8 @@ def _stub_ssr(monkeypatch, fail_scene=None, visits=True):
     z = torch.full((1, 1, H, W), -5.0)
     full = GBuffer(cam, view_z=z, position=cam.uv_to_view(cam.uv_grid()[None], z), mask=mask,
                    normal=torch.tensor([0.0, 1.0, 0.0]).view(1, 3, 1, 1).expand(1, 3, H, W).contiguous(),
-                   color=torch.full((1, 3, H, W), 0.5), shape_id=torch.zeros(1, 1, H, W, dtype=torch.int32))
+                   color=torch.full((1, 3, H, W), 0.5), shape_id=torch.zeros(1, 1, H, W, dtype=torch.int32),
+                   roughness=torch.zeros(1, 1, H, W), metallic=torch.ones(1, 1, H, W))   # a mirror: all specular
     top = torch.zeros_like(mask)
     top[..., : H // 2, :] = True
     off = mask & ~top
@@ -423,3 +424,21 @@ def test_report_cli_passes_no_ssr(monkeypatch, tmp_path, capsys):
     monkeypatch.setattr(build, "build_report", fake)
     assert cli.main(["report", "--out", str(tmp_path), "--no-ssr", "--ssr-spp", "8"]) == 0
     assert seen["ssr"] is False and seen["ssr_spp"] == 8 and seen["ao"] is True
+
+
+def test_ssr_section_scores_specular_pixels_only(tmp_path, monkeypatch):
+    """Rough, non-metal pixels get no SSR in a renderer, so the report must not count them as misses."""
+    from ssbench import evaluate
+    from ssbench.report.ssr_section import build_ssr_section
+    _stub_ssr(monkeypatch, fail_scene="fence")
+    seen = []
+    real = evaluate.run_ssr
+
+    def spy(*a, **k):
+        seen.append(k.get("reflective"))
+        return real(*a, **k)
+
+    monkeypatch.setattr(evaluate, "run_ssr", spy)
+    ssr = build_ssr_section(str(tmp_path), ["reflective_floor"], 16, 12, spp=2, progress=False)
+    assert ssr["available"] and seen == ["specular"]
+    assert ssr["rows"][0]["reflective"] == "specular"

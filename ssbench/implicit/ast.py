@@ -17,7 +17,8 @@ PowI       integer power ``a ** n``         ``n`` a Python int, ``|n| <= MAX_INT
 =========  ===============================  ================================================
 
 Domain rules every evaluator follows: ``sqrt``/``log`` of a negative number, ``log 0`` → −inf,
-``pow`` with a non-positive base → NaN (torch semantics), division by 0 → ±inf/NaN as IEEE says. The interval
+``pow`` follows ``torch.pow`` (C ``pow``: ``0^0.5 = 0``, ``(−2)^3.0 = −8``, ``(−2)^0.5 = NaN``), division by 0
+→ ±inf/NaN as IEEE says. The interval
 evaluator returns NaN bounds wherever a domain error is *possible* (never a clamped bound).
 """
 from __future__ import annotations

@@ -2,12 +2,16 @@
 
 YAML is read with PyYAML's *safe* loader (no object tags), TOML with ``tomllib``. Both keep track of the line
 of every key so that validation errors read ``path/to/scene.yaml:12: shapes[1].radius: must be > 0``.
+:func:`read_yaml`, :func:`read_toml` and :func:`read_data_file` return ``(data, locate)`` so that another
+validator (``ssbench.implicit.schema``) reports errors the same way. A document with a top-level
+``implicit:`` key is an implicit-surface scene: :func:`parse_yaml` / :func:`parse_toml` (hence
+``ssbench.scenes.load``) refuse it with an error that points to ``ssbench.implicit.load``.
 """
 from __future__ import annotations
 
 import os
 import re
-from typing import Any
+from typing import Any, Callable
 
 import yaml
 
@@ -18,6 +22,8 @@ try:  # Python >= 3.11
     import tomllib
 except ModuleNotFoundError:  # pragma: no cover - Python 3.10
     import tomli as tomllib  # type: ignore[no-redef]
+
+Locator = Callable[[tuple], str]
 
 
 class _LineDict(dict):
@@ -76,8 +82,8 @@ def _yaml_locator(root: Any, filename: str):
     return locate
 
 
-def parse_yaml(text: str, filename: str = "<yaml>", base_dir: str | None = None) -> Scene:
-    """Parse YAML scene text. Errors name ``filename:line``."""
+def read_yaml(text: str, filename: str = "<yaml>") -> tuple[Any, Locator]:
+    """Read YAML text (safe loader) into plain data and a locator ``path -> "file:line"``."""
     loader = _SafeLineLoader(text)
     loader.name = filename
     try:
@@ -92,7 +98,20 @@ def parse_yaml(text: str, filename: str = "<yaml>", base_dir: str | None = None)
         loader.dispose()
     if data is None:
         raise SceneError(f"{filename}:1: empty scene file")
-    return scene_from_dict(data, _yaml_locator(data, filename), filename, base_dir)
+    return data, _yaml_locator(data, filename)
+
+
+def _refuse_implicit(data: Any, locate: Locator) -> None:
+    if isinstance(data, dict) and "implicit" in data:
+        raise SceneError(f"{locate(('implicit',))}: implicit: an implicit-surface scene; "
+                         f"load it with ssbench.implicit.load")
+
+
+def parse_yaml(text: str, filename: str = "<yaml>", base_dir: str | None = None) -> Scene:
+    """Parse YAML scene text. Errors name ``filename:line``."""
+    data, locate = read_yaml(text, filename)
+    _refuse_implicit(data, locate)
+    return scene_from_dict(data, locate, filename, base_dir)
 
 
 # ---------------------------------------------------------------------- TOML
@@ -141,8 +160,8 @@ def _toml_index(text: str) -> dict[tuple, int]:
     return index
 
 
-def parse_toml(text: str, filename: str = "<toml>", base_dir: str | None = None) -> Scene:
-    """Parse TOML scene text. Errors name ``filename:line``."""
+def read_toml(text: str, filename: str = "<toml>") -> tuple[Any, Locator]:
+    """Read TOML text into plain data and a locator ``path -> "file:line"``."""
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
@@ -156,7 +175,27 @@ def parse_toml(text: str, filename: str = "<toml>", base_dir: str | None = None)
                 return f"{filename}:{index[path[:n]]}"
         return f"{filename}:1"
 
+    return data, locate
+
+
+def parse_toml(text: str, filename: str = "<toml>", base_dir: str | None = None) -> Scene:
+    """Parse TOML scene text. Errors name ``filename:line``."""
+    data, locate = read_toml(text, filename)
+    _refuse_implicit(data, locate)
     return scene_from_dict(data, locate, filename, base_dir)
+
+
+def read_data_file(path: str | os.PathLike) -> tuple[Any, Locator]:
+    """Read a ``.yaml``/``.yml`` or ``.toml`` file into plain data and its locator (shared by the validators)."""
+    path = os.fspath(path)
+    ext = os.path.splitext(path)[1].lower()
+    if not os.path.isfile(path):
+        raise FileNotFoundError(f"name_or_path: scene file not found: {path}")
+    if ext not in (".yaml", ".yml", ".toml"):
+        raise SceneError(f"{path}:1: unknown scene file type {ext!r} (use .yaml, .yml or .toml)")
+    with open(path, encoding="utf-8") as f:
+        text = f.read()
+    return read_yaml(text, path) if ext in (".yaml", ".yml") else read_toml(text, path)
 
 
 def load_file(path: str | os.PathLike) -> Scene:

@@ -2,7 +2,8 @@
 
 No Mitsuba import and no file I/O here. Every pass module declares the G-buffer channels it reads in
 ``REQUIRES``. :data:`AO_METHODS` and :data:`SSR_METHODS` map a method name to ``"module:function:ParamsClass"``;
-use :func:`ao_method` / :func:`ssr_method` to resolve it.
+use :func:`ao_method` / :func:`ssr_method` to resolve it; :data:`IMPLICIT_METHODS` / :func:`implicit_method` do
+the same for the implicit-surface ray casters (which take a surface and a camera, not a G-buffer).
 """
 from __future__ import annotations
 
@@ -43,4 +44,22 @@ def ssr_method(name: str):
     return getattr(m, fn), getattr(m, params), getattr(m, "REQUIRES")
 
 
-__all__ = ["AOResult", "AO_METHODS", "ao_method", "SSR_METHODS", "ssr_method"]
+IMPLICIT_METHODS: dict[str, str] = {
+    "fixed": "ssbench.passes.implicit_fixed:fixed_step:FixedStepParams",
+    "sphere": "ssbench.passes.implicit_sphere:sphere_trace:SphereTraceParams",
+    "progressive": "ssbench.passes.implicit_progressive:progressive:ProgressiveParams",
+}
+
+
+def implicit_method(name: str):
+    """``(function, ParamsClass)`` of an implicit-surface ray caster by name (seed 004). The progressive method
+    also takes and returns a ``ProgressiveState``; the others are stateless."""
+    if name not in IMPLICIT_METHODS:
+        raise KeyError(f"method: unknown implicit method {name!r}; known: {', '.join(IMPLICIT_METHODS)}")
+    mod, fn, params = IMPLICIT_METHODS[name].split(":")
+    m = importlib.import_module(mod)
+    return getattr(m, fn), getattr(m, params)
+
+
+__all__ = ["AOResult", "AO_METHODS", "ao_method", "SSR_METHODS", "ssr_method", "IMPLICIT_METHODS",
+           "implicit_method"]

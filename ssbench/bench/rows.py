@@ -1,0 +1,251 @@
+"""The row store of a sweep: one file per finished row, written atomically, plus run metadata and tables.
+
+Layout of a sweep's output folder::
+
+    rows/<config_id>.json    one finished row each: written to a temporary file, fsynced, then renamed
+    runs/<run_id>.json       metadata of each invocation (commit, versions, variant, threads, machine, ...)
+    metadata.json            the latest run's metadata
+    sweep.json               the sweep as run: name, effect, source, sha256, the configurations
+    rows.jsonl, rows.parquet the consolidated table, in sweep order (rows.csv when pyarrow is missing)
+
+A rename is atomic, so a ``kill -9`` at any moment leaves each row either absent or whole (at worst a stray
+``.*.tmp`` file, ignored and removed later); a row's file name is its ``config_id``, so a re-run can neither
+duplicate nor half-write a row. ``rows/`` is the truth: the consolidated tables are rewritten at the end of
+each run (a killed run leaves the previous ones, and its ``runs/<run_id>.json`` says ``"status": "running"``).
+Two invocations on one folder at once at worst compute a configuration twice; the later rename wins.
+Rows are JSON with ``NaN``/``Infinity`` as Python writes them.
+
+Fields that differ between two runs of the same configuration are :data:`TIMING_FIELDS` (wall times) and
+:data:`METADATA_FIELDS`; :func:`stable` drops them, :func:`canonical_json` compares what is left.
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import os
+import secrets
+from typing import Any, Optional, Sequence
+
+from .timing import TIMING_FIELDS as _PASS_TIMING
+
+__all__ = ["RowStore", "TIMING_FIELDS", "METADATA_FIELDS", "is_volatile", "stable", "canonical_json",
+           "new_run_id", "run_metadata", "tidy_columns"]
+
+#: wall-time fields: the evaluation's own, the per-config wall time, and :mod:`ssbench.bench.timing`'s numbers
+TIMING_FIELDS = ("seconds", "seconds_runs", "blur_seconds", "gt_seconds", "gt_seconds_cos", "gt_seconds_flavour",
+                 "gt_seconds_oracle", "elapsed_s") + tuple(f for f in _PASS_TIMING
+                                                           if f not in ("threads", "floor_samples",
+                                                                        "timing_min_run_time", "timing_error"))
+#: per-run metadata copied into every row (the full record is ``runs/<run_id>.json``)
+METADATA_FIELDS = ("run_id", "git_commit", "git_dirty", "variant")
+
+
+def is_volatile(key: str) -> bool:
+    """Whether a row field may differ between runs of the same configuration (timing or metadata)."""
+    return key in TIMING_FIELDS or key in METADATA_FIELDS or key.startswith("gt_seconds")
+
+
+def stable(row: dict) -> dict:
+    """``row`` without its volatile fields (:func:`is_volatile`)."""
+    return {k: v for k, v in row.items() if not is_volatile(k)}
+
+
+def _default(x: Any) -> Any:
+    if hasattr(x, "tolist"):                        # torch / numpy values
+        return x.tolist()
+    if isinstance(x, (set, frozenset, tuple)):
+        return list(x)
+    return str(x)
+
+
+def canonical_json(row: dict) -> str:
+    """Sorted JSON of the stable part of ``row`` (``NaN == NaN`` here, unlike in a dict comparison)."""
+    return json.dumps(stable(row), sort_keys=True, default=_default)
+
+
+def new_run_id() -> str:
+    """``YYYYmmddTHHMMSSZ-<6 hex>``: sortable by time, unique across concurrent invocations."""
+    return _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%dT%H%M%SZ") + "-" + secrets.token_hex(3)
+
+
+def _commit(tmp: str, path: str) -> None:
+    """The atomic step: rename ``tmp`` over ``path``."""
+    os.replace(tmp, path)
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OSError):
+        return True
+    return True
+
+
+class RowStore:
+    """A sweep's output folder (see the module docstring).
+
+    Example:
+        >>> import tempfile
+        >>> s = RowStore(tempfile.mkdtemp())
+        >>> _ = s.write_row({"config_id": "abc", "x": float("nan")}); sorted(s.done_ids())
+        ['abc']
+        >>> s.read_row("abc")["x"]
+        nan
+    """
+
+    def __init__(self, root: "str | os.PathLike"):
+        self.root = os.path.abspath(os.fspath(root))
+        self.rows_dir = os.path.join(self.root, "rows")
+        self.runs_dir = os.path.join(self.root, "runs")
+        os.makedirs(self.rows_dir, exist_ok=True)
+        os.makedirs(self.runs_dir, exist_ok=True)
+        self._clean_tmp()
+
+    # ------------------------------------------------------------------ writing
+    def _write_atomic(self, path: str, text: str, fsync: bool = True) -> None:
+        d, base = os.path.split(path)
+        tmp = os.path.join(d, f".{base}.{os.getpid()}.{secrets.token_hex(2)}.tmp")
+        try:
+            with open(tmp, "w", encoding="utf-8") as f:
+                f.write(text)
+                f.flush()
+                if fsync:
+                    os.fsync(f.fileno())
+            _commit(tmp, path)
+        finally:
+            if os.path.exists(tmp):
+                os.remove(tmp)
+
+    def write_json(self, name: str, obj: Any) -> str:
+        """Write ``obj`` as JSON to ``root/name`` atomically; returns the path."""
+        path = os.path.join(self.root, name)
+        os.makedirs(os.path.dirname(path), exist_ok=True)
+        self._write_atomic(path, json.dumps(obj, indent=2, default=_default) + "\n")
+        return path
+
+    def write_row(self, row: dict) -> str:
+        """Write one finished row to ``rows/<config_id>.json`` atomically (replacing an older one)."""
+        cid = row.get("config_id")
+        if not isinstance(cid, str) or not cid or os.sep in cid or cid.startswith("."):
+            raise ValueError(f"row: needs a plain string config_id, got {cid!r}")
+        path = os.path.join(self.rows_dir, f"{cid}.json")
+        self._write_atomic(path, json.dumps(row, default=_default) + "\n")
+        return path
+
+    def _clean_tmp(self) -> None:
+        """Remove temporary files left by writers that died (their pid is in the name)."""
+        for d in (self.rows_dir, self.runs_dir, self.root):
+            for name in os.listdir(d):
+                if name.startswith(".") and name.endswith(".tmp"):
+                    parts = name.split(".")
+                    pid = int(parts[-3]) if len(parts) >= 4 and parts[-3].isdigit() else None
+                    if pid is None or not _pid_alive(pid) or pid == os.getpid():
+                        try:
+                            os.remove(os.path.join(d, name))
+                        except FileNotFoundError:
+                            pass
+
+    # ------------------------------------------------------------------ reading
+    def done_ids(self) -> set[str]:
+        """``config_id`` of every finished row (temporary files ignored)."""
+        return {n[:-5] for n in os.listdir(self.rows_dir) if n.endswith(".json") and not n.startswith(".")}
+
+    def read_row(self, cid: str) -> dict:
+        with open(os.path.join(self.rows_dir, f"{cid}.json"), encoding="utf-8") as f:
+            return json.loads(f.read())
+
+    def rows(self, ids: Optional[Sequence[str]] = None) -> list[dict]:
+        """The finished rows with these ids, in this order (missing ones skipped); all when ``ids`` is None."""
+        done = self.done_ids()
+        ids = sorted(done) if ids is None else [i for i in ids if i in done]
+        return [self.read_row(i) for i in ids]
+
+    def read_json(self, name: str) -> Optional[Any]:
+        path = os.path.join(self.root, name)
+        if not os.path.isfile(path):
+            return None
+        with open(path, encoding="utf-8") as f:
+            return json.load(f)
+
+    # ------------------------------------------------------------------ tables
+    def consolidate(self, ids: Sequence[str]) -> dict[str, str]:
+        """Write ``rows.jsonl`` and ``rows.parquet`` (``rows.csv`` without pyarrow) of the rows ``ids``, in that
+        order; returns ``{"jsonl": path, "parquet"|"csv": path}``."""
+        rows = self.rows(ids)
+        out = {"jsonl": os.path.join(self.root, "rows.jsonl")}
+        self._write_atomic(out["jsonl"], "".join(json.dumps(r, default=_default) + "\n" for r in rows))
+        cols = tidy_columns(rows)
+        try:
+            import pyarrow as pa
+            import pyarrow.parquet as pq
+        except ImportError:                                  # pragma: no cover - pyarrow is a dependency
+            import csv
+            import io
+            buf = io.StringIO()
+            w = csv.writer(buf)
+            w.writerow(list(cols))
+            w.writerows(zip(*cols.values()))
+            out["csv"] = os.path.join(self.root, "rows.csv")
+            self._write_atomic(out["csv"], buf.getvalue())
+            return out
+        path = os.path.join(self.root, "rows.parquet")
+        tmp = os.path.join(self.root, f".rows.parquet.{os.getpid()}.{secrets.token_hex(2)}.tmp")
+        try:
+            pq.write_table(pa.table(cols) if cols else pa.table({"config_id": pa.array([], pa.string())}), tmp)
+            _commit(tmp, path)
+        finally:
+            if os.path.exists(tmp):
+                os.remove(tmp)
+        out["parquet"] = path
+        return out
+
+
+def tidy_columns(rows: Sequence[dict]) -> dict[str, list]:
+    """Column-wise rows for Parquet/CSV: ``params`` also flattened to ``param.<name>`` columns; nested values
+    (dicts, lists) as JSON text; a column mixing types other than int/float/None becomes JSON text.
+
+    Example:
+        >>> tidy_columns([{"a": 1, "params": {"r": 0.5}}, {"a": 2.5, "params": {"r": 1.0, "q": "low"}}])
+        {'a': [1.0, 2.5], 'params': ['{"r": 0.5}', '{"q": "low", "r": 1.0}'], 'param.r': [0.5, 1.0], 'param.q': [None, 'low']}
+    """
+    flat = []
+    for r in rows:
+        f = dict(r)
+        for k, v in (r.get("params") or {}).items():
+            f[f"param.{k}"] = v
+        flat.append(f)
+    keys: list[str] = list(dict.fromkeys(k for f in flat for k in f))
+    cols: dict[str, list] = {}
+    for k in keys:
+        vals = [f.get(k) for f in flat]
+        vals = [json.dumps(v, sort_keys=True, default=_default) if isinstance(v, (dict, list, tuple)) else v
+                for v in vals]
+        kinds = {type(v) for v in vals if v is not None}
+        if kinds == {int, float}:
+            vals = [None if v is None else float(v) for v in vals]
+        elif len(kinds) > 1:
+            vals = [None if v is None else json.dumps(v, default=_default) for v in vals]
+        cols[k] = vals
+    return cols
+
+
+def run_metadata(*, run_id: str, sweep, executor: dict, resume: bool, out: str) -> dict:
+    """Metadata of one invocation: commit (+dirty), package versions, backend variant, torch threads, machine,
+    date, the sweep file's hash and the executor."""
+    from ..report.build import environment, git_state
+    env = environment()
+    return {"run_id": run_id, "date": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+            "sweep": {"name": sweep.name, "effect": sweep.effect, "source": os.path.abspath(sweep.source)
+                      if os.path.exists(sweep.source) else sweep.source, "sha256": sweep.sha256,
+                      "configs": len(sweep.configs),
+                      "timing": None if sweep.timing is None else vars(sweep.timing)},
+            "git": git_state(), "versions": {k: env.get(k) for k in ("ssbench", "python", "torch", "kornia", "numpy",
+                                                                     "mitsuba", "drjit")},
+            "backend": {"variant": env.get("variant"), "libllvm": env.get("libllvm"),
+                        "reason": env.get("backend_reason"), "drjit_threads": env.get("drjit_threads")},
+            "torch_threads": env.get("torch_threads"),
+            "machine": {k: env.get(k) for k in ("platform", "machine", "processor", "node", "cpu_count")},
+            "executor": executor, "resume": resume, "out": out, "status": "running"}
+

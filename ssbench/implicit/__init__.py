@@ -7,3 +7,15 @@
 - ``surface.py``, ``scene.py``, ``schema.py``, ``catalog.py``: objects with bounds / material / Lipschitz
   bound, scenes with lights, camera and animation, scene files, and the built-in hard cases.
 """
+from __future__ import annotations
+
+from . import catalog
+from .expression import Expression, parse
+from .parser import ExpressionError
+from .scene import Animation, ImplicitScene, Segment, load
+from .schema import scene_from_dict, scene_from_file, scene_from_toml, scene_from_yaml
+from .surface import ImplicitObject, ImplicitSurface, expression_key
+
+__all__ = ["Expression", "parse", "ExpressionError", "ImplicitObject", "ImplicitSurface", "expression_key",
+           "ImplicitScene", "Animation", "Segment", "load", "scene_from_dict", "scene_from_yaml",
+           "scene_from_toml", "scene_from_file", "catalog"]

@@ -17,3 +17,8 @@ __all__ += ["ambient_occlusion", "screen_space_oracle", "AOReference"]
 from .reflections import ReflectionReference, reflections  # noqa: E402
 
 __all__ += ["reflections", "ReflectionReference"]
+
+from .implicit import ImplicitReference, implicit  # noqa: E402
+from .implicit_dense import DenseMarch, dense_march  # noqa: E402
+
+__all__ += ["implicit", "ImplicitReference", "dense_march", "DenseMarch"]

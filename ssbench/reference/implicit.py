@@ -1,0 +1,401 @@
+r"""Certified first-hit ground truth for implicit surfaces f(p) = 0 (seed 004): interval march + bisection.
+
+Per pixel, in float64, on the rays of :func:`ssbench.passes.implicit_common.camera_rays` (unit ``d``, ``t`` in
+world units), Mitchell-style root isolation (``implicit_anchors.md`` §1):
+
+1. **Clip** ``[t_near, t_far]`` to the surface's world ``bounds`` (slab test; f > 0 outside them).
+2. **Interval march**, front to back and lock-step over all rays: a ray holds a position ``a`` and a trial
+   width ``h``; the axis-aligned box of the segment ``o + t d, t ∈ [a, a + h]`` (corners widened outward by
+   the rounding of ``o + t d`` and one ``nextafter``) goes through ``surface.interval``.
+
+   * enclosure excludes 0 (``lo > 0`` or ``hi < 0``): the segment is root-free → ``a += h``, ``h *= 2``;
+   * else, while ``h > tolerance·max(1, a)``: ``h /= 2`` (a NaN enclosure means "may hold a root");
+   * else the segment is a *leaf*: point values ``f(a) ≥ 0 > f(a+h)`` → the first **entering** root is
+     bracketed (a hit); ``f(a) < 0 ≤ f(a+h)`` → an exiting crossing (a ray starting inside), go on; no sign
+     change → the leaf is *unresolved*, go on.
+
+   A run of consecutive unresolved leaves that leads straight into the hit leaf is IA over-estimation just
+   in front of a simple root (part of its bracket). A run that ends in an excluded segment (or the end of
+   the ray) is **ambiguous**: a tangency, a double root such as (‖p‖−1)², an undefined/NaN region, or
+   over-estimation IA could not resolve at the leaf width; ``ambiguous_t`` is the start of the first one.
+   For speed one iteration evaluates several segments per ray in one ``surface.interval`` call (``K``
+   consecutive widths ``h`` plus ``J`` halvings of the first, fewer lanes when many rays are active) and
+   consumes them in order by the rules above; the lane schedule depends on the number of active rays, so a
+   different image size or batch can move ``t`` at the ``epsilon`` level (identical inputs: identical bits).
+3. **Bisection** of the hit bracket to ``(hi − lo) ≤ epsilon·max(1, t)``; ``t`` is the bracket midpoint.
+
+The hit is the article's event ``f(t_i) ≥ 0 > f(t_{i+1})`` (seed 004, レイキャスティング), so every march,
+the dense cross-check (:func:`ssbench.reference.implicit_dense.dense_march`) and the reference agree on what a
+root is. Roots **without a sign change** are not hits: sign-change methods cannot see them; interval
+arithmetic does see them, as ``ambiguous_t``. ``certified`` means every part of ``[t_start, t)`` (the whole
+clipped ray for a miss) was excluded by an interval test, except the unresolved run leading into the hit
+leaf, whose ends all have ``f ≥ 0``: the first entering root is isolated to that bracket (``isolation``,
+at most :data:`ISOLATION_LEAVES` leaf widths ``tolerance·max(1, t)``; a root pair inside it cannot be told
+apart). No ambiguous run and no exiting crossing came first, and the march finished. A ray that hits the
+iteration cap is ``unfinished`` (never a silent miss).
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, fields, is_dataclass
+from typing import Optional
+
+import torch
+
+from ..passes.implicit_common import shade_hits
+from .implicit_dense import _rays, clip_to_bounds
+
+__all__ = ["implicit", "ImplicitReference", "segment_box", "ISOLATION_LEAVES"]
+
+_KERNEL_VERSION = 2  # 2: the `isolation` field
+#: a hit is certified only if its isolating bracket is at most this many leaf widths long
+ISOLATION_LEAVES = 64
+_EPS = 2.0 ** -52
+
+
+@dataclass(frozen=True)
+class ImplicitReference:
+    r"""Certified first hits; every tensor is :math:`(B, C, H, W)` (``C`` = 1 unless noted).
+
+    Attributes:
+        t: float64 first entering root (bracket midpoint; ``t_far`` where none or unfinished).
+        hit: bool, a sign-changing root ``f ≥ 0 → f < 0`` was bracketed and refined.
+        certified: bool, ``[t_start, t)`` (``[t_start, t_end]`` on a miss) was excluded by interval tests up
+            to the short unresolved run leading into the hit leaf, and the march finished (module docstring).
+        ambiguous_t: float64 start of the first ambiguous run before the hit (or on a miss), ``+inf`` if none.
+        t_exit: float64 with ``exits=True`` the next crossing back to ``f ≥ 0`` after the hit (bisected; the
+            slab's chord end, ``t_end`` if the chord leaves the clipped range); equals ``t`` where no hit or
+            ``exits=False``. ``t_exit − t`` is the chord ``w`` of the h/w prediction.
+        isolation: float64 width of the bracket known to hold the first entering root: from the start of the
+            unresolved run leading into the hit leaf (or the leaf itself) to the leaf's end (0 where no hit).
+            ``certified`` needs it ≤ ``ISOLATION_LEAVES`` leaf widths (catalog scenes: ≤ 6).
+        normal: :math:`(B, 3, H, W)` float64 unit ``∇f/|∇f|`` at the hit (0 where none).
+        object_index: int32 ``surface.object_index`` at the hit (0 if the surface has none; −1 where none).
+        interval_evaluations, point_evaluations: int32 per pixel (bisection and the normal's gradient
+            included; a gradient counts as one point evaluation).
+        unfinished: bool, the march ran out of ``max_iterations`` before deciding the first hit.
+        t_start, t_end: float64 the clipped range (``t_start ≥ t_end``: the ray misses the bounds).
+        iterations: lock-step march iterations run (the max over pixels); ``seconds``: wall time.
+
+    ``interval_evaluations`` counts every box evaluated, the speculative lanes included.
+    """
+
+    t: torch.Tensor
+    hit: torch.Tensor
+    certified: torch.Tensor
+    ambiguous_t: torch.Tensor
+    t_exit: torch.Tensor
+    isolation: torch.Tensor
+    normal: torch.Tensor
+    object_index: torch.Tensor
+    interval_evaluations: torch.Tensor
+    point_evaluations: torch.Tensor
+    unfinished: torch.Tensor
+    t_start: torch.Tensor
+    t_end: torch.Tensor
+    iterations: int = 0
+    seconds: float = 0.0
+
+
+_TENSORS = tuple(f.name for f in fields(ImplicitReference) if f.name not in ("iterations", "seconds"))
+
+
+def segment_box(o: torch.Tensor, d: torch.Tensor, a: torch.Tensor, b: torch.Tensor
+                ) -> tuple[torch.Tensor, torch.Tensor]:
+    r"""Outward-rounded AABB :math:`(N, 3)` ``(lo, hi)`` of the segments ``o + t d``, ``t ∈ [a, b]`` (:math:`(N,)`).
+
+    The corners are computed in float64, widened by a bound on the rounding of ``o + t d`` and then moved one
+    more ulp outward with ``torch.nextafter``, so the box contains the exact segment.
+
+    Example:
+        >>> o, d = torch.zeros(1, 3, dtype=torch.float64), torch.tensor([[1.0, 0.0, 0.0]], dtype=torch.float64)
+        >>> t = lambda v: torch.tensor([v], dtype=torch.float64)
+        >>> lo, hi = segment_box(o, d, t(1.0), t(2.0))
+        >>> bool(lo[0, 0] < 1.0 < 2.0 < hi[0, 0]), bool(lo[0, 1] < 0 < hi[0, 1])
+        (True, True)
+    """
+    pa, pb = o + a[:, None] * d, o + b[:, None] * d
+    slack = 4 * _EPS * (o.abs() + (torch.maximum(a.abs(), b.abs())[:, None] * d).abs()) + 1e-300
+    lo = torch.nextafter(torch.minimum(pa, pb) - slack, torch.full_like(pa, -math.inf))
+    hi = torch.nextafter(torch.maximum(pa, pb) + slack, torch.full_like(pa, math.inf))
+    return lo, hi
+
+
+def _f(surface, o, d, t):
+    with torch.no_grad():
+        return surface.f(o + t[:, None] * d).reshape(-1).to(torch.float64)
+
+
+def _march(surface, o, d, t0, t1, tol_rel, max_iterations, exits, budget=2048, max_lanes=128):
+    """Lock-step interval march over the rays (a loop over iterations, compacted to the active rays).
+
+    One iteration evaluates, per active ray and in one ``surface.interval`` call, ``K`` consecutive segments
+    of width ``h`` from ``a`` and a ladder of ``J`` prefixes ``[a, a + h/2^j]`` (``K + J`` lanes, fewer when
+    many rays are active, so a call holds about ``budget`` boxes). The segments are then consumed in order
+    exactly as the one-segment rule of the module docstring would: excluded → advance; leaf → point signs;
+    wide and not excluded → stop and descend (to the widest excluded ladder prefix, or to the leaf level).
+    """
+    N, dev = o.shape[0], o.device
+    a, h = t0.clone(), (t1 - t0).clone()
+    active = t1 > t0
+    phase = torch.zeros(N, dtype=torch.bool, device=dev)               # False: entry search, True: exit search
+    found = torch.zeros_like(phase)
+    clean = torch.ones_like(phase)
+    inf = torch.full((N,), math.inf, dtype=torch.float64, device=dev)
+    br_lo, br_hi, ex_lo, ex_hi, amb = inf.clone(), inf.clone(), inf.clone(), inf.clone(), inf.clone()
+    run = inf.clone()                        # start of the open run of unresolved leaves (entry search)
+    iso = inf.clone()                        # start of the bracket that isolates the first root
+    n_int = torch.zeros(N, dtype=torch.int32, device=dev)
+    n_pt = torch.zeros_like(n_int)
+
+    def close_runs(g):                       # a run not ended by a sign change was ambiguous
+        g = g[torch.isfinite(run[g]) & ~phase[g]]
+        amb[g] = torch.minimum(amb[g], run[g])
+        clean[g] = False
+        run[g] = math.inf
+
+    def leaf(g, s, e, fs, fe):               # one leaf [s, e] on distinct rays g; True where the ray stops
+        ph = phase[g]
+        enter, leave = (fs >= 0) & (fe < 0), (fs < 0) & (fe >= 0)
+        hit, out, pend, back = ~ph & enter, ph & leave, ~ph & ~enter & ~leave, ~ph & leave
+        iso[g[hit]] = torch.minimum(run[g[hit]], s[hit])                # the run led into the root
+        run[g[hit]] = math.inf
+        clean[g[back]], run[g[back]] = False, math.inf                  # an exiting root: ray started inside
+        run[g[pend]] = torch.where(torch.isinf(run[g[pend]]), s[pend], run[g[pend]])
+        br_lo[g[hit]], br_hi[g[hit]], found[g[hit]], phase[g[hit]] = s[hit], e[hit], True, True
+        ex_lo[g[out]], ex_hi[g[out]] = s[out], e[out]
+        return out | (hit & (not exits))
+
+    def points(g, t):                        # f at (n, m) ray parameters of rays g
+        n_pt[g] += t.shape[1]
+        p = o[g, None, :] + t[..., None] * d[g, None, :]
+        with torch.no_grad():
+            return surface.f(p).reshape(t.shape).to(torch.float64)
+
+    it = 0
+    while it < max_iterations:
+        idx = active.nonzero().squeeze(1)
+        n = idx.numel()
+        if n == 0:
+            break
+        it += 1
+        lanes = max(1, min(max_lanes, budget // n))
+        J = min(lanes // 2, 16)
+        K = lanes - J
+        A, Hh, T1 = a[idx], h[idx], t1[idx]
+        grid = torch.minimum(A[:, None] + torch.arange(K + 1, dtype=A.dtype) * Hh[:, None], T1[:, None])
+        lad = torch.minimum(A[:, None] + Hh[:, None] * 2.0 ** -torch.arange(1, J + 1, dtype=A.dtype), T1[:, None])
+        lo_t = torch.cat([grid[:, :-1], A[:, None].expand(n, J)], 1).reshape(-1)
+        hi_t = torch.cat([grid[:, 1:], lad], 1).reshape(-1)
+        rep = idx.repeat_interleave(K + J)
+        with torch.no_grad():
+            flo, fhi = surface.interval(*segment_box(o[rep], d[rep], lo_t, hi_t))
+        excl = ((flo.reshape(-1) > 0) | (fhi.reshape(-1) < 0)).reshape(n, K + J)   # NaN: may hold a root
+        n_int[idx] += K + J
+        tol = tol_rel * grid.abs().clamp(min=1.0)
+        leafmode = Hh <= tol[:, 0]                                      # every segment is a leaf
+        # rows not in leaf mode: skip the leading excluded segments, stop at the first other one
+        exk = excl[:, :K] & (grid[:, 1:] > grid[:, :-1])
+        m = torch.where(exk.all(1), K, (~exk).to(torch.int8).argmax(1)).long()
+        mv = ~leafmode & (m > 0)
+        close_runs(idx[mv])
+        a[idx[mv]] = grid[mv, m[mv]]
+        grow_by = 2.0 ** max(1, J // 2)                                 # after K excluded segments
+        grow = ~leafmode & (m == K)
+        h[idx[grow]] = grow_by * Hh[grow]
+        mm = m.clamp(max=K - 1)[:, None]
+        dlo, dhi = grid.gather(1, mm)[:, 0], grid.gather(1, mm + 1)[:, 0]
+        st = ~leafmode & (m < K) & (dhi > dlo)
+        dfr = st & (dhi - dlo <= tol.gather(1, mm)[:, 0])              # a leaf: deferred, its own points
+        ladder = st & ~dfr & (m == 0)                                   # wide at a: descend
+        stop = torch.zeros_like(leafmode)
+        # leaf-mode rows: consume the segments in order, jumping over excluded runs, leaf by leaf
+        go = leafmode.clone()
+        if bool(go.any()):
+            kp = torch.zeros(n, dtype=torch.long)
+            event = ~excl[:, :K] | (grid[:, 1:] <= grid[:, :-1])          # a leaf (or the end of the range)
+            ar = torch.arange(K)
+            for _ in range(16):                                         # at most 16 leaves a ray per call
+                if not bool(go.any()):
+                    break
+                cand = event & (ar[None, :] >= kp[:, None])
+                nk = torch.where(cand.any(1), cand.to(torch.int8).argmax(1).long(), K)
+                close_runs(idx[go & (nk > kp)])
+                kc = nk.clamp(max=K - 1)[:, None]
+                s, e = grid.gather(1, kc)[:, 0], grid.gather(1, kc + 1)[:, 0]
+                a[idx[go]] = torch.where(nk < K, s, grid[:, K])[go]
+                h[idx[go & (nk == K)]] = Hh[go & (nk == K)] * grow_by
+                go &= (nk < K) & (e > s)
+                lf = go & (e - s <= tol.gather(1, kc)[:, 0])
+                ladder |= go & ~lf & (nk == 0)
+                r = lf.nonzero().squeeze(1)
+                if r.numel():
+                    fv = points(idx[r], torch.stack([s[r], e[r]], 1))
+                    stop[r] = leaf(idx[r], s[r], e[r], fv[:, 0], fv[:, 1])
+                    a[idx[r]] = e[r]
+                kp = nk + 1
+                go = lf & ~stop & (kp < K)
+        if J and bool(ladder.any()):                                    # descend: widest excluded prefix
+            L = ladder.nonzero().squeeze(1)
+            width = lad[L] - A[L, None]
+            ok = excl[L, K:] & (width > 0)
+            jleaf = torch.where((width <= tol[L, :1]).any(1), (width <= tol[L, :1]).to(torch.int8).argmax(1), J)
+            ok &= torch.arange(J)[None, :] <= jleaf[:, None]
+            jx = torch.where(ok.any(1), ok.to(torch.int8).argmax(1), J)
+            adv = jx < J
+            gl = idx[L]
+            a[gl[adv]], h[gl[adv]] = lad[L[adv], jx[adv]], Hh[L[adv]] * 2.0 ** -(jx[adv] + 1).double()
+            lf = ~adv & (jleaf < J)
+            dfr[L[lf]], dlo[L[lf]], dhi[L[lf]] = True, A[L[lf]], lad[L[lf], jleaf[lf]]
+            deeper = ~adv & ~lf
+            h[gl[deeper]] = Hh[L[deeper]] * 2.0 ** -J
+        elif bool(ladder.any()):
+            h[idx[ladder]] = 0.5 * Hh[ladder]
+        if bool(dfr.any()):                                             # deferred leaves: their own points
+            r = dfr.nonzero().squeeze(1)
+            fv = points(idx[r], torch.stack([dlo[r], dhi[r]], 1))
+            stop[r] = leaf(idx[r], dlo[r], dhi[r], fv[:, 0], fv[:, 1])
+            a[idx[r]], h[idx[r]] = dhi[r], 2.0 * (dhi[r] - dlo[r])
+        active[idx[stop | (a[idx] >= T1)]] = False
+    close_runs(torch.arange(N, device=dev))
+    unfinished = active & ~found                                        # undecided first hit
+    no_exit = found & torch.isinf(ex_lo)                                # chord cut by the range (or the cap)
+    ex_lo, ex_hi = torch.where(no_exit, a, ex_lo), torch.where(no_exit, a, ex_hi)
+    return dict(found=found, iso=iso, br_lo=br_lo, br_hi=br_hi, ex_lo=ex_lo, ex_hi=ex_hi, no_exit=no_exit, amb=amb,
+                clean=clean, unfinished=unfinished, n_int=n_int, n_pt=n_pt, iterations=it)
+
+
+def _bisect(surface, o, d, lo, hi, epsilon, n_pt, lo_nonneg):
+    """Bisect brackets whose ``lo`` end has class ``(f ≥ 0) == lo_nonneg`` and ``hi`` end the other class."""
+    lo, hi = lo.clone(), hi.clone()
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        todo = ((hi - lo) > epsilon * lo.abs().clamp(min=1.0)) & (mid > lo) & (mid < hi)
+        if not bool(todo.any()):
+            break
+        ti = todo.nonzero().squeeze(1)
+        fm = _f(surface, o[ti], d[ti], mid[ti])
+        n_pt[ti] += 1
+        same = (fm >= 0) == lo_nonneg
+        lo[ti] = torch.where(same, mid[ti], lo[ti])
+        hi[ti] = torch.where(same, hi[ti], mid[ti])
+    return 0.5 * (lo + hi)
+
+
+def _check(epsilon, max_iterations, tolerance, batch):
+    if isinstance(epsilon, bool) or not isinstance(epsilon, (int, float)) or not 1e-15 <= epsilon < 1:
+        raise ValueError(f"epsilon: must be a float in [1e-15, 1), got {epsilon!r}")
+    if isinstance(max_iterations, bool) or not isinstance(max_iterations, int) or max_iterations <= 0:
+        raise ValueError(f"max_iterations: must be a positive integer, got {max_iterations!r}")
+    if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float)) or not max(epsilon, 1e-14) \
+            <= tolerance < 1:
+        raise ValueError(f"tolerance: must be a float in [max(epsilon, 1e-14), 1), got {tolerance!r}")
+    if isinstance(batch, bool) or not isinstance(batch, int) or batch <= 0:
+        raise ValueError(f"batch: must be a positive integer, got {batch!r}")
+
+
+def _surface_key(surface) -> Optional[object]:
+    """A content key for the cache: ``cache_key``/``content_hash`` if the surface has one, else the objects of
+    an ``ImplicitSurface`` (expression dataclass repr, bounds, transform); None (no caching) otherwise."""
+    for name in ("cache_key", "content_hash"):
+        k = getattr(surface, name, None)
+        if k is not None:
+            return k() if callable(k) else k
+    objs = getattr(surface, "objects", None)
+    if not objs or not all(is_dataclass(getattr(o, "expression", None)) for o in objs):
+        return None                          # a repr could hold a memory address: never cache on it
+    return [type(surface).__name__] + [[repr(o.expression), o.bounds, o.translate, o.rotate, o.scale]
+                                        for o in objs]
+
+
+def implicit(surface, camera, *, epsilon: float = 1e-12, max_iterations: int = 20000, exits: bool = False,
+             batch: int = 1, jitter: Optional[torch.Tensor] = None, tolerance: float = 1e-7,
+             use_cache: bool = True) -> ImplicitReference:
+    r"""Certified first entering root of ``surface`` on every pixel ray of ``camera`` (see the module docstring).
+
+    Args:
+        surface: the surface protocol of :mod:`ssbench.passes.implicit_common` (``f``, ``f_and_grad``,
+            ``interval``, ``bounds``; ``object_index`` optional).
+        camera: the :class:`~ssbench.camera.Camera`; rays are ``camera_rays(camera, batch, jitter, float64)``.
+        epsilon: relative bisection width: stop when ``hi − lo ≤ epsilon·max(1, t)``.
+        max_iterations: cap on lock-step interval-march iterations; undecided rays are ``unfinished``.
+        exits: also march on past the hit to the next crossing back to ``f ≥ 0`` (``t_exit``, the chord).
+        batch, jitter: as :func:`~ssbench.passes.implicit_common.camera_rays` (``jitter`` :math:`(B, 2, H, W)`).
+        tolerance: relative width of a leaf segment (``tolerance·max(1, t)``), where subdivision stops and
+            point signs decide; an ambiguous stretch costs about ``tolerance^{-1/2}`` leaves at an exact
+            tangency, so keep it ≥ 1e-9.
+        use_cache: read/write the on-disk cache (only when the surface has ``cache_key``/``content_hash``).
+
+    Returns:
+        :class:`ImplicitReference`.
+
+    Example:
+        >>> from ssbench.camera import Camera
+        >>> class Ball:                                   # ‖p‖² − 1 with a hand-written enclosure
+        ...     bounds = ((-1, -1, -1), (1, 1, 1))
+        ...     def f(self, p): return (p * p).sum(-1) - 1
+        ...     def f_and_grad(self, p): return self.f(p), 2 * p
+        ...     def interval(self, lo, hi):
+        ...         m = torch.where((lo <= 0) & (hi >= 0), 0.0, torch.minimum(lo * lo, hi * hi))
+        ...         return m.sum(-1) - 1, torch.maximum(lo * lo, hi * hi).sum(-1) - 1
+        >>> cam = Camera.from_look_at((0, 0, 4), (0, 0, 0), (0, 1, 0), 30.0, 3, 3, 0.1, 10.0)
+        >>> ref = implicit(Ball(), cam)
+        >>> round(float(ref.t[0, 0, 1, 1]), 9), bool(ref.certified.all()), int(ref.hit.sum())
+        (3.0, True, 9)
+    """
+    _check(epsilon, max_iterations, tolerance, batch)
+    for name in ("f", "f_and_grad", "interval"):
+        if not callable(getattr(surface, name, None)):
+            raise TypeError(f"surface: needs a callable {name!r} (the implicit surface protocol), "
+                            f"got {type(surface).__name__}")
+    bounds = getattr(surface, "bounds", None)
+    if bounds is None or len(bounds) != 2 or any(len(b) != 3 for b in bounds):
+        raise ValueError(f"surface.bounds: expected ((x0, y0, z0), (x1, y1, z1)), got {bounds!r}")
+    key = None
+    skey = _surface_key(surface) if use_cache and jitter is None else None
+    if skey is not None:
+        from . import cache
+        key = cache.make_key("implicit", _KERNEL_VERSION, skey, camera, epsilon, max_iterations, exits, batch,
+                             tolerance)
+        got = cache.load(key)
+        if got is not None:
+            return ImplicitReference(**{k: torch.from_numpy(got[k]) for k in _TENSORS},
+                                     iterations=int(got["iterations"]), seconds=float(got["seconds"]))
+    start = time.perf_counter()
+    o, d, tn, tf, img = _rays(camera, batch, jitter)
+    t0, t1 = clip_to_bounds(o, d, tn, tf, bounds)
+    s = _march(surface, o, d, t0, t1, float(tolerance), max_iterations, exits)
+    found, n_pt = s["found"], s["n_pt"]
+    t, t_exit = tf.clone(), tf.clone()
+    gi = found.nonzero().squeeze(1)
+    normal = torch.zeros_like(o)
+    obj = torch.full((o.shape[0],), -1, dtype=torch.int32)
+    if gi.numel():
+        sub = n_pt[gi].clone()
+        t[gi] = _bisect(surface, o[gi], d[gi], s["br_lo"][gi], s["br_hi"][gi], epsilon, sub, True)
+        normal[gi], obj[gi] = shade_hits(surface, o[gi] + t[gi, None] * d[gi])      # one gradient each
+        n_pt[gi] = sub + 1
+        t_exit[gi] = t[gi]
+        if exits:
+            t_exit[gi] = torch.maximum(s["ex_lo"][gi], t[gi])           # no exit: where the march stopped
+            ex = gi[~s["no_exit"][gi]]
+            if ex.numel():
+                sub = n_pt[ex].clone()
+                t_exit[ex] = _bisect(surface, o[ex], d[ex], s["ex_lo"][ex], s["ex_hi"][ex], epsilon, sub, False)
+                n_pt[ex] = sub
+    unfinished = s["unfinished"]
+    iso = torch.where(found, s["br_hi"] - s["iso"], 0.0)
+    short = iso <= ISOLATION_LEAVES * tolerance * t.abs().clamp(min=1.0)
+    out = dict(t=img(t), hit=img(found), certified=img(s["clean"] & ~unfinished & short),
+               ambiguous_t=img(s["amb"]), t_exit=img(t_exit), isolation=img(iso), normal=img(normal, 3),
+               object_index=img(obj),
+               interval_evaluations=img(s["n_int"]), point_evaluations=img(n_pt), unfinished=img(unfinished),
+               t_start=img(torch.where(t1 > t0, t0, tf)), t_end=img(torch.where(t1 > t0, t1, tf)))
+    ref = ImplicitReference(**out, iterations=s["iterations"], seconds=time.perf_counter() - start)
+    if key is not None:
+        import numpy as np
+        from . import cache
+        cache.store(key, dict({k: v.numpy() for k, v in out.items()}, iterations=np.array(ref.iterations),
+                              seconds=np.array(ref.seconds)))
+    return ref

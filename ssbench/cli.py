@@ -1,4 +1,4 @@
-"""The ``ssbench`` command: ``info``, ``scenes``, ``render``, ``ao``, ``ssr`` and ``report``.
+"""The ``ssbench`` command: ``info``, ``scenes``, ``render``, ``ao``, ``ssr``, ``implicit`` and ``report``.
 
 ``main(argv)`` returns the exit status instead of exiting, so it can be called in-process; user errors print
 ``ssbench: error: ...`` to stderr (exit status 2 for bad arguments, 1 for a failed run) without a traceback
@@ -80,6 +80,17 @@ def _positive_float(s: str) -> float:
     if not (math.isfinite(v) and v > 0):
         raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {s!r}")
     return v
+
+
+def _size(s: str) -> tuple[int, int]:
+    w, sep, h = s.lower().partition("x")
+    try:
+        size = (int(w), int(h))
+    except ValueError:
+        size = None
+    if not sep or size is None or min(size) < 1:
+        raise argparse.ArgumentTypeError(f"expected WxH with two positive integers (e.g. 96x72), got {s!r}")
+    return size
 
 
 _BOOLS = {"true": True, "yes": True, "on": True, "false": False, "no": False, "off": False}
@@ -199,6 +210,25 @@ def _parser() -> _Parser:
     q.add_argument("--out", metavar="DIR", help="write colour, class, visit and error maps and row.json here")
     q.add_argument("--json", action="store_true", help="print the row as JSON")
     q.add_argument("--no-cache", action="store_true", help="do not read or write the render cache")
+    from .passes import IMPLICIT_METHODS
+    q = sub.add_parser("implicit", help="ray cast an implicit-surface scene over frames, scored against the "
+                                        "certified first hit")
+    q.add_argument("scene", metavar="SCENE", help="implicit catalog name or scene file (.yaml, .toml)")
+    q.add_argument("--method", choices=list(IMPLICIT_METHODS), default="progressive",
+                   help="ray caster (default progressive)")
+    q.add_argument("--frames", type=_positive("frames"), default=60, help="frames to cast (default 60)")
+    q.add_argument("--steps", type=_positive("steps"), help="marching steps N (sphere: max_steps)")
+    q.add_argument("--param", type=_param, action="append", default=[], metavar="NAME=VALUE",
+                   help="override a method parameter (repeatable), e.g. --param epsilon=0.002")
+    q.add_argument("--size", type=_size, metavar="WxH", help="image size (default: the scene camera's)")
+    q.add_argument("--seed", type=_non_negative, default=0)
+    q.add_argument("--truth", choices=("all", "last", "none"), default="all",
+                   help="frames scored against the reference (default all; 'last' for long animations)")
+    q.add_argument("--out", metavar="DIR", help="write colour, t, evaluations and class-map PNGs and row.json")
+    q.add_argument("--gif", action="store_true", help="with --out: also write the frames as frames.gif")
+    q.add_argument("--fps", type=_positive("fps"), default=10, help="frames per second of the GIF (10)")
+    q.add_argument("--json", action="store_true", help="print the row as JSON")
+    q.add_argument("--no-cache", action="store_true", help="do not read or write the reference cache")
     q = sub.add_parser("report", help="render the built-in scenes into an HTML report")
     q.add_argument("--out", default="reports", metavar="DIR", help="reports root (default: reports)")
     q.add_argument("--width", type=_positive("width"), default=320)
@@ -213,6 +243,7 @@ def _parser() -> _Parser:
     q.add_argument("--no-ssr", action="store_true", help="leave out the screen-space reflections section")
     q.add_argument("--ssr-spp", type=_positive("ssr-spp"), default=16,
                    help="samples per pixel of the SSR mirror radiance (16)")
+    q.add_argument("--no-implicit", action="store_true", help="leave out the implicit-surface section")
     return p
 
 
@@ -449,18 +480,125 @@ def _cmd_ssr(args) -> int:
     return 0
 
 
+def _series(values, spec: str = "{:.2%}") -> str:
+    """``f1 v · f2 v · …``: every frame when few, else frames 1–3, every tenth and the last."""
+    from .report.ao_section import fmt
+    n = len(values)
+    ks = range(n) if n <= 12 else sorted({0, 1, 2, n - 1, *range(9, n, 10)})
+    return " · ".join(f"f{k + 1} {fmt(values[k], spec)}" for k in ks)
+
+
+def _implicit_table(row: dict) -> str:
+    from .report.ao_section import fmt
+    pct = "{:.2%}"
+    lines = [f"{row['scene']} · {row['method']} · {row['width']}x{row['height']} · {row['frames']} frames · "
+             f"seed {row['seed']}", f"params: {', '.join(f'{k}={v}' for k, v in row['params'].items())}",
+             f"time/frame {fmt(row['seconds_per_frame'], '{:.4f}')} s (median, {row['threads']} threads); truth "
+             f"{row['truth_traced']} trace(s) {fmt(row['truth_seconds'], '{:.2f}')} s",
+             f"punch-through: {_series(row['punch_through_per_frame'])}"]
+    if row["predicted_punch_through"]:
+        lines += [f"predicted (h = {row['prediction_h']}): {_series(row['predicted_punch_through'])}",
+                  f"< 1% at frame {fmt(row['frames_to_1pct'], '{}')} (predicted "
+                  f"{fmt(row['predicted_frames_to_1pct'], '{}')})"]
+    if row["invalidated_per_frame"] is not None:
+        inv = row["invalidated_per_frame"]
+        lines.append(f"invalidated: {sum(inv)} pixels in {sum(v > 0 for v in inv)} frames; {_series(inv, '{}')}")
+    classes = ("correct", "punch_through", "early_hit", "false_hit", "true_miss", "unknown")
+    lines += ["final frame, share of pixels: " + ", ".join(f"{c} {fmt(row[f'frac_{c}'], pct)}" for c in classes),
+              f"punch-through {fmt(row['punch_through_rate'], pct)} / early hit {fmt(row['early_hit_rate'], pct)} "
+              f"of truth hits; false hit {fmt(row['false_hit_rate'], pct)} of truth misses",
+              f"depth error (correct px): mean {fmt(row['depth_mae'], '{:.2e}')}, "
+              f"max {fmt(row['depth_max'], '{:.2e}')}",
+              f"evaluations/px: mean {fmt(row['evaluations_mean'], '{:.1f}')}, "
+              f"p95 {fmt(row['evaluations_p95'], '{:.0f}')}, max {fmt(row['evaluations_max'], '{:.0f}')}; "
+              f"steps mean {fmt(row['steps_mean'], '{:.1f}')}",
+              f"λ: declared {fmt(row['lambda_declared'], '{:g}')}, observed max |∇f| "
+              f"{fmt(row['lambda_observed'], '{:.4g}')}" + (" — OVERSHOOT" if row["lambda_overshoot"] else ""),
+              f"truth: hits {fmt(row['truth_hit_share'], pct)}, certified {fmt(row['truth_certified'], pct)}, "
+              f"ambiguous px {row['truth_ambiguous_pixels']}, unfinished px {row['truth_unfinished_pixels']}"]
+    return "\n".join(lines)
+
+
+def _cmd_implicit(args) -> int:
+    import numpy as np
+    import torch
+
+    from . import evaluate
+    from .implicit.scene import load
+    from .passes import implicit_method
+    try:
+        sc = load(args.scene)
+    except (KeyError, ValueError, OSError) as e:
+        raise _UsageError(f"argument SCENE: {e.args[0] if isinstance(e, KeyError) and e.args else e}") from None
+    _, params_cls = implicit_method(args.method)
+    params = coerce_params(params_cls, args.param, args.method)
+    if args.steps is not None:
+        name = evaluate.steps_param(args.method)
+        if name in params:
+            raise _UsageError(f"argument --steps: conflicts with --param {name}={params[name]}; give one of them")
+        params[name] = args.steps
+    _check_params(params_cls, params, args.method)
+    if args.gif and not args.out:
+        raise _UsageError("argument --gif: needs --out DIR")
+    from .report import implicit_section as S
+    frames = []
+
+    def on_frame(k, res, cam, cls):
+        rgb = S.color_image(res, cam, sc)
+        bar = np.zeros((2,) + rgb.shape[1:], np.uint8)        # frame counter strip: every GIF frame differs
+        bar[:, : max(1, round((k + 1) * rgb.shape[1] / args.frames))] = 255
+        frames.append(np.concatenate([rgb, bar]))
+
+    w, h = args.size or (None, None)
+    ev = evaluate.run_implicit(sc, args.method, params, frames=args.frames, width=w, height=h, seed=args.seed,
+                               truth_frames=args.truth, use_cache=not args.no_cache,
+                               on_frame=on_frame if args.gif else None)
+    row = ev.row
+    print(json.dumps(row, indent=2, default=str) if args.json else _implicit_table(row))
+    if args.out:
+        from .report.ao_section import write_png
+        res, hit = ev.result, ev.result.hit
+        t = torch.where(hit, res.t, torch.nan)
+        finite = t[torch.isfinite(t)]
+        lo, hi = (float(finite.min()), float(finite.max())) if finite.numel() else (0.0, 1.0)
+        images = {"color.png": S.color_image(res, ev.cameras[ev.last], sc),
+                  "t.png": np.where(hit[0, 0, ..., None].numpy(), S.heat_rgb((t - lo).nan_to_num(0), max(hi - lo,
+                                                                             1e-9), "viridis_r"), 0).astype(np.uint8),
+                  "evaluations.png": S.heat_rgb(res.evaluations, float(res.evaluations.max()))}
+        if ev.last in ev.classes:
+            images["classes.png"] = S.class_rgb(ev.classes[ev.last])
+        for name, rgb in images.items():
+            write_png(os.path.join(args.out, name), rgb)
+        written = len(images) + 1
+        if args.gif:
+            from PIL import Image                                # Pillow (a matplotlib dependency)
+            imgs = [Image.fromarray(f) for f in frames]
+            imgs[0].save(os.path.join(args.out, "frames.gif"), save_all=True, append_images=imgs[1:],
+                         duration=round(1000 / args.fps), loop=0)
+            written += 1
+        tmp = os.path.join(args.out, ".row.json.tmp")
+        with open(tmp, "w", encoding="utf-8") as f:
+            json.dump(row, f, indent=2, default=str)
+            f.write("\n")
+        os.replace(tmp, os.path.join(args.out, "row.json"))
+        if not args.json:
+            print(f"wrote {written} files to {args.out}")
+    return 0
+
+
 def _cmd_report(args) -> int:
     from .report.build import build_report
     index = build_report(args.out, scenes=args.scenes, width=args.width, height=args.height, spp=args.spp,
                          seed=args.seed, use_cache=args.cache, ao=not args.no_ao, ao_radius=args.ao_radius,
-                         ao_rays=args.ao_rays, ssr=not args.no_ssr, ssr_spp=args.ssr_spp)
+                         ao_rays=args.ao_rays, ssr=not args.no_ssr, ssr_spp=args.ssr_spp,
+                         implicit=False if args.no_implicit else None)
     print(f"report: {index}")
     print(f"latest: {os.path.join(os.path.abspath(args.out), 'latest', 'index.html')}")
     return 0
 
 
 _COMMANDS = {"info": _cmd_info, "scenes": _cmd_scenes, "render": _cmd_render, "ao": _cmd_ao,
-             "ssr": _cmd_ssr, "report": _cmd_report}
+             "ssr": _cmd_ssr, "implicit": _cmd_implicit, "report": _cmd_report}
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:

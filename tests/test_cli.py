@@ -407,3 +407,66 @@ def test_ssr_real_run(tmp_path, capsys):
     assert rc == 0, capsys.readouterr().err
     row = json.loads((out / "row.json").read_text())
     assert row["nonfinite"] == 0 and row["reflective_pixels"] > 0
+
+
+# ------------------------------------------------------------------------------------------ ssbench implicit
+@pytest.fixture
+def one_thread():
+    """Tiny implicit renders gain nothing from more threads, and OpenMP barriers stall on shared cores."""
+    import torch
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
+
+
+def test_implicit_writes_pngs_and_a_gif_with_every_frame(tmp_path, capsys, one_thread):
+    from PIL import Image
+    out = tmp_path / "o"
+    rc = main(["implicit", "thin_shell", "--frames", "4", "--steps", "32", "--size", "24x18", "--out", str(out),
+               "--gif", "--fps", "5"])
+    text = capsys.readouterr()
+    assert rc == 0, text.err
+    assert "punch-through: f1 " in text.out and "f4 " in text.out and "predicted (h = t'/N)" in text.out
+    for name in ("color.png", "t.png", "evaluations.png", "classes.png", "row.json", "frames.gif"):
+        assert (out / name).is_file(), name
+    assert "wrote 6 files" in text.out
+    gif = Image.open(out / "frames.gif")
+    assert gif.n_frames == 4 and gif.size == (24, 18 + 2)                     # + the frame-counter strip
+    row = json.loads((out / "row.json").read_text())
+    assert row["frames"] == 4 and row["params"]["steps"] == 32 and len(row["punch_through_per_frame"]) == 4
+    import matplotlib.image as mimage
+    assert mimage.imread(str(out / "classes.png")).shape[:2] == (18, 24)
+
+
+def test_implicit_json_and_scene_file(tmp_path, capsys, one_thread):
+    import yaml
+
+    from ssbench.implicit import catalog
+    f = tmp_path / "ball.yaml"
+    f.write_text(yaml.safe_dump(catalog.as_dict("sphere")))
+    assert main(["implicit", str(f), "--method", "sphere", "--frames", "1", "--size", "16x12", "--json",
+                 "--param", "omega=1.5", "--steps", "64"]) == 0
+    row = json.loads(capsys.readouterr().out)
+    assert row["scene"] == "sphere" and row["params"]["omega"] == 1.5 and row["params"]["max_steps"] == 64
+    assert abs(sum(row[k] for k in row if k.startswith("frac_")) - 1) < 1e-9
+
+
+@pytest.mark.parametrize("argv, status, names", [
+    (["implicit", "no_such_scene"], 2, ["argument SCENE", "no_such_scene"]),
+    (["implicit", "missing.yaml"], 2, ["argument SCENE", "missing.yaml"]),
+    (["implicit", "torus", "--method", "raymarch"], 2, ["--method", "raymarch"]),
+    (["implicit", "torus", "--size", "96by72"], 2, ["--size", "WxH"]),
+    (["implicit", "torus", "--frames", "0"], 2, ["--frames"]),
+    (["implicit", "torus", "--param", "stepz=3"], 2, ["--param", "stepz"]),
+    (["implicit", "torus", "--param", "epsilon=-1"], 2, ["--param", "epsilon"]),
+    (["implicit", "torus", "--steps", "8", "--param", "steps=9"], 2, ["--steps", "conflicts"]),
+    (["implicit", "torus", "--gif"], 2, ["--gif", "--out"]),
+    (["implicit", "double_root", "--method", "sphere", "--size", "8x6", "--frames", "1"], 1, ["lipschitz"]),
+])
+def test_implicit_bad_arguments(capsys, one_thread, argv, status, names):
+    assert main(argv) == status
+    err = capsys.readouterr().err
+    assert "ssbench: error:" in err and "Traceback" not in err
+    for n in names:
+        assert n in err

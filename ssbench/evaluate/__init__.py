@@ -3,7 +3,10 @@
 * :func:`ao` / :func:`run_ao` (:mod:`ssbench.evaluate._ao`) — an AO pass against ray-traced AO in three targets
   (cosine, the pass's own flavour, the screen-space oracle);
 * :func:`ssr` / :func:`run_ssr` (:mod:`ssbench.evaluate._ssr`) — an SSR pass against the exact mirror
-  reflection (``ssbench.reference.reflections``): per-pixel classes, hit error, colour error, timings.
+  reflection (``ssbench.reference.reflections``): per-pixel classes, hit error, colour error, timings;
+* :func:`implicit` / :func:`run_implicit` (:mod:`ssbench.evaluate._implicit`) — an implicit-surface ray caster
+  over frames against the certified first hit (``ssbench.reference.implicit``): per-frame punch-through, the
+  h/w prediction, classes, cost, the λ diagnostic.
 
 Shared helpers (:func:`resolve_params`, timing) live in :mod:`ssbench.evaluate._common`. No files are written
 here (the reference's disk cache aside: ``use_cache=False`` turns it off).
@@ -13,8 +16,10 @@ from __future__ import annotations
 from ._ao import (BLUR_NAMES, GT_CHANNELS, RADIUS_NAMES, TARGET_METRICS, TARGETS, AOEvaluation, ao, blur_fn,
                   flavour, radius_param, run_ao, score)
 from ._common import resolve_params
+from ._implicit import ImplicitEvaluation, implicit, lipschitz_diagnostic, run_implicit, steps_param
 from ._ssr import SSR_GT_CHANNELS, SSREvaluation, pass_channels, run_ssr, ssr
 
 __all__ = ["ao", "run_ao", "AOEvaluation", "resolve_params", "radius_param", "flavour", "score", "blur_fn",
            "RADIUS_NAMES", "GT_CHANNELS", "TARGET_METRICS", "TARGETS", "BLUR_NAMES",
-           "ssr", "run_ssr", "SSREvaluation", "pass_channels", "SSR_GT_CHANNELS"]
+           "ssr", "run_ssr", "SSREvaluation", "pass_channels", "SSR_GT_CHANNELS",
+           "implicit", "run_implicit", "ImplicitEvaluation", "steps_param", "lipschitz_diagnostic"]

@@ -194,10 +194,30 @@ def _ssr_section(run_dir, scenes, width, height, enabled, spp, seed, use_cache, 
     return out
 
 
+def _implicit_section(run_dir, scenes, width, height, enabled, seed, use_cache) -> dict:
+    """The implicit section's metadata (see :mod:`.implicit_section`); a note instead whenever it cannot run.
+
+    ``enabled=None`` runs it for a full report only (``scenes`` None): a mesh-scene subset names no implicit
+    scene. Its size is at most 96×72 (the report's, when smaller)."""
+    if enabled is None:
+        enabled = scenes is None
+    if not enabled:
+        return {"available": False, "note": "Implicit section turned off.", "notes": [], "summary_md": ""}
+    try:
+        from . import implicit_section
+        out = implicit_section.build_implicit_section(run_dir, min(width, 96), min(height, 72), seed=seed,
+                                                      use_cache=use_cache)
+        out["summary_md"] = implicit_section.summary_md(out)
+    except Exception as e:                                   # the report must not crash on the implicit slice
+        note = f"Implicit section failed: {type(e).__name__}: {e}"
+        out = {"available": False, "note": note, "notes": [], "summary_md": f"\n## Implicit surfaces\n\n{note}\n"}
+    return out
+
+
 def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = None, width: int = 320,
                  height: int = 240, spp: int = 64, seed: int = 0, *, use_cache: bool = False,
                  progress: Optional[bool] = None, ao: bool = True, ao_radius: float = 0.5,
-                 ao_rays: int = 128, ssr: bool = True, ssr_spp: int = 16) -> str:
+                 ao_rays: int = 128, ssr: bool = True, ssr_spp: int = 16, implicit: Optional[bool] = None) -> str:
     """Render every catalog scene (or ``scenes``) and write a report run; returns the run's ``index.html``.
 
     ``use_cache=False`` (default) renders afresh so the timings measure rendering, not the disk cache.
@@ -205,7 +225,9 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
     small default subset) at radius ``ao_radius`` with ``ao_rays`` ground-truth rays per pixel; ``ssr`` the
     screen-space reflections section (:mod:`ssbench.report.ssr_section`; scenes: ``scenes`` or
     reflective_floor and fence) with ``ssr_spp`` samples for the mirror radiance, reusing the G-buffers
-    rendered here. Neither section ever fails the report (problems show as notes in the page).
+    rendered here; ``implicit`` the implicit-surface section (:mod:`ssbench.report.implicit_section`; default:
+    on for a full report, off with a ``scenes`` subset). No section ever fails the report (problems show as
+    notes in the page).
     """
     import jinja2
     from tqdm import tqdm
@@ -252,6 +274,7 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
     meta["ao"] = _ao_section(run_dir, scenes, width, height, ao, ao_radius, ao_rays, seed, use_cache, progress)
     meta["ssr"] = _ssr_section(run_dir, scenes, width, height, ssr, ssr_spp, seed, use_cache, gbuffers, progress)
     del gbuffers
+    meta["implicit"] = _implicit_section(run_dir, scenes, width, height, implicit, seed, use_cache)
     meta["total_s"] = time.perf_counter() - t_start
     meta["metadata_rows"] = _rows(meta)
     tpl_env = jinja2.Environment(loader=jinja2.FileSystemLoader(os.path.join(os.path.dirname(__file__),
@@ -262,7 +285,7 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
     index = os.path.join(run_dir, "index.html")
     _write_text(index, html)
     _write_text(os.path.join(run_dir, "summary.md"), _summary_md(meta) + meta["ao"]["summary_md"]
-                + meta["ssr"]["summary_md"])
+                + meta["ssr"]["summary_md"] + meta["implicit"]["summary_md"])
     _write_text(os.path.join(run_dir, "meta.json"), json.dumps(meta, indent=2, default=str) + "\n")
     refresh_latest(run_dir, out_root)
     return index

@@ -5,10 +5,12 @@ TORCH_SPEC  ?= torch==2.13.0
 PYTHON      := $(VENV)/bin/python
 PIP         := $(VENV)/bin/pip
 STAMP       := $(VENV)/.ssbench-installed
+LESSONS_STAMP := $(VENV)/.ssbench-lessons-installed
 REPORT_ARGS ?=
 PYTEST_ARGS ?=
+JUPYTER_ARGS ?=
 
-.PHONY: setup llvm test test-fast report info bench lessons clean
+.PHONY: setup llvm test test-fast report info bench lessons lessons-sync clean
 
 ## setup: create .venv, install CPU torch first (override TORCH_SPEC), then the project with its extras
 setup: $(STAMP) llvm
@@ -38,9 +40,22 @@ report: setup
 info: setup
 	$(PYTHON) -m ssbench info
 
-## bench: G-buffer timing at 640x360 (prints numbers; not a test)
+## lessons: open the step-through notebooks (lessons/) in JupyterLab; installs the lessons extra first
+lessons: $(LESSONS_STAMP) llvm
+	cd lessons && "$(abspath $(VENV))/bin/jupyter" lab $(JUPYTER_ARGS)
+
+$(LESSONS_STAMP): $(STAMP)
+	$(PIP) install -q -e ".[dev,lessons]"
+	touch $(LESSONS_STAMP)
+
+## lessons-sync: rebuild every lessons/NN_*.ipynb from its .py source (no outputs); tests/lessons checks the pairs
+lessons-sync: $(STAMP)
+	$(PYTHON) lessons/_sync.py
+
+## bench: G-buffer timing at 640x360, implicit evaluators (torch vs Dr.Jit) and marchers (prints numbers; not a test)
 bench: setup
 	$(PYTHON) benchmarks/bench_gbuffer.py
+	$(PYTHON) benchmarks/bench_implicit.py
 
 clean:
 	rm -rf $(VENV) reports/2* reports/latest .pytest_cache

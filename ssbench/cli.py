@@ -1,4 +1,4 @@
-"""The ``ssbench`` command: ``info``, ``scenes``, ``render``, ``ao``, ``ssr``, ``implicit`` and ``report``.
+"""The ``ssbench`` command: ``info``, ``scenes``, ``render``, ``ao``, ``ssr``, ``implicit``, ``sweep`` and ``report``.
 
 ``main(argv)`` returns the exit status instead of exiting, so it can be called in-process; user errors print
 ``ssbench: error: ...`` to stderr (exit status 2 for bad arguments, 1 for a failed run) without a traceback
@@ -229,6 +229,8 @@ def _parser() -> _Parser:
     q.add_argument("--fps", type=_positive("fps"), default=10, help="frames per second of the GIF (10)")
     q.add_argument("--json", action="store_true", help="print the row as JSON")
     q.add_argument("--no-cache", action="store_true", help="do not read or write the reference cache")
+    from .bench.cli import add_sweep_parser
+    add_sweep_parser(sub)
     q = sub.add_parser("report", help="render the built-in scenes into an HTML report")
     q.add_argument("--out", default="reports", metavar="DIR", help="reports root (default: reports)")
     q.add_argument("--width", type=_positive("width"), default=320)
@@ -599,6 +601,14 @@ def _cmd_report(args) -> int:
 
 _COMMANDS = {"info": _cmd_info, "scenes": _cmd_scenes, "render": _cmd_render, "ao": _cmd_ao,
              "ssr": _cmd_ssr, "implicit": _cmd_implicit, "report": _cmd_report}
+
+
+def _cmd_sweep(args) -> int:
+    from .bench.cli import cmd_sweep
+    return cmd_sweep(args)
+
+
+_COMMANDS["sweep"] = _cmd_sweep
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:

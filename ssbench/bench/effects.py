@@ -1,4 +1,4 @@
-"""The effect registry: what a sweep of ``effect: ao|ssr`` may set and how one configuration is run and timed.
+"""The effect registry: what a sweep of ``effect: ao|ssr|implicit`` may set and how one configuration is run and timed.
 
 An :class:`Effect` names, as ``"module:attribute"`` strings imported on first use (so a Dask worker needs only
 the names), the effect's method registry, its resolver, its evaluation function and its *bench* function
@@ -7,7 +7,7 @@ file may give at top level (``rays``, ``spp``, ...) with their defaults. Adding 
 :data:`EFFECTS`; e.g. the implicit-surface effect::
 
     "implicit": Effect("implicit", methods="ssbench.passes:IMPLICIT_METHODS",
-                       resolve="ssbench.passes:implicit_method", evaluate="ssbench.evaluate:run_implicit",
+                       resolve="ssbench.bench.effects:implicit_resolve", evaluate="ssbench.evaluate:run_implicit",
                        bench="ssbench.bench.effects:implicit_bench", settings={...})
 
 The evaluation function is called as ``evaluate(scene, method, params, width=, height=, seed=, repeats=,
@@ -24,7 +24,7 @@ from typing import Any, Callable, Mapping, Optional, Union
 import torch
 
 __all__ = ["Setting", "Effect", "BenchInputs", "EFFECTS", "COMMON_SETTINGS", "get_effect", "ao_samples",
-           "ao_bench", "ssr_bench"]
+           "ao_bench", "ssr_bench", "implicit_resolve", "implicit_run", "implicit_bench"]
 
 
 def _load(ref: Union[str, Any]) -> Any:
@@ -215,6 +215,57 @@ def ssr_bench(evaluation, method: str, params: Mapping, seed: int) -> BenchInput
                        max(1, round(float(steps.mean()))), evaluation.gbuffer.view_z)
 
 
+# ------------------------------------------------------------------------------------------ implicit
+def implicit_resolve(name: str) -> tuple:
+    """``(function, ParamsClass, ())`` of an implicit ray caster (it needs a surface and camera, no G-buffer)."""
+    from ..passes import implicit_method
+    return (*implicit_method(name), ())
+
+
+def implicit_run(scene, method: str, params: Mapping, *, width: int, height: int, seed: int, repeats: int = 1,
+                 frames: int = 1, truth_frames: str = "all"):
+    """:func:`ssbench.evaluate.run_implicit` for a sweep: ``frames`` frames scored against the certified truth.
+
+    ``repeats`` is accepted for the common settings but unused: the row already carries the median
+    ``seconds_per_frame`` over its frames.
+    """
+    from ..evaluate import run_implicit
+    return run_implicit(scene, method, dict(params), frames=frames, width=width, height=height, seed=seed,
+                        truth_frames=truth_frames)
+
+
+def implicit_bench(evaluation, method: str, params: Mapping, seed: int) -> BenchInputs:
+    """:class:`BenchInputs` of an implicit evaluation (:class:`ssbench.evaluate.ImplicitEvaluation`).
+
+    The timed call is one frame from scratch (the progressive method from an empty state, i.e. its first
+    frame); the sample count is the mean f evaluations per pixel of the last frame; the floor gathers from the
+    hit-distance image (0 where no hit).
+    """
+    import dataclasses as dc
+    import inspect
+
+    from ..evaluate import resolve_params
+    from ..passes import implicit_method
+    fn, params_cls = implicit_method(method)
+    p = resolve_params(params_cls, params, method)
+    if "seed" in {f.name for f in dc.fields(p)} and "seed" not in params:
+        p = dc.replace(p, seed=seed)
+    surf, cam = evaluation.scene.surface(0), evaluation.cameras[0]
+    sig = inspect.signature(fn).parameters
+
+    def call():
+        if "state" in sig:
+            return fn(surf, cam, None, p)
+        if getattr(p, "jitter", False) and "generator" in sig:
+            return fn(surf, cam, p, torch.Generator().manual_seed(seed))
+        return fn(surf, cam, p)
+
+    res = evaluation.result
+    depth = torch.where(res.hit, res.t, torch.zeros_like(res.t)).float()
+    return BenchInputs(call, depth, torch.ones_like(res.hit), max(1, round(float(res.evaluations.double().mean()))),
+                       depth)
+
+
 _NULL = type(None)
 
 #: effect name -> :class:`Effect`; the sweep file's ``effect:`` picks one
@@ -236,6 +287,15 @@ EFFECTS: dict[str, Effect] = {
                   "reflective": Setting((str, _NULL), None, choices=("marched", "specular")),
                   "flip": Setting((bool,), True, help="compute FLIP")},
         help="screen-space reflections vs exact mirror reflections (ssbench.evaluate.ssr)"),
+    "implicit": Effect(
+        "implicit", methods="ssbench.passes:IMPLICIT_METHODS", resolve="ssbench.bench.effects:implicit_resolve",
+        evaluate="ssbench.bench.effects:implicit_run", bench="ssbench.bench.effects:implicit_bench",
+        settings={"frames": Setting((int,), 1, lo=1, help="frames cast per configuration (progressive state "
+                                                          "carries across them)"),
+                  "truth_frames": Setting((str,), "all", choices=("all", "last", "none"),
+                                          help="frames scored against the certified reference")},
+        scene_names="ssbench.implicit.catalog:names", load_scene="ssbench.implicit:load",
+        help="implicit-surface ray casting vs the certified first hit (ssbench.evaluate.implicit)"),
 }
 
 

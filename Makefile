@@ -10,7 +10,7 @@ REPORT_ARGS ?=
 PYTEST_ARGS ?=
 JUPYTER_ARGS ?=
 
-.PHONY: setup llvm test test-fast report info bench lessons lessons-sync clean
+.PHONY: setup llvm browser test test-fast report info bench lessons lessons-sync clean
 
 ## setup: create .venv, install CPU torch first (override TORCH_SPEC), then the project with its extras
 setup: $(STAMP) llvm
@@ -25,8 +25,12 @@ $(STAMP): pyproject.toml
 llvm:
 	@sh scripts/ensure_llvm.sh
 
+## browser: make sure a headless Chromium exists for the report's browser test (installs Debian's chromium when apt is usable)
+browser:
+	@sh scripts/ensure_chromium.sh
+
 ## test: the whole suite (slow tests included, as in CI)
-test: setup
+test: setup browser
 	MPLBACKEND=Agg $(PYTHON) -m pytest $(PYTEST_ARGS)
 
 ## test-fast: skip the slow (rendering / subprocess) tests

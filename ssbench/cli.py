@@ -82,6 +82,16 @@ def _positive_float(s: str) -> float:
     return v
 
 
+def _non_negative_float(s: str) -> float:
+    try:
+        v = float(s)
+    except ValueError:
+        v = math.nan
+    if not (math.isfinite(v) and v >= 0):
+        raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {s!r}")
+    return v
+
+
 def _size(s: str) -> tuple[int, int]:
     w, sep, h = s.lower().partition("x")
     try:
@@ -246,6 +256,15 @@ def _parser() -> _Parser:
     q.add_argument("--ssr-spp", type=_positive("ssr-spp"), default=16,
                    help="samples per pixel of the SSR mirror radiance (16)")
     q.add_argument("--no-implicit", action="store_true", help="leave out the implicit-surface section")
+    q.add_argument("--no-speed", action="store_true", help="leave out the speed section")
+    q.add_argument("--no-tuning", action="store_true", help="leave out the tuning section")
+    q.add_argument("--compare", nargs=2, metavar=("RUN_A", "RUN_B"),
+                   help="instead of building: compare two runs (folders, names under --out, or 'latest')")
+    q.add_argument("--rtol", type=_non_negative_float, default=1e-3,
+                   help="with --compare: relative tolerance of result changes (0.001)")
+    q.add_argument("--time-rtol", type=_non_negative_float, default=0.25,
+                   help="with --compare: relative change of a time worth listing (0.25)")
+    q.set_defaults(report_parser=q)
     return p
 
 
@@ -589,11 +608,15 @@ def _cmd_implicit(args) -> int:
 
 
 def _cmd_report(args) -> int:
+    if args.compare:
+        from .report.compare import cmd_compare
+        return cmd_compare(args, args.report_parser)
     from .report.build import build_report
+    off = lambda flag: False if flag else None                # noqa: E731  (None: the section's default)
     index = build_report(args.out, scenes=args.scenes, width=args.width, height=args.height, spp=args.spp,
                          seed=args.seed, use_cache=args.cache, ao=not args.no_ao, ao_radius=args.ao_radius,
                          ao_rays=args.ao_rays, ssr=not args.no_ssr, ssr_spp=args.ssr_spp,
-                         implicit=False if args.no_implicit else None)
+                         implicit=off(args.no_implicit), speed=off(args.no_speed), tuning=off(args.no_tuning))
     print(f"report: {index}")
     print(f"latest: {os.path.join(os.path.abspath(args.out), 'latest', 'index.html')}")
     return 0

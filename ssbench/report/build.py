@@ -1,9 +1,9 @@
 """Build the HTML report: reference renders of the built-in scenes with timings and environment metadata.
 
 A run goes to ``<out_root>/<YYYYmmdd-HHMMSS>/`` (``index.html``, ``summary.md``, ``meta.json``,
-``img/<scene>/<channel>.png``) and is then copied to ``<out_root>/latest/``: the copy is written to a temporary
-directory beside it and renamed into place, so ``latest`` is never half-written. Image links are relative, so
-both copies show their images.
+``rows/<section>.jsonl``, ``img/...``) and is then copied to ``<out_root>/latest/``: the copy is written to a
+temporary directory beside it and renamed into place, so ``latest`` is never half-written. Image links are
+relative, so both copies show their images.
 """
 from __future__ import annotations
 
@@ -20,10 +20,11 @@ from typing import Iterable, Optional, Sequence
 
 from ..gbuffer import CHANNELS, GBuffer
 from ..io import _umask_mode
+from . import summary
 
-#: G-buffer previews shown under each scene's colour image, in this order
 #: scenes of the SSR section when the report names none (mirrors ``ssr_section.SSR_SCENES``)
 _SSR_SCENES = ("reflective_floor", "fence")
+#: G-buffer previews shown under each scene's colour image, in this order
 PREVIEW_ROW = ("view_z", "normal", "position", "albedo", "roughness", "metallic", "shape_id", "mask", "back_z")
 ALL_CHANNELS = tuple(CHANNELS)
 _REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -130,37 +131,7 @@ def refresh_latest(run_dir: str, out_root: str) -> str:
     return latest
 
 
-def _fmt(s: Optional[float]) -> str:
-    return "–" if s is None else f"{s:.3f}"
-
-
-def _summary_md(meta: dict) -> str:
-    lines = [f"# ssbench reference report {meta['run']}", ""]
-    lines += [f"{meta['width']}×{meta['height']}, {meta['spp']} spp, seed {meta['seed']}; times in seconds "
-              "(first calls include Dr.Jit kernel compilation when its cache is cold).", "",
-              "| scene | G-buffer s | colour s | coverage | description |", "|---|---:|---:|---:|---|"]
-    for s in meta["scenes"]:
-        lines.append(f"| {s['name']} | {_fmt(s['timings']['gbuffer_s'])} | {_fmt(s['timings']['color_s'])} | "
-                     f"{s['coverage']:.1%} | {s['description']} |")
-    lines += ["", "## Metadata", "", "| key | value |", "|---|---|"]
-    for k, v in meta["metadata_rows"]:
-        lines.append(f"| {k} | {str(v).replace('|', '/')} |")
-    return "\n".join(lines) + "\n"
-
-
-def _rows(meta: dict) -> list[tuple[str, str]]:
-    env, git = meta["environment"], meta["git"]
-    return [("date", meta["date"]), ("git commit", git["commit"]),
-            ("dirty", {True: "yes", False: "no", None: "unknown"}[git["dirty"]]),
-            ("ssbench", env["ssbench"]), ("python", env["python"]), ("torch", env["torch"]),
-            ("mitsuba", env["mitsuba"]), ("drjit", env["drjit"]), ("kornia", env["kornia"]),
-            ("numpy", env["numpy"]), ("Mitsuba variant", env["variant"]),
-            ("libLLVM", f"{env['libllvm']} (major {env['libllvm_major']})" if env["libllvm"] else "none"),
-            ("torch threads", env["torch_threads"]), ("Dr.Jit threads", env["drjit_threads"]),
-            ("machine", f"{env['node']} · {env['processor']} · {env['machine']} · {env['cpu_count']} CPUs"),
-            ("platform", env["platform"]), ("image size", f"{meta['width']}×{meta['height']}"),
-            ("spp / seed", f"{meta['spp']} / {meta['seed']}"), ("render cache", "on" if meta["use_cache"] else "off"),
-            ("backend start-up s", _fmt(meta["backend_init_s"])), ("total wall time s", _fmt(meta["total_s"]))]
+_fmt = summary.fmt
 
 
 def _ao_section(run_dir, scenes, width, height, enabled, radius, rays, seed, use_cache, progress) -> dict:
@@ -199,25 +170,60 @@ def _implicit_section(run_dir, scenes, width, height, enabled, seed, use_cache) 
 
     ``enabled=None`` runs it for a full report only (``scenes`` None): a mesh-scene subset names no implicit
     scene. Its size is at most 96×72 (the report's, when smaller)."""
+    return _optional_section("implicit", "Implicit surfaces", enabled, scenes, lambda m: m.build_implicit_section(
+        run_dir, min(width, 96), min(height, 72), seed=seed, use_cache=use_cache))
+
+
+def _optional_section(key, title, enabled, scenes, call) -> dict:
+    """A section run by ``call(module)`` from ``ssbench.report.<key>_section``, guarded like the implicit one:
+    ``enabled=None`` means on for a full report only; an ImportError or any failure becomes a note."""
     if enabled is None:
         enabled = scenes is None
     if not enabled:
-        return {"available": False, "note": "Implicit section turned off.", "notes": [], "summary_md": ""}
+        return {"available": False, "note": f"{title} section turned off.", "notes": [], "summary_md": ""}
     try:
-        from . import implicit_section
-        out = implicit_section.build_implicit_section(run_dir, min(width, 96), min(height, 72), seed=seed,
-                                                      use_cache=use_cache)
-        out["summary_md"] = implicit_section.summary_md(out)
-    except Exception as e:                                   # the report must not crash on the implicit slice
-        note = f"Implicit section failed: {type(e).__name__}: {e}"
-        out = {"available": False, "note": note, "notes": [], "summary_md": f"\n## Implicit surfaces\n\n{note}\n"}
+        import importlib
+        mod = importlib.import_module(f"{__package__}.{key}_section")
+        out = call(mod)
+        out["summary_md"] = mod.summary_md(out)
+    except Exception as e:                                   # ImportError included: the module may not exist yet
+        note = f"{title} section failed: {type(e).__name__}: {e}"
+        out = {"available": False, "note": note, "notes": [], "summary_md": f"\n## {title}\n\n{note}\n"}
     return out
+
+
+def _speed_section(run_dir, scenes, width, height, enabled, seed, use_cache, progress) -> dict:
+    """The speed section's metadata (see :mod:`.speed_section`); a note instead whenever it cannot run."""
+    return _optional_section("speed", "Speed", enabled, scenes, lambda m: m.build_speed_section(
+        run_dir, width=width, height=height, seed=seed, use_cache=use_cache, progress=progress))
+
+
+def _tuning_section(run_dir, scenes, width, height, enabled, seed, use_cache, progress) -> dict:
+    """The tuning section's metadata (see :mod:`.tuning_section`); a note instead whenever it cannot run."""
+    return _optional_section("tuning", "Tuning", enabled, scenes, lambda m: m.build_tuning_section(
+        run_dir, width=width, height=height, seed=seed, use_cache=use_cache, progress=progress))
+
+
+def _render_index(tpl_env, meta: dict) -> str:
+    """``index.html``; a section whose template is missing or fails to render becomes a note instead."""
+    for key, title in summary.SECTIONS:
+        sec = meta[key]
+        if not sec.get("available"):
+            continue
+        try:
+            tpl_env.get_template(f"{key}_section.html.j2").render(**{key: sec}, meta=meta, fmt=_fmt)
+        except Exception as e:                               # e.g. a template still being written
+            note = f"{title} section could not be shown: {type(e).__name__}: {e}"
+            meta[key] = {**sec, "available": False, "note": note}
+            meta["glance"] = summary.glance(meta)
+    return tpl_env.get_template("index.html.j2").render(meta=meta, fmt=_fmt, sections=summary.SECTIONS)
 
 
 def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = None, width: int = 320,
                  height: int = 240, spp: int = 64, seed: int = 0, *, use_cache: bool = False,
                  progress: Optional[bool] = None, ao: bool = True, ao_radius: float = 0.5,
-                 ao_rays: int = 128, ssr: bool = True, ssr_spp: int = 16, implicit: Optional[bool] = None) -> str:
+                 ao_rays: int = 128, ssr: bool = True, ssr_spp: int = 16, implicit: Optional[bool] = None,
+                 speed: Optional[bool] = None, tuning: Optional[bool] = None) -> str:
     """Render every catalog scene (or ``scenes``) and write a report run; returns the run's ``index.html``.
 
     ``use_cache=False`` (default) renders afresh so the timings measure rendering, not the disk cache.
@@ -226,8 +232,10 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
     screen-space reflections section (:mod:`ssbench.report.ssr_section`; scenes: ``scenes`` or
     reflective_floor and fence) with ``ssr_spp`` samples for the mirror radiance, reusing the G-buffers
     rendered here; ``implicit`` the implicit-surface section (:mod:`ssbench.report.implicit_section`; default:
-    on for a full report, off with a ``scenes`` subset). No section ever fails the report (problems show as
-    notes in the page).
+    on for a full report, off with a ``scenes`` subset); ``speed`` and ``tuning`` the speed and tuning sections
+    (:mod:`ssbench.report.speed_section`, :mod:`ssbench.report.tuning_section`; defaults like ``implicit``).
+    No section ever fails the report (problems show as notes in the page). Each section's evaluation rows
+    also go to ``rows/<section>.jsonl`` (see reports/README.md).
     """
     import jinja2
     from tqdm import tqdm
@@ -275,17 +283,24 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
     meta["ssr"] = _ssr_section(run_dir, scenes, width, height, ssr, ssr_spp, seed, use_cache, gbuffers, progress)
     del gbuffers
     meta["implicit"] = _implicit_section(run_dir, scenes, width, height, implicit, seed, use_cache)
+    meta["speed"] = _speed_section(run_dir, scenes, width, height, speed, seed, use_cache, progress)
+    meta["tuning"] = _tuning_section(run_dir, scenes, width, height, tuning, seed, use_cache, progress)
     meta["total_s"] = time.perf_counter() - t_start
-    meta["metadata_rows"] = _rows(meta)
+    meta["metadata_rows"] = summary.metadata_rows(meta)
+    meta["glance"] = summary.glance(meta)
     tpl_env = jinja2.Environment(loader=jinja2.FileSystemLoader(os.path.join(os.path.dirname(__file__),
                                                                               "templates")),
                                  autoescape=True, undefined=jinja2.StrictUndefined, trim_blocks=True,
                                  lstrip_blocks=True)
-    html = tpl_env.get_template("index.html.j2").render(meta=meta, fmt=_fmt)
-    index = os.path.join(run_dir, "index.html")
-    _write_text(index, html)
-    _write_text(os.path.join(run_dir, "summary.md"), _summary_md(meta) + meta["ao"]["summary_md"]
-                + meta["ssr"]["summary_md"] + meta["implicit"]["summary_md"])
+    raw = summary.rows_jsonl(meta)
+    meta["rows_files"] = {key: f"rows/{key}.jsonl" for key in raw}
+    html = _render_index(tpl_env, meta)
+    for key, text in raw.items():                            # raw rows first: index.html links to them
+        os.makedirs(os.path.join(run_dir, "rows"), exist_ok=True)
+        _write_text(os.path.join(run_dir, "rows", f"{key}.jsonl"), text)
+    _write_text(os.path.join(run_dir, "index.html"), html)
+    _write_text(os.path.join(run_dir, "summary.md"), summary.summary_md(meta)
+                + "".join(meta[k]["summary_md"] for k, _ in summary.SECTIONS))
     _write_text(os.path.join(run_dir, "meta.json"), json.dumps(meta, indent=2, default=str) + "\n")
     refresh_latest(run_dir, out_root)
-    return index
+    return os.path.join(run_dir, "index.html")

@@ -1,0 +1,162 @@
+"""Report summaries: the "at a glance" table per effect, ``summary.md``'s head, the metadata rows, raw rows.
+
+Everything here reads the plain dicts the sections return (``meta["ao"]``, ``meta["ssr"]``, …) and tolerates a
+section that is off, failed, or still being written: its line in the table then carries its note.
+
+A section may supply its own glance lines as ``out["glance"]``: a list of ``{"method", "headline", "seconds",
+"scenes"}`` dicts (strings or numbers; missing keys show as ``–``); :func:`glance` uses them as they are.
+"""
+from __future__ import annotations
+
+import json
+import math
+import statistics
+from typing import Any, Iterable, Optional
+
+#: (meta key, title) of every report section, in page order
+SECTIONS = (("ao", "Ambient occlusion"), ("ssr", "Screen-space reflections"), ("implicit", "Implicit surfaces"),
+            ("speed", "Speed"), ("tuning", "Tuning"))
+
+
+def fmt(s: Optional[float], spec: str = "{:.3f}") -> str:
+    """A cell: ``–`` for None or NaN, else ``spec``."""
+    if s is None or (isinstance(s, float) and math.isnan(s)):
+        return "–"
+    return spec.format(s)
+
+
+def _mean(values: Iterable[Any]) -> Optional[float]:
+    v = [float(x) for x in values if isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)]
+    return statistics.fmean(v) if v else None
+
+
+def _by_method(rows: list[dict]) -> dict[str, list[dict]]:
+    out: dict[str, list[dict]] = {}
+    for r in rows:
+        out.setdefault(str(r.get("method")), []).append(r)
+    return out
+
+
+def _ao_lines(ao: dict) -> list[dict]:
+    return [{"method": m, "headline": f"RMSE {fmt(_mean(r.get('rmse_cos') for r in rs), '{:.4f}')} vs cosine GT",
+             "seconds": fmt(_mean(r.get("seconds") for r in rs)), "scenes": len({r.get("scene") for r in rs})}
+            for m, rs in _by_method(ao.get("rows") or []).items()]
+
+
+def _ssr_lines(ssr: dict) -> list[dict]:
+    lines = []
+    for m, rs in _by_method(ssr.get("rows") or []).items():
+        parts = [f"{label} {fmt(_mean(r.get(k) for r in rs), '{:.1%}')}" for k, label in
+                 (("frac_correct", "correct"), ("frac_missed", "missed"), ("frac_false_hit", "false hit"),
+                  ("frac_punch_through", "punch-through"))]
+        lines.append({"method": m, "headline": " · ".join(parts), "seconds": fmt(_mean(r.get("seconds") for r in rs)),
+                      "scenes": len({r.get("scene") for r in rs})})
+    return lines
+
+
+def _implicit_lines(imp: dict) -> list[dict]:
+    compared = {c.get("name") for c in imp.get("comparisons") or []}
+    rows = [r for r in imp.get("rows") or [] if r.get("scene") in compared]
+    lines = []
+    for m, rs in _by_method(rows).items():
+        last = _mean((r.get("punch_through_per_frame") or [None])[-1] for r in rs)
+        lines.append({"method": m, "headline": f"punch-through {fmt(last, '{:.2%}')} at frame {imp.get('frames')} · "
+                                               f"{fmt(_mean(r.get('evaluations_mean') for r in rs), '{:.1f}')} "
+                                               "evaluations/px",
+                      "seconds": fmt(_mean(r.get("seconds_per_frame") for r in rs)), "scenes": len(compared)})
+    return lines
+
+
+_LINES = {"ao": _ao_lines, "ssr": _ssr_lines, "implicit": _implicit_lines}
+
+
+def glance(meta: dict) -> list[dict]:
+    """One block per section: ``{"key", "title", "available", "note", "lines": [{method, headline, seconds,
+    scenes}]}``; an unavailable section has no lines and its note. Never raises on a malformed section."""
+    out = []
+    for key, title in SECTIONS:
+        sec = meta.get(key) or {"available": False, "note": f"{title} section not run."}
+        block = {"key": key, "title": title, "available": bool(sec.get("available")),
+                 "note": sec.get("note") or "", "lines": []}
+        if block["available"]:
+            try:
+                custom = sec.get("glance")
+                lines = custom if isinstance(custom, list) else _LINES.get(key, lambda s: [])(sec)
+                block["lines"] = [{k: d.get(k, "–") if isinstance(d, dict) else "–"
+                                   for k in ("method", "headline", "seconds", "scenes")} for d in lines]
+            except Exception as e:                           # the summary must not crash the report
+                block["note"] = f"summary failed: {type(e).__name__}: {e}"
+        out.append(block)
+    return out
+
+
+def glance_md(blocks: list[dict]) -> str:
+    """The glance table as Markdown."""
+    lines = ["## At a glance", "", "Mean over the section's scenes; time is the mean per run (implicit: per frame).",
+             "", "| effect | method | result | time s | scenes |", "|---|---|---|---:|---:|"]
+    for b in blocks:
+        if not b["lines"]:
+            note = (b["note"] or "no results").replace("|", "/").replace("\n", " ")
+            lines.append(f"| {b['title']} | – | {note} | – | – |")
+        for d in b["lines"]:
+            lines.append(f"| {b['title']} | {d['method']} | {d['headline']} | {d['seconds']} | {d['scenes']} |")
+    return "\n".join(lines) + "\n"
+
+
+def metadata_rows(meta: dict) -> list[tuple[str, Any]]:
+    """(label, value) pairs of the metadata footer and of summary.md."""
+    env, git = meta["environment"], meta["git"]
+    return [("date", meta["date"]), ("git commit", git["commit"]),
+            ("dirty", {True: "yes", False: "no", None: "unknown"}[git["dirty"]]),
+            ("ssbench", env["ssbench"]), ("python", env["python"]), ("torch", env["torch"]),
+            ("mitsuba", env["mitsuba"]), ("drjit", env["drjit"]), ("kornia", env["kornia"]),
+            ("numpy", env["numpy"]), ("Mitsuba variant", env["variant"]),
+            ("libLLVM", f"{env['libllvm']} (major {env['libllvm_major']})" if env["libllvm"] else "none"),
+            ("torch threads", env["torch_threads"]), ("Dr.Jit threads", env["drjit_threads"]),
+            ("machine", f"{env['node']} · {env['processor']} · {env['machine']} · {env['cpu_count']} CPUs"),
+            ("platform", env["platform"]), ("image size", f"{meta['width']}×{meta['height']}"),
+            ("spp / seed", f"{meta['spp']} / {meta['seed']}"), ("render cache", "on" if meta["use_cache"] else "off"),
+            ("backend start-up s", fmt(meta["backend_init_s"])), ("total wall time s", fmt(meta["total_s"]))]
+
+
+def summary_md(meta: dict) -> str:
+    """The head of ``summary.md``: title, the glance table, the scenes table, the metadata table."""
+    lines = [f"# ssbench reference report {meta['run']}", "", glance_md(meta["glance"]), "## Scenes", ""]
+    lines += [f"{meta['width']}×{meta['height']}, {meta['spp']} spp, seed {meta['seed']}; times in seconds "
+              "(first calls include Dr.Jit kernel compilation when its cache is cold).", "",
+              "| scene | G-buffer s | colour s | coverage | description |", "|---|---:|---:|---:|---|"]
+    for s in meta["scenes"]:
+        lines.append(f"| {s['name']} | {fmt(s['timings']['gbuffer_s'])} | {fmt(s['timings']['color_s'])} | "
+                     f"{s['coverage']:.1%} | {s['description']} |")
+    lines += ["", "## Metadata", "", "| key | value |", "|---|---|"]
+    for k, v in meta["metadata_rows"]:
+        lines.append(f"| {k} | {str(v).replace('|', '/')} |")
+    return "\n".join(lines) + "\n"
+
+
+# ------------------------------------------------------------------------------------------ raw rows
+def clean_json(x: Any) -> Any:
+    """``x`` as strict JSON values: NaN and ±inf → None, tensors/arrays → lists, tuples/sets → lists."""
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
+    if isinstance(x, dict):
+        return {str(k): clean_json(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple, set, frozenset)):
+        return [clean_json(v) for v in x]
+    if x is None or isinstance(x, (bool, int, str)):
+        return x
+    if hasattr(x, "tolist"):                                 # torch / numpy values
+        return clean_json(x.tolist())
+    return str(x)
+
+
+def rows_jsonl(meta: dict) -> dict[str, str]:
+    """``{section key: JSON-lines text}`` of every section holding a ``rows`` list (one row per line, each with
+    ``"effect"`` set to the section key first, strict JSON: NaN → null)."""
+    out = {}
+    for key, _ in SECTIONS:
+        rows = (meta.get(key) or {}).get("rows")
+        if isinstance(rows, list):
+            out[key] = "".join(json.dumps(clean_json({"effect": key, **r}), allow_nan=False) + "\n"
+                               for r in rows if isinstance(r, dict))
+    return out

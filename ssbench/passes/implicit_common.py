@@ -108,7 +108,7 @@ class ImplicitResult:
         termination: :math:`(B, 1, H, W)` int8 code, see :data:`TERMINATION_NAMES`.
         normal: :math:`(B, 3, H, W)` unit world-space normal ∇f/|∇f| at the hit (0 where no hit).
         object_index: :math:`(B, 1, H, W)` int32 index of the object hit (−1 where no hit).
-        debug: extras (e.g. ``"bracket"`` (B, 2, H, W) the bracketing interval, ``"invalidated"`` mask).
+        debug: extras (e.g. ``"bracket"`` (B, 2, H, W) the interval left after bisection (not the coarser one the march found), ``"invalidated"`` mask).
     """
 
     t: torch.Tensor

@@ -514,3 +514,15 @@ def test_ssr_specular_mask_counts_only_mirror_pixels():
     assert row["reflective_pixels"] == want and 0 < want < 64 * 48
     with pytest.raises(ValueError, match="reflective"):
         ssr("reflective_floor", "linear", width=64, height=48, repeats=1, reflective="shiny")
+
+
+def test_banding_is_measured_at_the_pass_noise_tile():
+    """An 8-px noise tile is scored at 8 (a tile-4 score would miss its 1/8-cycle harmonics)."""
+    from ssbench import metrics
+    from ssbench.evaluate import run_ao
+    ev = run_ao("sphere_on_plane", "ssao", {"noise_size": 8, "kernel_size": 8}, width=48, height=32, rays=8,
+                flip=False, repeats=1, oracle=False)
+    assert ev.row["banding_tile"] == 8
+    pred = ev.result.ao.float()
+    assert ev.row["banding"] == pytest.approx(float(metrics.banding(pred, ev.gbuffer.mask, tile=8)))
+    assert ev.row["banding"] > float(metrics.banding(pred, ev.gbuffer.mask, tile=4))

@@ -235,10 +235,12 @@ def run_ao(scene, method: str, params=None, *, width: int = 320, height: int = 2
             row.update(score(pred, refs[t].ao.float(), mask, view_z, t, flip=flip))
         else:
             row.update(_nan_scores(t))
-    row["banding"] = float(metrics.banding(pred, mask))
+    tile = int(getattr(p, "noise_size", 4))          # the pass's own noise tile (GTAO/Crytek: the article's 4)
+    row["banding_tile"] = tile
+    row["banding"] = float(metrics.banding(pred, mask, tile=tile))
     row["noise"] = float(metrics.noise(pred, mask))
     if blur_call is not None:
-        row["banding_raw"] = float(metrics.banding(raw, mask))
+        row["banding_raw"] = float(metrics.banding(raw, mask, tile=tile))
         row["noise_raw"] = float(metrics.noise(raw, mask))
     if "oracle" in refs:
         o, full = refs["oracle"].ao.float(), refs["flavour"].ao.float()

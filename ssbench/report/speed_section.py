@@ -1,0 +1,370 @@
+"""The report's speed-against-error section (issue 6 §3): embedded default sweeps, fronts, equal-error cost.
+
+Per effect (``ao``, ``ssr``, ``implicit``) it runs the embedded sweep file ``sweeps/<effect>.yaml`` (one or more
+``---``-separated sweep documents, rows pooled; resolution set to min(report size, :data:`SIZE`), seeds to
+the report's seed) with :func:`ssbench.bench.run_sweep` into ``run_dir/sweeps/<sweep name>/``, writes the pooled
+raw rows to ``run_dir/rows/speed_<effect>.jsonl`` and ``.parquet`` (``rows/<effect>.jsonl`` belongs to the
+effect's own section), and writes under ``img/speed/``:
+
+* ``<effect>_error_time.png`` — every configuration a point, error (each of the effect's :data:`SPECS` metrics)
+  against time (log), per scene; the Pareto front as a step line, listed in the page; on the primary metric
+  the ground truth's ladder (:mod:`ssbench.analysis.equal_error`) for scale;
+* ``<effect>_<figure>.png`` — the artifact-vs-parameter small multiples (:mod:`ssbench.analysis.multiples`).
+
+Equal-error cost, per scene and method at its best configuration (least primary error): AO — the cosine
+ground-truth rays of equal RMSE and their time; SSR — the exact mirror trace (one ray per pixel, zero hit
+error) and the mirror-radiance spp of equal colour RMSE; implicit — the fixed-step march steps of equal
+punch-through and the certified reference's time. Nothing here crashes the report: a failing effect is a note.
+"""
+from __future__ import annotations
+
+import json
+import os
+import re
+import time
+import traceback
+from typing import Any, Optional
+
+from ..analysis import multiples as MU
+from ..analysis.multiples import Panel
+from .ao_section import fmt
+
+#: the sweeps' largest image size (the report's, when smaller)
+SIZE = (96, 72)
+SWEEP_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "sweeps")
+EFFECT_TITLES = {"ao": "Ambient occlusion", "ssr": "Screen-space reflections", "implicit": "Implicit surfaces"}
+_SSR_WRONG = ("frac_missed", "frac_false_hit", "frac_punch_through")
+_NB = (("blur", None),)
+_SSAO_16 = (("kernel_size", 16), ("noise_size", 4))
+
+_AO_BANDING = [Panel("crytek", "kernel_size", "banding", _NB),
+               Panel("ssao", "kernel_size", "banding", _NB + (("max_distance", 0.02),)),
+               Panel("ssao", "noise_size", "banding", _NB + (("max_distance", 0.02),)),
+               Panel("hbao", "num_directions", "banding", _NB),
+               Panel("gtao", "quality", "banding", _NB + (("noise", "hash"),)),
+               Panel("gtao", "noise", "banding", _NB + (("quality", "high"),))]
+_AO_HALOS = [Panel("ssao", "max_distance", "halo_band_flavour", _SSAO_16),
+             Panel("ssao", "blur", "halo_band_flavour", _SSAO_16),
+             Panel("hbao", "blur", "halo_band_flavour", (("num_directions", 8), ("num_steps", 6))),
+             Panel("gtao", "blur", "halo_band_flavour", (("quality", "high"), ("noise", "hash")))]
+_SSR_HITS = [Panel(m, p, _SSR_WRONG, fix, ylabel="share of reflective pixels") for m, p, fix in (
+    ("linear", "iterations", (("jitter", 0.0), ("thickness", 0.1))),
+    ("linear", "thickness", (("jitter", 0.0), ("iterations", 64))),
+    ("linear", "jitter", (("iterations", 64), ("thickness", 0.1))),
+    ("dda", "max_steps", (("jitter", 0.0), ("z_thickness", 0.1), ("pixel_stride", 1.0))),
+    ("dda", "pixel_stride", (("jitter", 0.0), ("z_thickness", 0.1), ("max_steps", 128))),
+    ("dda", "z_thickness", (("max_steps", 128), ("pixel_stride", 1.0))),
+    ("dda", "jitter", (("max_steps", 128), ("pixel_stride", 4.0), ("z_thickness", 0.1))))]
+_IMP_PUNCH = [Panel("fixed", "steps", "punch_through_rate"), Panel("sphere", "max_steps", "punch_through_rate"),
+              Panel("progressive", "steps", "punch_through_rate"),
+              Panel("progressive", "frame", "punch_through_per_frame"),
+              Panel("fixed", "frame", "punch_through_per_frame", (("jitter", True),))]
+
+
+def _ssr_derived(row: dict) -> None:
+    """``hit_error_share``: missed + false hits + punch-through (shares of the reflective pixels)."""
+    vals = [row.get(k) for k in _SSR_WRONG]
+    row["hit_error_share"] = sum(vals) if all(isinstance(v, (int, float)) for v in vals) else None
+
+
+#: per effect: ``metrics`` (row key, label; the first is primary: best configurations, summary, front), ``eq``
+#: (the metric of the equal-error ladder), ``derive`` (adds derived keys to a row in memory, not to the raw rows)
+#: and ``figures`` (small multiples: key -> (title, panels))
+SPECS: dict[str, dict] = {
+    "ao": {"metrics": [("rmse_cos", "RMSE vs cosine AO"), ("flip_cos", "ꟻLIP vs cosine AO"),
+                       ("halo_band_flavour", "halo band MAE"), ("banding", "banding")], "eq": "rmse_cos",
+           "derive": None, "figures": {"banding": ("Banding vs sample count and noise tile", _AO_BANDING),
+                                       "halos": ("Halos vs range check and blur", _AO_HALOS)}},
+    "ssr": {"metrics": [("hit_error_share", "missed + false + punch-through"), ("rmse_faded", "colour RMSE"),
+                        ("flip_faded", "colour ꟻLIP")], "eq": "rmse_faded", "derive": _ssr_derived,
+            "figures": {"hits": ("Missed / false hits and punch-through vs steps, stride, thickness, jitter",
+                                 _SSR_HITS)}},
+    "implicit": {"metrics": [("punch_through_rate", "punch-through (final frame)"), ("false_hit_rate", "false hits"),
+                             ("depth_rel_mae", "relative depth MAE")], "eq": "punch_through_rate", "derive": None,
+                 "figures": {"punch": ("Punch-through vs step size and frame", _IMP_PUNCH)}},
+}
+
+
+def default_sweeps() -> dict[str, str]:
+    """``{effect: path}`` of the embedded sweep files."""
+    return {e: os.path.join(SWEEP_DIR, f"{e}.yaml") for e in SPECS}
+
+
+def load_embedded(path: str, size: tuple, seed: int) -> list:
+    """The sweep documents of ``path`` (``---``-separated) with ``resolution`` = ``size`` and ``seeds`` = [seed];
+    ``file:line`` in errors point into the file."""
+    from ..bench.config import sweep_from_dict
+    from ..scenes.files import read_yaml
+    with open(path, encoding="utf-8") as f:
+        lines = f.read().splitlines(keepends=True)
+    docs, start = [], 0
+    for i, ln in enumerate(lines + ["---\n"]):
+        if re.fullmatch(r"---[ \t]*\r?\n?", ln):
+            body = "".join(lines[start:i])
+            if re.search(r"(?m)^[ \t]*[^#\s]", body):
+                data, locate = read_yaml("\n" * start + body, path)
+                data.update(resolution=list(size), seeds=[seed])
+                docs.append(sweep_from_dict(data, locate, path, os.path.dirname(path)))
+            start = i + 1
+    return docs
+
+
+def _as_sweeps(value) -> list:
+    from ..bench import Sweep, load_sweep, sweep_from_dict
+    items = value if isinstance(value, (list, tuple)) else [value]
+    out = []
+    for v in items:
+        if isinstance(v, Sweep):
+            out.append(v)
+        elif isinstance(v, dict):
+            out.append(sweep_from_dict(v, source=f"{v.get('name', 'sweep')}.yaml"))
+        else:
+            out.append(load_sweep(v))
+    return out
+
+
+def _write_rows(rows: list, base: str) -> dict:
+    """``base.jsonl`` and ``base.parquet`` of ``rows`` (the sweep tables' format)."""
+    from ..bench.rows import _default, tidy_columns
+    from ..io import _atomic
+    def jsonl(tmp: str) -> None:
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.writelines(json.dumps(r, default=_default) + "\n" for r in rows)
+    out = {"jsonl": _atomic(base + ".jsonl", ".jsonl", jsonl)}
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+    cols = tidy_columns(rows)
+    table = pa.table(cols) if cols else pa.table({"config_id": pa.array([], pa.string())})
+    out["parquet"] = _atomic(base + ".parquet", ".parquet", lambda t: pq.write_table(table, t))
+    return out
+
+
+_LADDER_KEYS = {"ao": ("width", "height", "seed", "radius", "rays"), "ssr": ("width", "height", "seed", "spp"),
+                "implicit": ("width", "height", "seed")}
+
+
+def _ladder_key(effect: str, row: dict) -> tuple:
+    return tuple(row.get(k) for k in _LADDER_KEYS[effect])
+
+
+def _ladders(effect: str, rows: list, use_cache: bool, notes: list) -> dict:
+    """``{scene: Ladder}`` at the size, seed (and AO radius and rays, SSR spp) of the scene's first row; rows
+    with other values are left out of the equal-error table (a note says so)."""
+    from ..analysis import equal_error as EQ
+    from ..analysis.pareto import row_value
+    out, truth_cache = {}, {}
+    ok = [r for r in rows if not r.get("error")]
+    for scene in dict.fromkeys(r["scene"] for r in ok):
+        mine = [r for r in ok if r["scene"] == scene]
+        r = mine[0]
+        if any(_ladder_key(effect, x) != _ladder_key(effect, r) for x in mine):
+            notes.append(f"{scene}: rows differ in {', '.join(_LADDER_KEYS[effect])}; equal-error cost only for "
+                         f"those like its first row")
+        try:
+            if effect == "ao":
+                out[scene] = EQ.ao_ladder(scene, r["width"], r["height"], r["radius"], r["rays"], r["seed"],
+                                          use_cache=use_cache)
+            elif effect == "ssr":
+                out[scene] = EQ.ssr_ladder(scene, r["width"], r["height"], r["spp"], r["seed"], use_cache=use_cache)
+            else:
+                stop = min(row_value(b, SPECS[effect]["eq"]) for b in EQ.best_rows(mine, SPECS[effect]["eq"]).values())
+                out[scene] = EQ.implicit_ladder(scene, r["width"], r["height"], r["seed"], stop_at=stop,
+                                                truth_cache=truth_cache, use_cache=use_cache)
+            out[scene] = (out[scene], _ladder_key(effect, r))
+        except Exception as e:                                # noqa: BLE001 - a note, not a crash
+            notes.append(f"{effect} ground-truth ladder of {scene} skipped: {type(e).__name__}: {e}")
+    return out
+
+
+def _config(row: dict) -> str:
+    return MU.config_text(row, [k for k in (row.get("config") or {}).get("params", {})
+                                if k not in ("kernel_radius", "radius")]
+                          + (["blur"] if row.get("blur") else []))
+
+
+def _run(sweeps: list, run_dir: str, progress, notes: list) -> tuple[list, list]:
+    """Run every sweep (fresh, into ``run_dir/sweeps/<name>``); rows pooled in order, duplicates dropped."""
+    from ..bench import run_sweep
+    rows, seen, runs = [], set(), []
+    for s in sweeps:
+        res = run_sweep(s, os.path.join(run_dir, "sweeps", s.name), progress=progress, resume=False)
+        notes += res.notes
+        runs.append({"name": s.name, "configs": len(s), "errors": res.errors, "description": s.description})
+        for r in res.rows:
+            if r["config_id"] not in seen:
+                seen.add(r["config_id"])
+                rows.append(r)
+    return rows, runs
+
+
+def _tables(rows: list, eq_rows: list, spec: dict, fronts: dict, ladders: dict) -> dict:
+    from ..analysis import equal_error as EQ
+    from ..analysis.pareto import row_time_ms, row_value
+    primary = spec["metrics"][0][0]
+    labels = dict(spec["metrics"])
+    on_front = {(s, r["config_id"]) for (s, m), pts in fronts.items() if m == primary for r in pts}
+    by_id = {r["config_id"]: r for r in rows}
+    scenes, methods = (list(dict.fromkeys(r[k] for r in rows)) for k in ("scene", "method"))
+    order = lambda d: (scenes.index(d["scene"]), methods.index(d["method"]))                    # noqa: E731
+    out = {
+        "fronts": [{"scene": s, "metric": labels[m], "points": [
+            {"method": r["method"], "config": _config(r), "error": fmt(row_value(r, m), "{:.4g}"),
+             "time": fmt(row_time_ms(r), "{:.2f}")} for r in pts]} for (s, m), pts in fronts.items()],
+        "summary": [{"scene": s, "method": m, "config": _config(r), "error": fmt(row_value(r, primary), "{:.4g}"),
+                     "time": fmt(row_time_ms(r), "{:.2f}"), "time_s": row_time_ms(r) / 1e3,
+                     "floor_ratio": fmt(r.get("floor_ratio"), "{:.1f}"),
+                     "front": "yes" if (s, r["config_id"]) in on_front else "no"}
+                    for (s, m), r in EQ.best_rows(rows, primary).items()],
+        "equal_error": [dict(e, config=_config(by_id[e["config_id"]]), error=fmt(e["error"], "{:.4g}"),
+                             time_ms=fmt(e["time_ms"], "{:.2f}"), gt_ms=fmt(e["gt_ms"], "{:.1f}"),
+                             ratio=fmt(e["ratio"], "{:.3g}"), n=fmt(e["n"], "{:.3g}"))
+                        for e in EQ.equal_error_table(eq_rows, ladders, spec["eq"])],
+        "ladders": [{"scene": s, "kind": L.kind, "label": L.label, "ns": list(L.ns),
+                     "errors": [fmt(x, "{:.4g}") for x in L.errors], "ms": [fmt(1e3 * x, "{:.1f}") for x in L.seconds],
+                     "predicted": [fmt(x, "{:.4g}") for x in L.predicted] if L.predicted else None,
+                     "reference": fmt(1e3 * L.reference_seconds, "{:.1f}"), "reference_n": L.reference_n}
+                    for s, L in ladders.items()]}
+    out["summary"].sort(key=order)
+    out["equal_error"].sort(key=order)
+    return out
+
+
+def _effect(effect: str, sweeps: list, run_dir: str, progress, use_cache: bool) -> dict:
+    from ..analysis.figures import error_time_figure
+    spec, notes, t = SPECS[effect], [], [time.perf_counter()]
+    rows, runs = _run(sweeps, run_dir, progress, notes)
+    files = _write_rows(rows, os.path.join(run_dir, "rows", f"speed_{effect}"))
+    for r in rows:
+        if spec["derive"]:
+            spec["derive"](r)
+        if r.get("error"):
+            notes.append(f"{r['scene']} {r['method']} {_config(r)}: {r['error']}")
+    t.append(time.perf_counter())
+    keyed = _ladders(effect, rows, use_cache, notes)
+    ladders = {sc: lad for sc, (lad, _) in keyed.items()}
+    eq_rows = [r for r in rows if r["scene"] in keyed and keyed[r["scene"]][1] == _ladder_key(effect, r)]
+    t.append(time.perf_counter())
+    img = os.path.join(run_dir, "img", "speed")
+    rel = lambda p: os.path.relpath(p, run_dir).replace(os.sep, "/")          # noqa: E731
+    fig = os.path.join(img, f"{effect}_error_time.png")
+    eq_metric = spec["eq"]
+    fronts = error_time_figure(rows, spec["metrics"], fig, scenes=list(dict.fromkeys(r["scene"] for r in rows)),
+                               ladders=ladders, ladder_metric=eq_metric,
+                               title=f"{EFFECT_TITLES[effect]}: error against time")
+    multiples = []
+    for key, (title, panels) in spec["figures"].items():
+        p = os.path.join(img, f"{effect}_{key}.png")
+        data = MU.small_multiples(rows, panels, p, ncols=min(len(panels), 4 if effect == "ssr" else 3), title=title)
+        multiples.append({"title": title, "image": rel(p), "points": sum(d["points"] for d in data)})
+    t.append(time.perf_counter())
+    return {"name": effect, "title": EFFECT_TITLES[effect], "available": True, "note": "", "notes": notes,
+            "rows": len(rows), "errors": sum(bool(r.get("error")) for r in rows), "sweeps": runs,
+            "files": {k: rel(v) for k, v in files.items()}, "metric": spec["metrics"][0][1], "eq_metric": eq_metric,
+            "figure": rel(fig), "multiples": multiples, **_tables(rows, eq_rows, spec, fronts, ladders),
+            "seconds": t[-1] - t[0], "stages": {"sweeps": t[1] - t[0], "ladders": t[2] - t[1], "figures": t[3] - t[2]}}
+
+
+def build_speed_section(run_dir: str, *, width: int, height: int, seed: int = 0, use_cache: bool = True,
+                        progress: Optional[bool] = None, sweeps: Optional[dict] = None,
+                        threads: Optional[int] = 1) -> dict:
+    """Run the speed section into ``run_dir``; returns its template metadata (never raises).
+
+    Args:
+        width, height: the report's size; the embedded sweeps run at min(it, :data:`SIZE`).
+        seed: the sweeps' seed (embedded sweeps) and the ground truths'.
+        use_cache: the reference disk cache for the equal-error ladders' references (the sweeps' evaluations
+            always read it; the ladders' own times are measured afresh).
+        sweeps: ``{effect: Sweep | dict | path | list of them}`` replacing the embedded sweeps of those effects
+            (used as given); effects missing from it are skipped when it is given.
+        threads: torch threads while the section runs (restored after).
+    """
+    import torch
+    t0, before = time.perf_counter(), torch.get_num_threads()
+    size = (min(width, SIZE[0]), min(height, SIZE[1]))
+    out: dict[str, Any] = {"available": False, "note": "", "notes": [], "effects": [], "seconds": 0.0,
+                           "size": f"{size[0]}×{size[1]}", "threads": threads or before, "gt_threads": None}
+    try:
+        from ..reference import backend
+        out["gt_threads"] = backend.info().get("drjit_threads")
+    except Exception:                                          # noqa: BLE001 - metadata only
+        pass
+    try:
+        if threads:
+            torch.set_num_threads(threads)
+        todo = {e: ("embedded", p) for e, p in default_sweeps().items()} if sweeps is None else \
+            {e: ("given", v) for e, v in sweeps.items()}
+        for effect, (kind, value) in todo.items():
+            try:
+                if effect not in SPECS:
+                    raise ValueError(f"sweeps: unknown effect {effect!r}; known: {', '.join(SPECS)}")
+                sw = load_embedded(value, size, seed) if kind == "embedded" else _as_sweeps(value)
+                bad = [s.name for s in sw if s.effect != effect]
+                if bad:
+                    raise ValueError(f"sweeps[{effect!r}]: sweep(s) {bad} are of another effect")
+                out["effects"].append(_effect(effect, sw, run_dir, progress, use_cache))
+            except Exception as e:                            # noqa: BLE001 - the report must not crash
+                if os.environ.get("SSBENCH_DEBUG"):
+                    traceback.print_exc()
+                out["effects"].append({"name": effect, "title": EFFECT_TITLES.get(effect, effect),
+                                       "available": False, "note": f"{effect} skipped: {type(e).__name__}: {e}",
+                                       "notes": []})
+    finally:
+        torch.set_num_threads(before)
+    out["available"] = any(e["available"] for e in out["effects"])
+    out["glance"] = _glance(out)
+    if not out["available"]:
+        out["note"] = "Speed section: no effect could run." + "".join(
+            f" {e['note']}" for e in out["effects"] if e.get("note"))
+    out["seconds"] = time.perf_counter() - t0
+    return out
+
+
+def _glance(speed: dict) -> list[dict]:
+    """Lines of the report's at-a-glance table: per effect and method, the primary error of its best configuration
+    on each scene, the equal-error ground-truth cost there, and the mean time of those configurations in seconds
+    (``{method, headline, seconds, scenes}``)."""
+    out = []
+    for e in speed["effects"]:
+        if not e.get("available"):
+            continue
+        eq = {(q["scene"], q["method"]): q for q in e["equal_error"]}
+        for m in dict.fromkeys(s["method"] for s in e["summary"]):
+            mine = [s for s in e["summary"] if s["method"] == m]
+            gt = "; ".join(f"{s['scene']} {eq[(s['scene'], m)]['n_text']} {eq[(s['scene'], m)]['kind']}"
+                           for s in mine if (s["scene"], m) in eq)
+            out.append({"method": f"{e['name']}: {m}", "scenes": len(mine),
+                        "headline": f"best {e['metric']} " + ", ".join(s["error"] for s in mine)
+                                    + (f" · ground truth of equal {e['eq_metric']}: {gt}" if gt else ""),
+                        "seconds": fmt(sum(s["time_s"] for s in mine) / len(mine), "{:.4f}")})
+    return out
+
+
+def summary_md(speed: dict) -> str:
+    """The speed section of ``summary.md``: per effect the best configuration of each method, then equal error."""
+    lines = ["", "## Speed against error", ""]
+    if not speed.get("available"):
+        return "\n".join(lines + [speed.get("note") or "Speed section unavailable."]
+                         + [f"- {e['note']}" for e in speed.get("effects", []) if e.get("note")]) + "\n"
+    lines.append(f"Sweeps at {speed['size']}, passes on {speed['threads']} torch thread(s), ground truth on "
+                 f"{speed.get('gt_threads') or '?'} Dr.Jit thread(s); section {speed['seconds']:.1f} s. "
+                 "Time: ms per call of the pass (blocked autorange; AO blur included).")
+    for e in speed["effects"]:
+        lines += ["", f"### {e['title']}", ""]
+        if not e["available"]:
+            lines.append(e["note"])
+            continue
+        lines += [f"{e['rows']} configurations ({e['errors']} failed); rows: `{e['files']['jsonl']}`. "
+                  f"Best configuration per method by {e['metric']}:", "",
+                  "| scene | method | best config | error | time ms | floor ratio | on front |",
+                  "|---|---|---|---:|---:|---:|---|"]
+        lines += [f"| {s['scene']} | {s['method']} | {s['config']} | {s['error']} | {s['time']} | "
+                  f"{s['floor_ratio']} | {s['front']} |" for s in e["summary"]]
+        if e["equal_error"]:
+            k = e["equal_error"][0]["kind"]
+            lines += ["", f"Equal-error cost ({e['eq_metric']}; ground-truth {k} reaching the same error):", "",
+                      f"| scene | method | best config | error | time ms | GT {k} | GT ms | GT / method time |",
+                      "|---|---|---|---:|---:|---:|---:|---:|"]
+            lines += [f"| {q['scene']} | {q['method']} | {q['config']} | {q['error']} | {q['time_ms']} | "
+                      f"{q['n_text']} | {q['gt_ms']} | {q['ratio']} |" for q in e["equal_error"]]
+        lines += [f"- {n}" for n in e["notes"]]
+    return "\n".join(lines) + "\n"

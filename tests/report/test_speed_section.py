@@ -1,0 +1,126 @@
+"""The speed section: embedded sweeps parse and feed every small multiple; a tiny real run writes one raw row per
+configuration, the images the page links and the tables; failures become notes."""
+import dataclasses
+import json
+import os
+import re
+
+import pytest
+
+from ssbench.report import build
+from ssbench.report import speed_section as S
+
+TINY = {
+    "ao": {"name": "t_ao", "effect": "ao", "scenes": ["crease"], "resolution": [32, 24], "rays": 16, "oracle": False,
+           "flip": False, "timing": {"min_run_time": 0.005, "warmup": 0},
+           "methods": {"ssao": {"kernel_radius": 0.5, "kernel_size": [4, 8]}, "gtao": {"radius": 0.5,
+                                                                                       "quality": "low"}}},
+    "ssr": {"name": "t_ssr", "effect": "ssr", "scenes": ["reflective_floor"], "resolution": [32, 24], "spp": 2,
+            "flip": False, "timing": {"min_run_time": 0.005, "warmup": 0}, "methods": {"dda": {"max_steps": [16, 64]}}},
+    "implicit": {"name": "t_imp", "effect": "implicit", "scenes": ["thin_plate"], "resolution": [32, 24],
+                 "frames": 2, "timing": {"min_run_time": 0.005, "warmup": 0},
+                 "methods": {"fixed": {"steps": [16, 32]}, "progressive": {"steps": 8}}},
+}
+
+
+def _render(speed: dict) -> str:
+    import jinja2
+    env = jinja2.Environment(loader=jinja2.FileSystemLoader(os.path.join(os.path.dirname(build.__file__),
+                                                                         "templates")),
+                             autoescape=True, undefined=jinja2.StrictUndefined, trim_blocks=True, lstrip_blocks=True)
+    return env.get_template("speed_section.html.j2").render(speed=speed, fmt=build._fmt)
+
+
+@pytest.mark.parametrize("effect", list(S.SPECS))
+def test_embedded_sweeps_parse_and_every_panel_gets_a_line_of_two_points(effect):
+    from ssbench.analysis.multiples import panel_lines
+    from ssbench.bench import get_effect
+    sweeps = S.load_embedded(S.default_sweeps()[effect], (32, 24), 3)
+    assert sweeps and all(s.effect == effect for s in sweeps)
+    configs = [c for s in sweeps for c in s.configs]
+    assert {(c.width, c.height, c.seed) for c in configs} == {(32, 24, 3)}
+    eff = get_effect(effect)
+    rows = []
+    for c in configs:                                       # rows as a sweep writes them, metrics faked as 1
+        p = eff.method(c.method)[1](**c.params)
+        rows.append({"config_id": c.config_id, "scene": c.scene, "method": c.method, **c.settings,
+                     "params": dataclasses.asdict(p), "config": c.canonical(), "error": None,
+                     **{m: 1.0 for m, _ in S.SPECS[effect]["metrics"]}, "banding": 1.0, "halo_band_flavour": 1.0,
+                     "frac_missed": 1.0, "frac_false_hit": 1.0, "frac_punch_through": 1.0,
+                     "punch_through_per_frame": [1.0] * c.settings.get("frames", 1)})
+    for title, panels in S.SPECS[effect]["figures"].values():
+        for panel in panels:
+            d = panel_lines(rows, panel)
+            assert any(len(set(ln["x"])) >= 2 for ln in d["lines"]), (title, panel)
+
+
+def test_a_second_document_reports_its_own_file_line(tmp_path):
+    p = tmp_path / "two.yaml"
+    p.write_text("name: one\neffect: ao\nscenes: [crease]\nmethods: {ssao: null}\n---\n# two\nname: two\n"
+                 "effect: ao\nscenes: [crease]\nmethods:\n  ssao: {kernel_sise: 4}\n")
+    from ssbench.bench import SweepError
+    with pytest.raises(SweepError, match=r"two\.yaml:11:.*kernel_sise"):
+        S.load_embedded(str(p), (8, 6), 0)
+
+
+@pytest.fixture(scope="module")
+def section(tmp_path_factory):
+    run_dir = tmp_path_factory.mktemp("run")
+    mp = pytest.MonkeyPatch()
+    mp.setenv("SSBENCH_CACHE_DIR", str(run_dir / "cache"))
+    try:
+        out = S.build_speed_section(str(run_dir), width=320, height=240, seed=0, progress=False, sweeps=TINY)
+    finally:
+        mp.undo()
+    return run_dir, out
+
+
+@pytest.mark.slow
+@pytest.mark.mitsuba
+def test_section_writes_raw_rows_images_and_tables(section):
+    import pyarrow.parquet as pq
+    run_dir, out = section
+    assert out["available"] and [e["name"] for e in out["effects"]] == ["ao", "ssr", "implicit"]
+    for e in out["effects"]:
+        assert e["available"], e["note"]
+        n = len(S._as_sweeps(TINY[e["name"]])[0])
+        lines = (run_dir / e["files"]["jsonl"]).read_text().splitlines()
+        assert e["rows"] == len(lines) == n and pq.read_table(run_dir / e["files"]["parquet"]).num_rows == n
+        assert {json.loads(x)["config_id"] for x in lines} == set(S._as_sweeps(TINY[e["name"]])[0].ids())
+        assert e["errors"] == 0 and e["summary"] and e["equal_error"] and e["fronts"]
+        assert {(s["scene"], s["method"]) for s in e["summary"]} == {(q["scene"], q["method"])
+                                                                      for q in e["equal_error"]}
+    text = _render(out)
+    srcs = re.findall(r'<img[^>]*\ssrc="([^"]+)"', text)
+    assert len(srcs) == 3 + 2 + 1 + 1                           # error-time per effect, AO 2, SSR 1, implicit 1
+    for src in srcs:
+        assert src.startswith("img/speed/") and (run_dir / src).is_file(), src
+    assert [g["method"] for g in out["glance"]] == ["ao: ssao", "ao: gtao", "ssr: dda", "implicit: fixed",
+                                                    "implicit: progressive"]
+    assert all(g["headline"].startswith("best ") and float(g["seconds"]) > 0 for g in out["glance"])
+    md = S.summary_md(out)
+    assert "| crease | ssao |" in md and "Equal-error cost (rmse_faded" in md and "| thin_plate | fixed |" in md
+
+
+@pytest.mark.slow
+@pytest.mark.mitsuba
+def test_the_implicit_ladder_is_the_sweeps_own_fixed_step(section):
+    run_dir, out = section
+    imp = next(e for e in out["effects"] if e["name"] == "implicit")
+    rows = [json.loads(x) for x in (run_dir / imp["files"]["jsonl"]).read_text().splitlines()]
+    (lad,) = imp["ladders"]
+    by_n = dict(zip(lad["ns"], lad["errors"]))
+    for r in rows:                                   # unjittered fixed step at N on the ladder: the same numbers
+        if r["method"] == "fixed" and r["params"]["steps"] in by_n:
+            assert by_n[r["params"]["steps"]] == S.fmt(r["punch_through_rate"], "{:.4g}")
+
+
+def test_failures_become_notes(tmp_path):
+    out = S.build_speed_section(str(tmp_path), width=32, height=24, progress=False,
+                                sweeps={"ao": {"effect": "ao", "scenes": ["crease"], "methods": {"nope": None}},
+                                        "bogus": {}, "ssr": str(tmp_path / "missing.yaml")})
+    assert not out["available"] and [e["available"] for e in out["effects"]] == [False, False, False]
+    notes = [e["note"] for e in out["effects"]]
+    assert "unknown ao method 'nope'" in notes[0] and "unknown effect 'bogus'" in notes[1]
+    assert "not found" in notes[2]
+    assert "## Speed against error" in S.summary_md(out) and "Speed against error" in _render(out)

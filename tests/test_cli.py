@@ -470,3 +470,10 @@ def test_implicit_bad_arguments(capsys, one_thread, argv, status, names):
     assert "ssbench: error:" in err and "Traceback" not in err
     for n in names:
         assert n in err
+
+
+def test_tune_is_a_subcommand_of_the_main_cli(capsys):
+    assert main(["tune", "gtao", "--tune", "radus"]) == 1
+    err = capsys.readouterr().err
+    assert "argument --tune: 'radus' not tunable for gtao; tunable: radius" in err and "Traceback" not in err
+    assert main(["tune", "gtoa"]) == 2 and "invalid choice: 'gtoa'" in capsys.readouterr().err

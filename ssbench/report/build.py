@@ -223,10 +223,12 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
                  height: int = 240, spp: int = 64, seed: int = 0, *, use_cache: bool = False,
                  progress: Optional[bool] = None, ao: bool = True, ao_radius: float = 0.5,
                  ao_rays: int = 128, ssr: bool = True, ssr_spp: int = 16, implicit: Optional[bool] = None,
-                 speed: Optional[bool] = None, tuning: Optional[bool] = None) -> str:
+                 speed: Optional[bool] = None, tuning: Optional[bool] = None, gt_cache: bool = True) -> str:
     """Render every catalog scene (or ``scenes``) and write a report run; returns the run's ``index.html``.
 
-    ``use_cache=False`` (default) renders afresh so the timings measure rendering, not the disk cache.
+    ``use_cache=False`` (default) renders the scene previews afresh so their timings measure rendering, not the
+    disk cache; ``gt_cache=True`` (default) lets the sections read and write the ground-truth cache (a warm run
+    reuses the ray-traced references; the sections' pass timings never come from a cache).
     ``ao`` adds the ambient-occlusion section (:mod:`ssbench.report.ao_section`; scenes: ``scenes`` or its
     small default subset) at radius ``ao_radius`` with ``ao_rays`` ground-truth rays per pixel; ``ssr`` the
     screen-space reflections section (:mod:`ssbench.report.ssr_section`; scenes: ``scenes`` or
@@ -279,12 +281,14 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
             "width": width, "height": height, "spp": spp, "seed": seed, "use_cache": use_cache,
             "git": git_state(), "environment": env, "backend_init_s": backend_init_s, "scenes": rows,
             "preview_row": list(PREVIEW_ROW)}
-    meta["ao"] = _ao_section(run_dir, scenes, width, height, ao, ao_radius, ao_rays, seed, use_cache, progress)
-    meta["ssr"] = _ssr_section(run_dir, scenes, width, height, ssr, ssr_spp, seed, use_cache, gbuffers, progress)
+    sc_cache = use_cache or gt_cache                          # the sections' ground truth
+    meta["gt_cache"] = sc_cache
+    meta["ao"] = _ao_section(run_dir, scenes, width, height, ao, ao_radius, ao_rays, seed, sc_cache, progress)
+    meta["ssr"] = _ssr_section(run_dir, scenes, width, height, ssr, ssr_spp, seed, sc_cache, gbuffers, progress)
     del gbuffers
-    meta["implicit"] = _implicit_section(run_dir, scenes, width, height, implicit, seed, use_cache)
-    meta["speed"] = _speed_section(run_dir, scenes, width, height, speed, seed, use_cache, progress)
-    meta["tuning"] = _tuning_section(run_dir, scenes, width, height, tuning, seed, use_cache, progress)
+    meta["implicit"] = _implicit_section(run_dir, scenes, width, height, implicit, seed, sc_cache)
+    meta["speed"] = _speed_section(run_dir, scenes, width, height, speed, seed, sc_cache, progress)
+    meta["tuning"] = _tuning_section(run_dir, scenes, width, height, tuning, seed, sc_cache, progress)
     meta["total_s"] = time.perf_counter() - t_start
     meta["metadata_rows"] = summary.metadata_rows(meta)
     meta["glance"] = summary.glance(meta)

@@ -129,7 +129,16 @@ class GBuffer:
 
     # ------------------------------------------------------------------ transformations
     def to(self, device=None, dtype: Optional[torch.dtype] = None) -> "GBuffer":
-        """Move every channel to ``device``; cast floating channels to ``dtype`` (masks and ids keep theirs)."""
+        """Move every channel to ``device``; cast floating channels to ``dtype`` (masks and ids keep theirs).
+
+        ``g.to(torch.float64)`` (a dtype in the device slot) is read as ``dtype``, as ``Tensor.to`` does.
+        """
+        if isinstance(device, torch.dtype):
+            if dtype is not None:
+                raise TypeError(f"device: got the dtype {device} while dtype={dtype} is given too")
+            device, dtype = None, device
+        if dtype is not None and not isinstance(dtype, torch.dtype):
+            raise TypeError(f"dtype: expected a torch.dtype, got {dtype!r}")
         out = {}
         for n in self.channels:
             t = getattr(self, n)

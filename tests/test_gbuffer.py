@@ -174,3 +174,17 @@ def test_frozen():
         g.view_z = channel("view_z")  # type: ignore[misc]
     with pytest.raises(dataclasses.FrozenInstanceError):
         g.camera = CAM  # type: ignore[misc]
+
+
+def test_to_accepts_a_positional_dtype_like_tensor_to():
+    from ssbench.camera import Camera
+    from ssbench.gbuffer import GBuffer
+    cam = Camera.from_look_at((0, 0, 5), (0, 0, 0), (0, 1, 0), 45.0, 4, 3, 0.1, 100.0)
+    g = GBuffer(cam, view_z=torch.full((1, 1, 3, 4), -5.0), mask=torch.ones(1, 1, 3, 4, dtype=torch.bool))
+    h = g.to(torch.float64)
+    assert h.view_z.dtype == torch.float64 and h.mask.dtype == torch.bool
+    assert torch.equal(h.view_z, g.view_z.double())
+    with pytest.raises(TypeError, match="device: got the dtype"):
+        g.to(torch.float64, dtype=torch.float32)
+    with pytest.raises(TypeError, match="dtype: expected a torch.dtype"):
+        g.to(dtype="float64")

@@ -199,7 +199,8 @@ def hbao(gbuffer: GBuffer, params: HBAOParams = HBAOParams(), *, generator: Opti
 
     AORes = torch.tensor([W, H], dtype=dtype, device=dev).view(1, 2, 1, 1)     # (1, 2, 1, 1)
     InvAORes = 1.0 / AORes
-    R, R2 = float(params.radius), float(params.radius) ** 2
+    R = params.radius if torch.is_tensor(params.radius) else float(params.radius)   # a tensor keeps autograd
+    R2 = R * R
     uv0 = cam.uv_grid(dtype, dev).unsqueeze(0).expand(B, -1, -1, -1)           # (B, 2, H, W)
     P = viewPos(uv0)                                                             # (B, 3, H, W)
 

@@ -5,7 +5,7 @@ instance (validated first with the float values, then the fields are swapped in 
 pass's arithmetic on those fields stays on the autograd tape. Whether a pass is differentiable in a parameter
 is *measured*, not declared: :func:`probe` runs autograd and calls a parameter differentiable when the
 gradient is finite and non-zero. "No autograd path" means the output does not depend on the tensor through
-differentiable operations: the pass casts it to a Python number (HBAO's ``float(radius)``) or uses it only in
+differentiable operations: the pass casts it to a Python number or uses it only in
 comparisons and integer indices (SSAO's kernel radius and depth range check, which only change a count). A
 zero gradient means the output is piecewise constant in it (GTAO's ``sample_distribution_power`` only moves
 rounded sample offsets). :func:`refine` then runs ``torch.optim.Adam`` on

@@ -1,0 +1,71 @@
+"""Running the speed section's sweeps: embedded sweep files (``---``-separated documents), sweeps given as
+objects, dicts or paths, fresh runs into the report folder, and the pooled raw rows (JSON lines + Parquet)."""
+from __future__ import annotations
+
+import json
+import os
+import re
+
+
+def load_embedded(path: str, size: tuple, seed: int) -> list:
+    """The sweep documents of ``path`` (``---``-separated) with ``resolution`` = ``size`` and ``seeds`` = [seed];
+    ``file:line`` in errors point into the file."""
+    from ..bench.config import sweep_from_dict
+    from ..scenes.files import read_yaml
+    with open(path, encoding="utf-8") as f:
+        lines = f.read().splitlines(keepends=True)
+    docs, start = [], 0
+    for i, ln in enumerate(lines + ["---\n"]):
+        if re.fullmatch(r"---[ \t]*\r?\n?", ln):
+            body = "".join(lines[start:i])
+            if re.search(r"(?m)^[ \t]*[^#\s]", body):
+                data, locate = read_yaml("\n" * start + body, path)
+                data.update(resolution=list(size), seeds=[seed])
+                docs.append(sweep_from_dict(data, locate, path, os.path.dirname(path)))
+            start = i + 1
+    return docs
+
+
+def _as_sweeps(value) -> list:
+    from ..bench import Sweep, load_sweep, sweep_from_dict
+    items = value if isinstance(value, (list, tuple)) else [value]
+    out = []
+    for v in items:
+        if isinstance(v, Sweep):
+            out.append(v)
+        elif isinstance(v, dict):
+            out.append(sweep_from_dict(v, source=f"{v.get('name', 'sweep')}.yaml"))
+        else:
+            out.append(load_sweep(v))
+    return out
+
+
+def _write_rows(rows: list, base: str) -> dict:
+    """``base.jsonl`` and ``base.parquet`` of ``rows`` (the sweep tables' format)."""
+    from ..bench.rows import _default, tidy_columns
+    from ..io import _atomic
+    def jsonl(tmp: str) -> None:
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.writelines(json.dumps(r, default=_default) + "\n" for r in rows)
+    out = {"jsonl": _atomic(base + ".jsonl", ".jsonl", jsonl)}
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+    cols = tidy_columns(rows)
+    table = pa.table(cols) if cols else pa.table({"config_id": pa.array([], pa.string())})
+    out["parquet"] = _atomic(base + ".parquet", ".parquet", lambda t: pq.write_table(table, t))
+    return out
+
+
+def _run(sweeps: list, run_dir: str, progress, notes: list) -> tuple[list, list]:
+    """Run every sweep (fresh, into ``run_dir/sweeps/<name>``); rows pooled in order, duplicates dropped."""
+    from ..bench import run_sweep
+    rows, seen, runs = [], set(), []
+    for s in sweeps:
+        res = run_sweep(s, os.path.join(run_dir, "sweeps", s.name), progress=progress, resume=False)
+        notes += res.notes
+        runs.append({"name": s.name, "configs": len(s), "errors": res.errors, "description": s.description})
+        for r in res.rows:
+            if r["config_id"] not in seen:
+                seen.add(r["config_id"])
+                rows.append(r)
+    return rows, runs

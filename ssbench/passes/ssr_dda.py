@@ -32,6 +32,11 @@ Fixes and choices (anchors: ``/work/shared/notes/ssr_anchors.md``):
   is ``Q/k`` with ``Q.xy = Q0.xy + dQ.xy·n`` for the ``n`` advances made (the article's ``count = i`` lags one).
 * Past ``P1`` → ``MAX_DISTANCE`` (``BEHIND_CAMERA`` if the near plane clipped the ray); off screen →
   ``OFF_SCREEN``; budget spent → ``OUT_OF_STEPS``, never a hit. Background texels (−far) are never hit.
+  (ours) A sample whose centre passes ``stop`` = ``P1`` or the viewport edge, whichever comes first, while its
+  footprint starts before it, is still tested once over the shortened footprint ``[P − ½dP, stop]``, fetched at
+  that part's centre; the reason, if it misses, is the full step's. Without it the strip between the last
+  footprint and the edge (up to ½ stride, e.g. a target in row 0) was never tested, and which targets were
+  caught depended on the stride's phase (K = 64 missed more than K = 32 under ``fit_stride_to_steps``).
 * Refinement only where the stride exceeds 1 px (as both anchors): ``"binary"`` is the article's ±stride walk
   over the hit sample's footprint (the article backs off a whole step and misses crossings in the far half, which
   the coarse test accepts) with the predicate "ray at or behind the probe's texel" (:func:`_refine`);
@@ -169,6 +174,12 @@ def _rays(gbuffer: GBuffer, params: DDASSRParams, jitter: torch.Tensor):
     invdx = stepDir / delta[:, 0]
     dQ, dk = (Q1 - Q0) * invdx[:, None], (k1 - k0) * invdx
     dP = torch.stack([stepDir, delta[:, 1] * invdx], 1)
+    # where the segment leaves the viewport, as a signed major coordinate u = P.x·stepDir (permuted frame)
+    Wm, Hm = torch.where(permute, float(H), float(W)), torch.where(permute, float(W), float(H))
+    u0, y0, slope = P0p[:, 0] * stepDir, P0p[:, 1], delta[:, 1] * invdx            # minor px per unit of u
+    exit_ = torch.minimum(torch.where(stepDir > 0, Wm, 0.0) * stepDir,
+                          torch.where(slope > 0, u0 + (Hm - y0) / slope,
+                                      torch.where(slope < 0, u0 - y0 / slope, math.inf)))
     strideScalar = 1.0 - torch.clamp(-o[:, 2] / params.pixel_stride_z_cutoff, max=1.0)
     pixelStride = 1.0 + strideScalar * (params.pixel_stride - 1.0)
     if params.fit_stride_to_steps:                                                # max_steps samples reach P1
@@ -181,6 +192,7 @@ def _rays(gbuffer: GBuffer, params: DDASSRParams, jitter: torch.Tensor):
              n=torch.zeros_like(k0), dPx=dP[:, 0], dPy=dP[:, 1], dQz=dQ[:, 2], dk=dk, end=P1p[:, 0] * stepDir,
              stepDir=stepDir, permute=permute, zlo=zlo, zhi=zhi, stride=pixelStride, Q0x=Q0[:, 0], Q0y=Q0[:, 1],
              dQx=dQ[:, 0], dQy=dQ[:, 1], clipped=o[:, 2] + d[:, 2] * params.max_ray_distance > -cam.near)
+    s["stop"] = torch.minimum(s["end"], exit_)                                      # P1 or the viewport edge
     s["prevZ"] = _z(Q0[:, 2] + 0.5 * dQ[:, 2], k0 + 0.5 * dk, zlo, zhi)          # footprint edge of sample 1
     return s, sel, P0, P1
 
@@ -217,11 +229,20 @@ def _march(s: dict, tex, params: DDASSRParams, H: int, W: int, visits: Optional[
             break
         s["Px"], s["Py"], s["Qz"], s["k"] = s["Px"] + s["dPx"], s["Py"] + s["dPy"], s["Qz"] + s["dQz"], s["k"] + s["dk"]
         s["n"] = s["n"] + 1.0
-        past = s["alive"] & (s["Px"] * s["stepDir"] > s["end"])                  # beyond P1: the ray ended
+        u = s["Px"] * s["stepDir"]
+        beyond = s["alive"] & (u > s["stop"])                                    # centre past P1 / the edge
+        f = ((s["stop"] - u) / s["stride"] + 0.5).clamp(0.0, 1.0)                # footprint share before stop
+        partial = beyond & (f > 0)                                               # last, shortened footprint
+        past = beyond & ~partial                                                 # nothing left to test: ended
+        back = torch.where(partial, 0.5 * (1.0 - f), 0.0)                        # centre of [P − ½dP, stop]
+        s["Px"], s["Py"], s["Qz"], s["k"] = (s["Px"] - s["dPx"] * back, s["Py"] - s["dPy"] * back,
+                                             s["Qz"] - s["dQz"] * back, s["k"] - s["dk"] * back)
+        s["n"] = s["n"] - back
+        half = torch.where(partial, 0.5 * f, 0.5)
         on, t, sceneZMax, m = _fetch(s, s, tex, H, W)
         off, live = s["alive"] & ~past & ~on, s["alive"] & ~past & on             # live: this sample is fetched
         rayZMin = s["prevZ"]
-        rayZMax = _z(s["dQz"] * 0.5 + s["Qz"], s["dk"] * 0.5 + s["k"], s["zlo"], s["zhi"])   # ½ step ahead
+        rayZMax = _z(s["dQz"] * half + s["Qz"], s["dk"] * half + s["k"], s["zlo"], s["zhi"])   # footprint end
         s["prevZ"] = rayZMax
         rayZMin, rayZMax = torch.minimum(rayZMin, rayZMax), torch.maximum(rayZMin, rayZMax)   # swap
         hit = live & m & (rayZMax >= sceneZMax - params.z_thickness) & (rayZMin <= sceneZMax)
@@ -234,9 +255,10 @@ def _march(s: dict, tex, params: DDASSRParams, H: int, W: int, visits: Optional[
                                            torch.stack([h["Px"], h["Py"]], 1))
             out["Q"][h["i"]] = torch.stack([h["Q0x"] + h["dQx"] * h["n"], h["Q0y"] + h["dQy"] * h["n"], h["Qz"]], 1)
             out["k"][h["i"]] = h["k"]
-        term = torch.where(s["clipped"], BEHIND_CAMERA, MAX_DISTANCE)                # past P1
+        ended = torch.where(s["clipped"], BEHIND_CAMERA, MAX_DISTANCE)               # past P1
+        term = torch.where(u > s["end"], ended, OFF_SCREEN)                          # the full step's centre
         term = torch.where(off, OFF_SCREEN, torch.where(hit, HIT, term))
-        done = past | off | hit
+        done = past | off | hit | partial
         di = done.nonzero().squeeze(1)
         if di.numel():
             out["term"][s["i"][di]] = term[di].to(torch.int8)

@@ -180,7 +180,8 @@ def test_dda_samples_every_major_line_once(deg):
     major = 0 if abs(x1 - x0) >= abs(y1 - y0) else 1
     lines = visits.nonzero()[:, 1 - major]                                # (row, col) → the major coordinate
     start, stop = (x0, x1) if major == 0 else (y0, y1)
-    n = math.floor(abs(stop - start))                                     # samples at start ± 1, ± 2, … ≤ stop
+    n = math.ceil(abs(stop - start) - 0.5)         # samples at start ± 1, ± 2, … whose footprint (±½) starts
+    #                                                before P1; the last one is shortened to end at P1
     assert visits.sum() == n == lines.unique().numel() >= 12              # one visit per line, no line skipped
     step = 1 if stop > start else -1
     assert sorted(lines.tolist()) == sorted(math.floor(start) + step * i for i in range(1, n + 1))
@@ -205,9 +206,14 @@ def test_stride_is_in_pixels():
         rs[stride] = r = ssr_dda(g, DDASSRParams(max_ray_distance=50.0, pixel_stride=stride,
                                                   pixel_stride_z_cutoff=math.inf, refinement="none"))
         o = g.camera.pixel_centers(F64)[None]
-        # every step moves exactly `stride` pixels along the major axis
+        # every step moves exactly `stride` pixels along the major axis, but a last one shortened at the image edge
         moved = (r.hit_pixel - o).abs().amax(1, keepdim=True)
-        assert torch.allclose(moved[r.hit], r.steps[r.hit].to(F64) * stride, atol=1e-6)
+        full = r.steps.to(F64) * stride
+        exact = r.hit & ((moved - full).abs() <= 1e-6)
+        edge = torch.minimum(r.hit_pixel, torch.tensor([64.0, 48.0], dtype=F64).view(1, 2, 1, 1) - r.hit_pixel)
+        last = r.hit & (moved > full - 0.5 * stride) & (moved < full - 0.25 * stride) & \
+            (edge.amin(1, keepdim=True) < 0.5 * stride)                   # centre of [P − ½dP, edge]
+        assert bool((exact | last)[r.hit].all()) and int(exact.sum()) > 10 * int(last.sum())
         steps[stride] = r.steps
     far = rs[1.0].hit & rs[2.0].hit & rs[4.0].hit & (steps[1.0] >= 16) & (g.shape_id == 0)   # floor → wall
     assert int(far.sum()) > 100
@@ -412,3 +418,19 @@ def test_bad_gbuffer():
         visit_map(g, pixel=(8, 0))
     with pytest.raises(TypeError, match="params"):
         ssr_dda(g, params={"pixel_stride": 2})
+
+
+@pytest.mark.parametrize("stride", [1.0, 3.0, 8.0])
+def test_last_footprint_reaches_the_image_edge(stride):
+    """A surface only in the top row: the sample whose centre leaves the image still has footprint on screen.
+
+    From row 20.5 straight up, strides 3 and 8 put the last on-screen centres at rows 2.5 and 4.5, their footprints
+    end at rows 1 and 0.5; the next centre (−0.5, −3.5) is off screen. Regression: that sample was dropped
+    (``OFF_SCREEN``), so row 0 was never tested; now it is tested over ``[P − ½dP, edge]`` at that part's centre.
+    """
+    g = one_ray((0.0, 1.0, 0.0), pixel=(16, 20))                          # lateral: the ray stays at z = −5
+    g.view_z[0, 0, 0, 16], g.mask[0, 0, 0, 16], g.normal[0, 2, 0, 16] = -4.95, True, 1.0   # 0.05 in front
+    for fn in (ssr_dda, ssr_dda_basic):
+        r = fn(g, DDASSRParams(max_ray_distance=50.0, pixel_stride=stride, pixel_stride_z_cutoff=math.inf))
+        assert at(r.termination, 16, 20) == HIT and finite(r)
+        assert r.hit_pixel[0, :, 20, 16].floor().tolist() == [16.0, 0.0]

@@ -110,6 +110,12 @@ def ssr_dda_basic(gbuffer: GBuffer, params: DDASSRParams = DDASSRParams(),
         dQ = [(Q1[i] - Q0[i]) * invdx for i in range(3)]
         dk = (k1 - k0) * invdx
         dP = [stepDir, delta[1] * invdx]
+        # FIX (ours): where the segment leaves the viewport, as u = P.x·stepDir; the last footprint stops there
+        Wm, Hm = (H, W) if permute else (W, H)
+        slope = delta[1] * invdx                         # minor-axis pixels per major-axis pixel
+        exitU = (Wm if stepDir > 0 else 0.0) * stepDir
+        if slope != 0:
+            exitU = min(exitU, P0[0] * stepDir + ((Hm if slope > 0 else 0.0) - P0[1]) / slope)
         # Pixel stride, smaller for distant origins. FIX: stride = PixelStride pixels at the camera
         strideScalar = 1.0 - min(1.0, -rayOrg[2] / PixelStrideZCutoff)
         pixelStride = 1.0 + strideScalar * (PixelStride - 1.0)
@@ -125,19 +131,29 @@ def ssr_dda_basic(gbuffer: GBuffer, params: DDASSRParams = DDASSRParams(),
         prevZMaxEstimate = toZ(Q0[2] + 0.5 * dQ[2], k0 + 0.5 * dk, zMin, zMax)
         P, Qz, k, count, steps = list(P0), Q0[2], k0, 0.0, 0
         end = P1[0] * stepDir
+        stop = min(end, exitU)                           # P1 or the viewport edge, whichever comes first
+        ended = BEHIND_CAMERA if clipped else MAX_DISTANCE
         intersect = False
         for i in range(Iterations):
             P, Qz, k, count = [P[0] + dP[0], P[1] + dP[1]], Qz + dQ[2], k + dk, count + 1.0   # pqk += dPQK
-            if P[0] * stepDir > end:                     # FIX: stop at P1 (G3D)
-                return (BEHIND_CAMERA if clipped else MAX_DISTANCE), None, None, steps
+            half, last, u = 0.5, False, P[0] * stepDir
+            if u > stop:                    # FIX: stop at P1 (G3D) or at the viewport edge (ours)
+                f = min(max((stop - u) / pixelStride + 0.5, 0.0), 1.0)
+                if f <= 0.0:                             # the previous footprint reached it: the ray ended
+                    return (ended if u > end else OFF_SCREEN), None, None, steps
+                # FIX (ours): a shortened last footprint [P − ½dP, stop], sampled at its centre
+                back = 0.5 * (1.0 - f)
+                P, Qz, k, count = [P[0] - dP[0] * back, P[1] - dP[1] * back], Qz - dQ[2] * back, k - dk * back, \
+                    count - back
+                half, last = 0.5 * f, True
             hitPixel = (P[1], P[0]) if permute else (P[0], P[1])
             scene = texelFetch(b, hitPixel)
             if scene is None:
                 return OFF_SCREEN, None, None, steps
             steps += 1
-            # the ray's z over this sample's footprint [P − ½dP, P + ½dP]
+            # the ray's z over this sample's footprint [P − ½dP, P + ½dP] (the last one ends at stop)
             rayZMin = prevZMaxEstimate
-            rayZMax = toZ(dQ[2] * 0.5 + Qz, dk * 0.5 + k, zMin, zMax)
+            rayZMax = toZ(dQ[2] * half + Qz, dk * half + k, zMin, zMax)
             prevZMaxEstimate = rayZMax
             if rayZMin > rayZMax:                        # swapGEQ
                 rayZMin, rayZMax = rayZMax, rayZMin
@@ -145,6 +161,8 @@ def ssr_dda_basic(gbuffer: GBuffer, params: DDASSRParams = DDASSRParams(),
             if geometry and rayZMax >= sceneZMax - zThickness and rayZMin <= sceneZMax:
                 intersect = True
                 break
+            if last:                                     # reason as the full step's centre says
+                return (ended if u > end else OFF_SCREEN), None, None, steps
         if not intersect:
             return OUT_OF_STEPS, None, None, steps       # FIX: running out of steps is not a hit
         if pixelStride > 1.0 and params.refinement != "none" and not (

@@ -50,6 +50,20 @@ def _check_mask(ao: torch.Tensor, mask: Optional[torch.Tensor]) -> None:
         raise ValueError(f"mask: expected dtype torch.bool, got {mask.dtype}")
 
 
+def _scalar(value, name: str, positive: bool):
+    """``value`` checked as a finite real number (``> 0`` or ``>= 0``): a Python number or a one-element floating
+    tensor, returned as given so a tensor keeps its autograd graph (the blurs use it arithmetically)."""
+    if isinstance(value, torch.Tensor) and value.numel() == 1 and value.is_floating_point():
+        v = float(value.detach())
+    elif isinstance(value, (int, float)) and not isinstance(value, bool):
+        v = float(value)
+    else:
+        v = math.nan
+    if not (math.isfinite(v) and (v > 0 if positive else v >= 0)):
+        raise ValueError(f"{name}: must be a finite number {'>' if positive else '>='} 0, got {value!r}")
+    return value
+
+
 def _odd(value: int, name: str) -> None:
     check_count(value, name)
     if value % 2 == 0:
@@ -100,15 +114,16 @@ def default_blur_falloff(kernel_radius: int) -> float:
 
 
 def _cross_bilateral_pass(ao: torch.Tensor, z: torch.Tensor, m: Optional[torch.Tensor], kernel_radius: int,
-                          blur_falloff: float, threshold: float, article_loop: bool, dim: int) -> torch.Tensor:
-    """One pass of ``Blur(texScale)`` along ``dim`` (-1: x, -2: y), vectorised by ``unfold``."""
+                          blur_falloff, threshold, article_loop: bool, dim: int) -> torch.Tensor:
+    """One pass of ``Blur(texScale)`` along ``dim`` (-1: x, -2: y), vectorised by ``unfold``; ``blur_falloff`` and
+    ``threshold`` are floats or 0-d tensors (the Gaussian stays on the autograd tape; the depth test is a step)."""
     R = kernel_radius
     pad = (R, R, 0, 0) if dim == -1 else (0, 0, R, R)
     taps = lambda t: F.pad(t, pad, mode="replicate").unfold(dim, 2 * R + 1, 1)      # (B, C, H, W, 2R+1)
     r = torch.arange(-R, R + 1, dtype=ao.dtype, device=ao.device)
     g = torch.exp(-r * r * blur_falloff)                                             # exp(-r²·BlurParams.z)
-    if article_loop:
-        g[-1] = 0.0                                    # for (i = -KERNEL_RADIUS; i < KERNEL_RADIUS; i++)
+    if article_loop:                                   # for (i = -KERNEL_RADIUS; i < KERNEL_RADIUS; i++)
+        g = torch.cat([g[:-1], g.new_zeros(1)])        # not in place: exp's backward reads its output
     w = g * ((taps(z) - z.unsqueeze(-1)).abs() < threshold).to(ao.dtype)           # (B, 1, H, W, 2R+1)
     if m is not None:
         w = w * taps(m)
@@ -139,9 +154,11 @@ def cross_bilateral_blur(ao: torch.Tensor, view_z: torch.Tensor, kernel_radius: 
         ao: :math:`(B, C, H, W)` ambient visibility.
         view_z: :math:`(B, 1, H, W)` view z (background ``−far``, so ``threshold`` rejects it).
         kernel_radius: ``KERNEL_RADIUS`` (15 in the article).
-        blur_falloff: ``BlurParams.z`` (``blurFalloff``); default :func:`default_blur_falloff`.
+        blur_falloff: ``BlurParams.z`` (``blurFalloff``); default :func:`default_blur_falloff`. A 0-d tensor
+            stays on the autograd tape (the blur is smooth in it).
         threshold: ``BlurParams.w`` (``threshold``), the largest ``|Δz|`` still blurred, in scene units
-            (the article gives no value; 0.1 suits the metre-scale catalog scenes).
+            (the article gives no value; 0.1 suits the metre-scale catalog scenes). A number or a 0-d tensor;
+            the blur is a step function of it, so autograd finds no path through it.
         article_loop: keep the article's loop bounds and doubled centre (see above).
         mask: optional :math:`(B, 1, H, W)` bool; off-mask taps get weight 0 (not in the article).
 
@@ -158,14 +175,14 @@ def cross_bilateral_blur(ao: torch.Tensor, view_z: torch.Tensor, kernel_radius: 
     _check_mask(ao, mask)
     check_count(kernel_radius, "kernel_radius")
     falloff = default_blur_falloff(kernel_radius) if blur_falloff is None else blur_falloff
-    for name, value in (("blur_falloff", falloff), ("threshold", threshold)):
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not (value >= 0 and value < math.inf):
-            raise ValueError(f"{name}: must be a finite number >= 0, got {value!r}")
+    falloff, threshold = (_scalar(v, n, False) for n, v in (("blur_falloff", falloff), ("threshold", threshold)))
+    falloff, threshold = (v.reshape(()).to(ao.dtype) if isinstance(v, torch.Tensor) else float(v)
+                          for v in (falloff, threshold))
     z = view_z.to(ao.dtype)
     m = None if mask is None else mask.to(ao.dtype)
     out = ao
     for dim in (-1, -2):                                    # BlurParams.xy = (1/W, 0), then (0, 1/H)
-        out = _cross_bilateral_pass(out, z, m, kernel_radius, float(falloff), float(threshold), article_loop, dim)
+        out = _cross_bilateral_pass(out, z, m, kernel_radius, falloff, threshold, article_loop, dim)
     return out if mask is None else torch.where(mask, out, ao)
 
 
@@ -183,8 +200,8 @@ def joint_bilateral_blur(ao: torch.Tensor, guide_depth: torch.Tensor, kernel_siz
         guide_depth: :math:`(B, 1, H, W)` guide, normally the linear depth ``GBuffer.linear_depth`` in [0, 1]
             (``sigma_color`` is in its units; background is 1).
         kernel_size: odd window side.
-        sigma_color: Gaussian width on depth differences.
-        sigma_space: Gaussian widths (y, x) in pixels.
+        sigma_color: Gaussian width on depth differences (a number or a one-element tensor, kept differentiable).
+        sigma_space: Gaussian widths (y, x) in pixels (numbers or one-element tensors; one tensor: both axes).
         border_type: kornia padding (``"replicate"`` = CLAMP_TO_EDGE).
         mask: optional :math:`(B, 1, H, W)` bool; off-mask taps get weight 0 (renormalised).
 
@@ -199,15 +216,25 @@ def joint_bilateral_blur(ao: torch.Tensor, guide_depth: torch.Tensor, kernel_siz
     _check_guide(ao, guide_depth, "guide_depth")
     _check_mask(ao, mask)
     _odd(kernel_size, "kernel_size")
-    if not (isinstance(sigma_color, (int, float)) and sigma_color > 0):
-        raise ValueError(f"sigma_color: must be a number > 0, got {sigma_color!r}")
-    if len(sigma_space) != 2 or not all(isinstance(s, (int, float)) and s > 0 for s in sigma_space):
+    _scalar(sigma_color, "sigma_color", True)
+    if isinstance(sigma_space, torch.Tensor) and sigma_space.numel() == 1:
+        sigma_space = (sigma_space, sigma_space)                      # one tensor width for both axes
+    try:
+        ok = len(sigma_space) == 2 and all(_scalar(s, "sigma_space", True) is not None for s in sigma_space)
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
         raise ValueError(f"sigma_space: expected two numbers > 0, got {sigma_space!r}")
     if border_type not in BORDER_TYPES:
         raise ValueError(f"border_type: expected one of {BORDER_TYPES}, got {border_type!r}")
     guide = guide_depth.to(ao.dtype)
-    blur = lambda x: KF.joint_bilateral_blur(x, guide, kernel_size, float(sigma_color),
-                                             (float(sigma_space[0]), float(sigma_space[1])), border_type)
+    if isinstance(sigma_color, torch.Tensor) or any(isinstance(s, torch.Tensor) for s in sigma_space):
+        # kornia takes tensor sigmas of shape (B,) and (B, 2) and keeps them on the autograd tape
+        as_t = lambda v: (v if isinstance(v, torch.Tensor) else torch.tensor(float(v))).reshape(()).to(ao.dtype)  # noqa: E731
+        sc, ss = as_t(sigma_color).reshape(1), torch.stack([as_t(s) for s in sigma_space]).reshape(1, 2)
+    else:
+        sc, ss = float(sigma_color), (float(sigma_space[0]), float(sigma_space[1]))
+    blur = lambda x: KF.joint_bilateral_blur(x, guide, kernel_size, sc, ss, border_type)   # noqa: E731
     return _masked(blur, ao, mask)
 
 

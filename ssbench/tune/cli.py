@@ -14,7 +14,7 @@ import os
 import sys
 from typing import Optional, Sequence
 
-from .space import SPACES
+from .space import BLUR_SPACES, SPACES
 
 __all__ = ["add_tune_parser", "cmd_tune", "format_result", "main"]
 
@@ -89,6 +89,10 @@ def add_tune_parser(subparsers) -> argparse.ArgumentParser:
                    help="reject configurations slower than this per frame (timed at --width x --height)")
     q.add_argument("--tune", type=_tune_list, dest="tune",
                    help="parameters to tune, NAME[=LO:HI],... (default: all continuous ones not in --param)")
+    q.add_argument("--blur", choices=list(BLUR_SPACES), default=None,
+                   help="score the AO after this blur (as 'ssbench ao --blur') and tune its continuous parameters "
+                        "too (blur_*: cross_bilateral blur_falloff, blur_threshold; joint_bilateral "
+                        "blur_sigma_color, blur_sigma_space; box none)")
     q.add_argument("--param", type=_param, action="append", default=[], metavar="NAME=VALUE",
                    help="hold a pass parameter fixed (repeatable), e.g. --param quality=high")
     q.add_argument("--width", type=_number(int, 1, "a positive integer"), default=160)
@@ -131,7 +135,8 @@ def _f(v, spec="{:.4f}") -> str:
 def format_result(res) -> str:
     """The text table :func:`cmd_tune` prints for a :class:`~ssbench.tune.TuneResult`."""
     s, m, sr = res.settings, res.summary, res.search
-    lines = [f"{res.method}: tuned on {', '.join(s['train'])} at {s['width']}x{s['height']} against {s['weighting']} "
+    blur = f" + {s['blur']} blur" if s.get("blur") else ""
+    lines = [f"{res.method}{blur}: tuned on {', '.join(s['train'])} at {s['width']}x{s['height']} against {s['weighting']} "
              f"GT (radius {s['gt_radius']:g}, {s['rays']} rays); held out: {', '.join(s['held_out']) or 'none'}",
              "", f"{'parameter':<20}{'default':>10}{'tuned':>10}   {'range':<18}differentiable"]
     for p in res.params:
@@ -163,12 +168,14 @@ def cmd_tune(args) -> int:
     import torch
     from .space import coerce_fixed, tunable_names
     from .tuner import tune
-    valid = tunable_names(args.method)
+    blur = getattr(args, "blur", None)
+    valid = tunable_names(args.method, blur)
     names, bounds = None, None
     if args.tune:
         bad = [n for n, _ in args.tune if n not in valid]
         if bad:
-            raise ValueError(f"argument --tune: {', '.join(map(repr, bad))} not tunable for {args.method}; "
+            raise ValueError(f"argument --tune: {', '.join(map(repr, bad))} not tunable for {args.method}"
+                             f"{' with --blur ' + blur if blur else ''}; "
                              f"tunable: {', '.join(valid)}")
         names = [n for n, _ in args.tune]
         bounds = {n: b for n, b in args.tune if b is not None}
@@ -188,7 +195,7 @@ def cmd_tune(args) -> int:
         res = tune(args.method, args.scenes, args.held_out, width=args.width, height=args.height,
                    gt_radius=args.gt_radius, rays=args.rays, weighting=args.weighting, seed=args.seed, fixed=fixed,
                    names=names, bounds=bounds, points=args.points, rounds=args.rounds, steps=args.steps, lr=args.lr,
-                   budget_ms=args.budget_ms, use_cache=not args.no_cache, progress=say)
+                   budget_ms=args.budget_ms, use_cache=not args.no_cache, blur=blur, progress=say)
     finally:
         torch.set_num_threads(before)
     data = _clean(res.as_dict())

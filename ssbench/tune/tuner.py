@@ -7,6 +7,10 @@
 4. The tuned point is the lowest training error among baseline, grid and gradient results that meets the
    budget, so the tuned training error is never above the default's (when the default meets the budget).
 5. Default and tuned are scored on the held-out scenes and timed (same timer, first training scene).
+
+With ``blur`` the objective scores (and times) the blurred AO, as ``ssbench ao --blur`` does, and the blur's
+continuous parameters (``blur_*``, :data:`~ssbench.tune.space.BLUR_SPACES`) are tuned with the pass's: the same
+grid, and Adam on those the probe finds differentiable. The default is the blur's defaults.
 """
 from __future__ import annotations
 
@@ -21,7 +25,7 @@ import torch
 from .core import Objective, Timer, prepare_cases
 from .gradient import probe, refine
 from .grid import grid_narrow
-from .space import baseline, coerce_fixed, method_parts, resolve_space
+from .space import baseline, blur_defaults, check_blur, coerce_fixed, method_parts, resolve_space
 
 __all__ = ["TuneResult", "tune", "WEIGHTINGS"]
 
@@ -59,7 +63,7 @@ def tune(method: str, train: Sequence, held_out: Sequence = (), *, width: int = 
          fixed: Optional[Mapping[str, Any]] = None, names: Optional[Sequence[str]] = None,
          bounds: Optional[Mapping[str, tuple]] = None, points: int = 5, rounds: int = 3, shrink: float = 0.5,
          steps: int = 10, lr: float = 0.05, budget_ms: Optional[float] = None, timer: Optional[Timer] = None,
-         use_cache: bool = True, cases: Optional[tuple] = None,
+         use_cache: bool = True, cases: Optional[tuple] = None, blur: Optional[str] = None,
          progress: Optional[Callable[[str], None]] = None) -> TuneResult:
     """Tune ``method``'s continuous parameters against a fixed ray-traced AO on ``train``; report ``held_out``.
 
@@ -80,6 +84,8 @@ def tune(method: str, train: Sequence, held_out: Sequence = (), *, width: int = 
         use_cache: let the reference read/write its disk cache.
         cases: ``(train_cases, held_out_cases)`` already prepared (:func:`~ssbench.tune.core.prepare_cases`
             with the same settings) to reuse between methods.
+        blur: score ``blur(pass output)`` (``"box"``, ``"cross_bilateral"``, ``"joint_bilateral"``; ``None``: no
+            blur) and tune the blur's ``blur_*`` parameters too (``names``/``bounds`` may name them).
         progress: called with a short status line per stage.
     """
     t0 = time.perf_counter()
@@ -94,17 +100,19 @@ def tune(method: str, train: Sequence, held_out: Sequence = (), *, width: int = 
     overlap = [s for s in held_out if s in train]
     if overlap:
         raise ValueError(f"held_out: {', '.join(map(str, overlap))} also in train; held-out scenes must differ")
+    check_blur(blur)
     fixed = coerce_fixed(method, fixed)
     base = baseline(method, gt_radius, fixed)
-    space = resolve_space(method, gt_radius, names, bounds, fixed)
+    space = resolve_space(method, gt_radius, names, bounds, fixed, blur=blur)
     if cases is None:
         say(f"{method}: ground truth for {len(train) + len(held_out)} scenes")
         kw = dict(width=width, height=height, gt_radius=gt_radius, rays=rays, weighting=flav, seed=seed,
                   use_cache=use_cache)
         cases = (prepare_cases(train, **kw), prepare_cases(held_out, **kw) if held_out else [])
     train_cases, held_cases = cases
-    obj = Objective(method, base, train_cases, seed=seed, budget_ms=budget_ms, timer=timer)
-    default_values = {n: float(getattr(base, n)) for n in space}
+    obj = Objective(method, base, train_cases, seed=seed, budget_ms=budget_ms, timer=timer, blur=blur)
+    bdef = blur_defaults(blur)
+    default_values = {n: float(bdef[n]) if n in bdef else float(getattr(base, n)) for n in space}
     default = obj.evaluate(default_values)
 
     say(f"{method}: grid {points}^{len(space)} x {rounds} rounds")
@@ -120,16 +128,16 @@ def tune(method: str, train: Sequence, held_out: Sequence = (), *, width: int = 
     candidates = [("default", default_values), ("grid", start)] + ([("gradient", grad_res.best)] if grad_res else [])
     scored = [(obj.evaluate(v)["error"], i, src, v) for i, (src, v) in enumerate(candidates)]
     _, _, source, tuned_values = min(scored, key=lambda t: (t[0], t[1]))
-    tuned_params = dataclasses.replace(base, **tuned_values)
+    tuned_params, tuned_blur = obj.config(tuned_values)
 
     say(f"{method}: held-out scoring and timing")
     held_default = obj.errors(base, held_cases) if held_cases else []
-    held_tuned = obj.errors(tuned_params, held_cases) if held_cases else []
+    held_tuned = obj.errors(tuned_params, held_cases, tuned_blur) if held_cases else []
     t_default = obj.evaluate(default_values, time_it=True)["time_ms"]
     t_tuned = obj.evaluate(tuned_values, time_it=True)["time_ms"]
     met = obj.evaluate(tuned_values)["status"] == "ok"                # False: nothing met the budget
     train_default = default["errors"] or obj.errors(base)               # scored even when over budget
-    train_tuned = obj.evaluate(tuned_values)["errors"] or obj.errors(tuned_params)
+    train_tuned = obj.evaluate(tuned_values)["errors"] or obj.errors(tuned_params, None, tuned_blur)
     rows = [{"scene": c.scene, "split": "train", "default": d, "tuned": t}
             for c, d, t in zip(train_cases, train_default, train_tuned)]
     rows += [{"scene": c.scene, "split": "held_out", "default": d, "tuned": t}
@@ -156,7 +164,7 @@ def tune(method: str, train: Sequence, held_out: Sequence = (), *, width: int = 
               "gradient": grad_res.history if grad_res else [], "differentiable": dnames}
     settings = {"train": [c.scene for c in train_cases], "held_out": [c.scene for c in held_cases],
                 "width": width, "height": height, "gt_radius": float(gt_radius), "rays": rays, "weighting": flav,
-                "seed": seed, "fixed": {k: (list(v) if isinstance(v, tuple) else v) for k, v in fixed.items()},
+                "seed": seed, "blur": blur, "fixed": {k: (list(v) if isinstance(v, tuple) else v) for k, v in fixed.items()},
                 "points": points, "rounds": rounds, "shrink": shrink, "steps": steps, "lr": lr,
                 "budget_ms": budget_ms, "threads": torch.get_num_threads(), "pass": f"{fn.__module__}.{fn.__name__}"}
     return TuneResult(method, settings, params, rows, summary, search)

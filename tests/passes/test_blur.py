@@ -182,3 +182,57 @@ class TestJointBilateralBlur:
             joint_bilateral_blur(x, x, sigma_space=(1.0,))
         with pytest.raises(ValueError, match="kernel_size"):
             joint_bilateral_blur(x, x, kernel_size=2)
+
+
+def _fd_check(f, value: float, h: float = 1e-6):
+    """Autograd of ``f(0-d float64 tensor)`` at ``value`` and its float64 central difference."""
+    x = torch.tensor(value, dtype=torch.float64, requires_grad=True)
+    (g,) = torch.autograd.grad(f(x), x)
+    fd = (float(f(torch.tensor(value + h, dtype=torch.float64)))
+          - float(f(torch.tensor(value - h, dtype=torch.float64)))) / (2 * h)
+    return float(g), fd
+
+
+class TestTensorParameters:
+    """A 0-d tensor parameter keeps its gradient, equal to a float64 central difference; the value matches the
+    float path."""
+
+    def _scene(self):
+        gen = torch.Generator().manual_seed(3)
+        ao = torch.rand(1, 1, 12, 14, generator=gen, dtype=torch.float64)
+        z = -2.0 - 0.3 * torch.rand(1, 1, 12, 14, generator=gen, dtype=torch.float64)
+        w = torch.linspace(0, 1, 12 * 14, dtype=torch.float64).view(1, 1, 12, 14)   # a non-uniform loss weight
+        return ao, z, w
+
+    @pytest.mark.parametrize("name, value", [("sigma_color", 0.02), ("sigma_space", 1.3)])
+    def test_joint_bilateral_sigmas(self, name, value):
+        ao, z, w = self._scene()
+        guide = (-z - 2.0) / 0.3
+        mask = torch.ones_like(ao, dtype=torch.bool)
+        mask[..., 0, :3] = False
+        f = lambda x: (w * joint_bilateral_blur(ao, guide, 5, mask=mask, **{name: x})).sum()   # noqa: E731
+        g, fd = _fd_check(f, value, 1e-6)
+        assert g != 0.0 and g == pytest.approx(fd, rel=1e-4)
+        as_float = {name: value if name == "sigma_color" else (value, value)}
+        assert float(f(torch.tensor(value, dtype=torch.float64))) == pytest.approx(
+            float((w * joint_bilateral_blur(ao, guide, 5, mask=mask, **as_float)).sum()), rel=1e-8)
+
+    @pytest.mark.parametrize("article_loop", [True, False])
+    def test_cross_bilateral_falloff_and_threshold(self, article_loop):
+        ao, z, w = self._scene()
+        f = lambda x: (w * cross_bilateral_blur(ao, z, 3, x, 0.2, article_loop=article_loop)).sum()  # noqa: E731
+        g, fd = _fd_check(f, 0.05)
+        assert g != 0.0 and g == pytest.approx(fd, rel=1e-4)
+        assert float(f(torch.tensor(0.05, dtype=torch.float64))) == pytest.approx(
+            float((w * cross_bilateral_blur(ao, z, 3, 0.05, 0.2, article_loop=article_loop)).sum()), rel=1e-12)
+        t = torch.tensor(0.2, dtype=torch.float64, requires_grad=True)
+        assert not cross_bilateral_blur(ao, z, 3, 0.05, t).requires_grad        # a step: no autograd path
+
+    def test_bad_tensor_parameters_are_rejected(self):
+        ao, z, _ = self._scene()
+        with pytest.raises(ValueError, match="blur_falloff"):
+            cross_bilateral_blur(ao, z, 3, torch.tensor(-1.0))
+        with pytest.raises(ValueError, match="sigma_color"):
+            joint_bilateral_blur(ao, z, 5, torch.tensor([0.1, 0.2]))
+        with pytest.raises(ValueError, match="sigma_space"):
+            joint_bilateral_blur(ao, z, 5, 0.1, torch.tensor(0.0))

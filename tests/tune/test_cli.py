@@ -67,3 +67,22 @@ def test_tiny_run_prints_the_table_and_writes_tune_json(tmp_path, capsys):
     assert data["summary"]["train_tuned"] <= data["summary"]["train_default"]
     assert [r["split"] for r in data["rows"]] == ["train", "held_out"]
     assert f"{data['rows'][1]['default']:.4f}" in text
+
+
+def test_blur_argument_parses_and_lists_the_blurs(capsys):
+    a = _parser().parse_args(["tune", "gtao", "--blur", "joint_bilateral", "--tune", "blur_sigma_space=1:3,radius"])
+    assert a.blur == "joint_bilateral" and a.tune == [("blur_sigma_space", (1.0, 3.0)), ("radius", None)]
+    assert _parser().parse_args(["tune", "gtao"]).blur is None
+    with pytest.raises(SystemExit):
+        _parser().parse_args(["tune", "gtao", "--blur", "gauss"])
+    assert "invalid choice: 'gauss' (choose from" in capsys.readouterr().err
+
+
+def test_blur_tunables_need_the_blur(capsys):
+    assert main(["tune", "gtao", "--scenes", "crease", "--held-out", "none", "--tune", "blur_sigma_color"]) == 1
+    err = capsys.readouterr().err
+    assert "'blur_sigma_color' not tunable for gtao; tunable: radius, falloff_range, final_value_power" in err
+    assert main(["tune", "gtao", "--blur", "cross_bilateral", "--scenes", "crease", "--held-out", "none",
+                 "--tune", "blur_sigma_color"]) == 1
+    assert ("not tunable for gtao with --blur cross_bilateral; tunable: radius, falloff_range, final_value_power, "
+            "blur_falloff, blur_threshold") in capsys.readouterr().err

@@ -76,20 +76,10 @@ def cmd_sweep(args) -> int:
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """``python -m ssbench.bench.cli sweep CONFIG ...``; returns the exit status (1 for a bad sweep file)."""
-    p = argparse.ArgumentParser(prog="ssbench")
-    sub = p.add_subparsers(dest="command", required=True)
-    add_sweep_parser(sub)
-    args = p.parse_args(argv)
-    try:
-        return args.handler(args)
-    except (ValueError, KeyError) as e:                   # SweepError is a ValueError
-        msg = e.args[0] if isinstance(e, KeyError) and e.args else e
-        print(f"ssbench: error: {msg}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        print("ssbench: interrupted (re-run the same command to resume)", file=sys.stderr)
-        return 130
+    """``python -m ssbench.bench.cli sweep CONFIG ...``: the ``ssbench`` command line
+    (:func:`ssbench.cli.main`); returns the exit status (1 for a bad sweep file)."""
+    from ..cli import main as ssbench_main
+    return ssbench_main(argv)
 
 
 if __name__ == "__main__":  # pragma: no cover

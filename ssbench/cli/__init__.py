@@ -149,6 +149,7 @@ _COMMANDS["tune"] = _cmd_tune
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run the ``ssbench`` command line; returns the exit status."""
+    args = None
     try:
         args = _parser().parse_args(argv)
         return _COMMANDS[args.command](args)
@@ -170,7 +171,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             pass
         return 141
     except KeyboardInterrupt:
-        print("ssbench: interrupted", file=sys.stderr)
+        resume = " (re-run the same command to resume)" if getattr(args, "command", None) == "sweep" else ""
+        print(f"ssbench: interrupted{resume}", file=sys.stderr)
         return 130
 
 

@@ -153,3 +153,17 @@ def coerce_params(params_cls, pairs, method: str) -> dict:
                               f"got {value!r}")
         out[name] = value
     return out
+
+
+def write_row_json(out_dir: str, row: dict) -> str:
+    """``out_dir/row.json`` of an evaluation row, written atomically (:func:`ssbench.io._atomic`)."""
+    import json
+    import os
+
+    from ..io import _atomic
+
+    def write(tmp: str) -> None:
+        with open(tmp, "w", encoding="utf-8") as f:
+            json.dump(row, f, indent=2, default=str)
+            f.write("\n")
+    return _atomic(os.path.join(out_dir, "row.json"), ".json", write)

@@ -5,7 +5,7 @@ import json
 import os
 import sys
 
-from ._args import _UsageError, coerce_params
+from ._args import _UsageError, coerce_params, write_row_json
 from ._scene_cmds import _load_scene
 
 
@@ -75,11 +75,7 @@ def _cmd_ao(args) -> int:
         for t, r in ev.references.items():
             write_png(os.path.join(args.out, f"gt_{t}.png"), ao_rgb(r.ao, mask))
             write_png(os.path.join(args.out, f"error_{t}.png"), error_rgb(ev.ao - r.ao, mask))
-        tmp = os.path.join(args.out, ".row.json.tmp")
-        with open(tmp, "w", encoding="utf-8") as f:
-            json.dump(row, f, indent=2, default=str)
-            f.write("\n")
-        os.replace(tmp, os.path.join(args.out, "row.json"))
+        write_row_json(args.out, row)
         if not args.json:
             print(f"wrote {2 * len(ev.references) + 2} files to {args.out}")
     return 0
@@ -147,11 +143,7 @@ def _cmd_ssr(args) -> int:
             images["visits.png"] = visits_rgb(visits[:1, :1])[0]
         for name, rgb in images.items():
             write_png(os.path.join(args.out, name), rgb)
-        tmp = os.path.join(args.out, ".row.json.tmp")
-        with open(tmp, "w", encoding="utf-8") as f:
-            json.dump(row, f, indent=2, default=str)
-            f.write("\n")
-        os.replace(tmp, os.path.join(args.out, "row.json"))
+        write_row_json(args.out, row)
         if not args.json:
             print(f"wrote {len(images) + 1} files to {args.out}")
     return 0

@@ -4,7 +4,7 @@ from __future__ import annotations
 import json
 import os
 
-from ._args import _UsageError, coerce_params
+from ._args import _UsageError, coerce_params, write_row_json
 from ._effect_cmds import _check_params
 
 
@@ -104,11 +104,7 @@ def _cmd_implicit(args) -> int:
             imgs[0].save(os.path.join(args.out, "frames.gif"), save_all=True, append_images=imgs[1:],
                          duration=round(1000 / args.fps), loop=0)
             written += 1
-        tmp = os.path.join(args.out, ".row.json.tmp")
-        with open(tmp, "w", encoding="utf-8") as f:
-            json.dump(row, f, indent=2, default=str)
-            f.write("\n")
-        os.replace(tmp, os.path.join(args.out, "row.json"))
+        write_row_json(args.out, row)
         if not args.json:
             print(f"wrote {written} files to {args.out}")
     return 0

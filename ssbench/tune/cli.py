@@ -211,15 +211,10 @@ def cmd_tune(args) -> int:
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """``python -m ssbench.tune.cli tune METHOD ...``; returns the exit status (1 for a bad argument value)."""
-    p = argparse.ArgumentParser(prog="ssbench")
-    add_tune_parser(p.add_subparsers(dest="command", required=True))
-    args = p.parse_args(argv)
-    try:
-        return args.handler(args)
-    except (ValueError, KeyError) as e:
-        print(f"ssbench: error: {e.args[0] if isinstance(e, KeyError) and e.args else e}", file=sys.stderr)
-        return 1
+    """``python -m ssbench.tune.cli tune METHOD ...``: the ``ssbench`` command line (:func:`ssbench.cli.main`);
+    returns the exit status (1 for a bad argument value)."""
+    from ..cli import main as ssbench_main
+    return ssbench_main(argv)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -15,6 +15,7 @@ Preview encodings (:func:`preview_png`), background pixels black unless noted:
 from __future__ import annotations
 
 import os
+import shutil
 import tempfile
 from typing import Optional
 
@@ -54,10 +55,31 @@ def to_hwc(x, layout: Optional[str] = None) -> np.ndarray:
     return np.moveaxis(a, 0, -1) if layout == "chw" else a
 
 
-def _umask_mode() -> int:
+def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
-    return 0o666 & ~mask
+    return mask
+
+
+def _umask_mode() -> int:
+    return 0o666 & ~_umask()
+
+
+def replace_dir(new: str, dest: str) -> str:
+    """Swap the finished folder ``new`` in as ``dest`` by renames, so ``dest`` is never seen half-written; the
+    previous ``dest`` (a folder, or a link, which is unlinked) is moved aside first and then removed."""
+    root = os.path.dirname(os.path.abspath(dest))
+    old = None
+    if os.path.lexists(dest):
+        old = tempfile.mkdtemp(prefix=".old-" + os.path.basename(dest) + "-", dir=root)
+        os.rmdir(old)
+        os.replace(dest, old)
+    os.replace(new, dest)
+    if old is not None and os.path.isdir(old) and not os.path.islink(old):
+        shutil.rmtree(old, ignore_errors=True)
+    elif old is not None:
+        os.unlink(old)
+    return dest
 
 
 def _atomic(path: str, suffix: str, write) -> str:

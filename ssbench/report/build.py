@@ -19,7 +19,7 @@ import time
 from typing import Iterable, Optional, Sequence
 
 from ..gbuffer import CHANNELS, GBuffer
-from ..io import _umask_mode
+from ..io import _umask_mode, replace_dir
 from . import summary
 
 #: scenes of the SSR section when the report names none (mirrors ``ssr_section.SSR_SCENES``)
@@ -118,17 +118,7 @@ def refresh_latest(run_dir: str, out_root: str) -> str:
     latest = os.path.join(out_root, "latest")
     tmp = tempfile.mkdtemp(prefix=".latest-new-", dir=out_root)
     shutil.copytree(run_dir, tmp, dirs_exist_ok=True)
-    old = None
-    if os.path.lexists(latest):
-        old = tempfile.mkdtemp(prefix=".latest-old-", dir=out_root)
-        os.rmdir(old)
-        os.replace(latest, old)
-    os.replace(tmp, latest)
-    if old is not None and os.path.isdir(old) and not os.path.islink(old):
-        shutil.rmtree(old, ignore_errors=True)
-    elif old is not None:
-        os.unlink(old)
-    return latest
+    return replace_dir(tmp, latest)
 
 
 _fmt = summary.fmt

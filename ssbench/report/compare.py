@@ -26,6 +26,7 @@ import tempfile
 from typing import Any, Optional
 
 from ..bench.rows import METADATA_FIELDS, is_volatile
+from ..io import _umask, replace_dir
 from .summary import SECTIONS, clean_json
 
 #: row fields that, with effect / scene / method / params, identify a row across runs
@@ -274,23 +275,10 @@ def write_comparison(c: dict, root: str) -> str:
             with open(os.path.join(tmp, name), "w", encoding="utf-8") as f:
                 f.write(text)
         os.chmod(tmp, 0o777 & ~_umask())                     # mkdtemp's 0o700 → a normal directory
-        old = None
-        if os.path.lexists(dest):
-            old = tempfile.mkdtemp(prefix=".compare-old-", dir=root)
-            os.rmdir(old)
-            os.replace(dest, old)
-        os.replace(tmp, dest)
-        if old:
-            shutil.rmtree(old, ignore_errors=True)
+        replace_dir(tmp, dest)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     return dest
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
 
 
 def cmd_compare(args, parser) -> int:

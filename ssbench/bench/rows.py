@@ -73,6 +73,54 @@ def _commit(tmp: str, path: str) -> None:
     os.replace(tmp, path)
 
 
+def write_text_atomic(path: str, text: str, fsync: bool = True) -> None:
+    """Write ``text`` to a temporary file beside ``path`` (flushed, fsynced) and :func:`_commit` it."""
+    d, base = os.path.split(path)
+    tmp = os.path.join(d, f".{base}.{os.getpid()}.{secrets.token_hex(2)}.tmp")
+    try:
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write(text)
+            f.flush()
+            if fsync:
+                os.fsync(f.fileno())
+        _commit(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+
+
+def write_tables(rows: Sequence[dict], base: str) -> dict[str, str]:
+    """Write ``base.jsonl`` and ``base.parquet`` (``base.csv`` without pyarrow) of ``rows``, in that order, each
+    atomically; returns ``{"jsonl": path, "parquet"|"csv": path}``."""
+    d, name = os.path.split(base)
+    out = {"jsonl": base + ".jsonl"}
+    write_text_atomic(out["jsonl"], "".join(json.dumps(r, default=_default) + "\n" for r in rows))
+    cols = tidy_columns(rows)
+    try:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+    except ImportError:                                  # pragma: no cover - pyarrow is a dependency
+        import csv
+        import io
+        buf = io.StringIO()
+        w = csv.writer(buf)
+        w.writerow(list(cols))
+        w.writerows(zip(*cols.values()))
+        out["csv"] = base + ".csv"
+        write_text_atomic(out["csv"], buf.getvalue())
+        return out
+    path = base + ".parquet"
+    tmp = os.path.join(d, f".{name}.parquet.{os.getpid()}.{secrets.token_hex(2)}.tmp")
+    try:
+        pq.write_table(pa.table(cols) if cols else pa.table({"config_id": pa.array([], pa.string())}), tmp)
+        _commit(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+    out["parquet"] = path
+    return out
+
+
 def _pid_alive(pid: int) -> bool:
     try:
         os.kill(pid, 0)
@@ -105,18 +153,7 @@ class RowStore:
 
     # ------------------------------------------------------------------ writing
     def _write_atomic(self, path: str, text: str, fsync: bool = True) -> None:
-        d, base = os.path.split(path)
-        tmp = os.path.join(d, f".{base}.{os.getpid()}.{secrets.token_hex(2)}.tmp")
-        try:
-            with open(tmp, "w", encoding="utf-8") as f:
-                f.write(text)
-                f.flush()
-                if fsync:
-                    os.fsync(f.fileno())
-            _commit(tmp, path)
-        finally:
-            if os.path.exists(tmp):
-                os.remove(tmp)
+        write_text_atomic(path, text, fsync)
 
     def write_json(self, name: str, obj: Any) -> str:
         """Write ``obj`` as JSON to ``root/name`` atomically; returns the path."""
@@ -173,33 +210,7 @@ class RowStore:
     def consolidate(self, ids: Sequence[str]) -> dict[str, str]:
         """Write ``rows.jsonl`` and ``rows.parquet`` (``rows.csv`` without pyarrow) of the rows ``ids``, in that
         order; returns ``{"jsonl": path, "parquet"|"csv": path}``."""
-        rows = self.rows(ids)
-        out = {"jsonl": os.path.join(self.root, "rows.jsonl")}
-        self._write_atomic(out["jsonl"], "".join(json.dumps(r, default=_default) + "\n" for r in rows))
-        cols = tidy_columns(rows)
-        try:
-            import pyarrow as pa
-            import pyarrow.parquet as pq
-        except ImportError:                                  # pragma: no cover - pyarrow is a dependency
-            import csv
-            import io
-            buf = io.StringIO()
-            w = csv.writer(buf)
-            w.writerow(list(cols))
-            w.writerows(zip(*cols.values()))
-            out["csv"] = os.path.join(self.root, "rows.csv")
-            self._write_atomic(out["csv"], buf.getvalue())
-            return out
-        path = os.path.join(self.root, "rows.parquet")
-        tmp = os.path.join(self.root, f".rows.parquet.{os.getpid()}.{secrets.token_hex(2)}.tmp")
-        try:
-            pq.write_table(pa.table(cols) if cols else pa.table({"config_id": pa.array([], pa.string())}), tmp)
-            _commit(tmp, path)
-        finally:
-            if os.path.exists(tmp):
-                os.remove(tmp)
-        out["parquet"] = path
-        return out
+        return write_tables(self.rows(ids), os.path.join(self.root, "rows"))
 
 
 def tidy_columns(rows: Sequence[dict]) -> dict[str, list]:

@@ -2,7 +2,6 @@
 objects, dicts or paths, fresh runs into the report folder, and the pooled raw rows (JSON lines + Parquet)."""
 from __future__ import annotations
 
-import json
 import os
 import re
 
@@ -41,19 +40,11 @@ def _as_sweeps(value) -> list:
 
 
 def _write_rows(rows: list, base: str) -> dict:
-    """``base.jsonl`` and ``base.parquet`` of ``rows`` (the sweep tables' format)."""
-    from ..bench.rows import _default, tidy_columns
-    from ..io import _atomic
-    def jsonl(tmp: str) -> None:
-        with open(tmp, "w", encoding="utf-8") as f:
-            f.writelines(json.dumps(r, default=_default) + "\n" for r in rows)
-    out = {"jsonl": _atomic(base + ".jsonl", ".jsonl", jsonl)}
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-    cols = tidy_columns(rows)
-    table = pa.table(cols) if cols else pa.table({"config_id": pa.array([], pa.string())})
-    out["parquet"] = _atomic(base + ".parquet", ".parquet", lambda t: pq.write_table(table, t))
-    return out
+    """``base.jsonl`` and ``base.parquet`` of ``rows`` (:func:`ssbench.bench.rows.write_tables`, the sweep
+    tables' format)."""
+    from ..bench.rows import write_tables
+    os.makedirs(os.path.dirname(base), exist_ok=True)
+    return write_tables(rows, base)
 
 
 def _run(sweeps: list, run_dir: str, progress, notes: list) -> tuple[list, list]:

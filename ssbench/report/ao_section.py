@@ -26,6 +26,8 @@ from typing import Iterable, Optional
 import numpy as np
 import torch
 
+from .summary import unavailable_md
+
 #: scenes of the AO section when the report names none (small, so ``make report`` stays fast)
 AO_SCENES = ("crease", "cornell_box", "sphere_on_plane", "stairs")
 FLAVOURS = ("cosine", "uniform", "obscurance")
@@ -257,7 +259,7 @@ def summary_md(ao: dict) -> str:
     """The AO section of ``summary.md``: RMSE vs cosine GT and time per method and scene."""
     lines = ["", "## Ambient occlusion", ""]
     if not ao.get("available"):
-        return "\n".join(lines + [ao.get("note") or "AO section unavailable."] + [f"- {n}" for n in ao["notes"]]) + "\n"
+        return unavailable_md(lines, ao, "AO")
     lines += [f"Radius {ao['radius']}, {ao['rays']} GT rays per pixel; RMSE vs cosine GT (time s).", "",
               "| method | " + " | ".join(s["name"] for s in ao["scenes"]) + " |",
               "|---|" + "---:|" * len(ao["scenes"])]

@@ -26,6 +26,7 @@ import numpy as np
 import torch
 
 from .ao_section import fmt, write_png
+from .summary import unavailable_md
 
 #: scenes of the progressive-vs-fixed comparison
 COMPARE_SCENES = ("thin_shell", "thin_plate")
@@ -285,8 +286,7 @@ def summary_md(imp: dict) -> str:
     """The implicit section of ``summary.md``: the comparison, λ overshoots, the double root, invalidations."""
     lines = ["", "## Implicit surfaces", ""]
     if not imp.get("available"):
-        return "\n".join(lines + [imp.get("note") or "Implicit section unavailable."]
-                         + [f"- {n}" for n in imp["notes"]]) + "\n"
+        return unavailable_md(lines, imp, "Implicit")
     lines.append(f"{imp['size']}, N = {imp['steps']}, {imp['frames']} frames; punch-through progressive vs fixed "
                  "step (h/w prediction in brackets).")
     lines.append("")

@@ -29,6 +29,7 @@ import numpy as np
 import torch
 
 from .ao_section import fmt, write_png
+from .summary import unavailable_md
 
 #: scenes of the SSR section when the report names none
 SSR_SCENES = ("reflective_floor", "fence")
@@ -223,8 +224,7 @@ def summary_md(ssr: dict) -> str:
     """The SSR section of ``summary.md``: correct / missed share and time per method and scene."""
     lines = ["", "## Screen-space reflections", ""]
     if not ssr.get("available"):
-        note = ssr.get("note") or "SSR section unavailable."
-        return "\n".join(lines + [note] + [f"- {n}" for n in ssr["notes"]]) + "\n"
+        return unavailable_md(lines, ssr, "SSR")
     lines += [f"Each method at its defaults; {ssr['spp']} spp truth radiance, hit tolerance {ssr['k_px']} px. "
               "Correct / missed share of reflective pixels (time s).", "",
               "| method | " + " | ".join(s["name"] for s in ssr["scenes"]) + " |",

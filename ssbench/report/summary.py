@@ -161,3 +161,9 @@ def rows_jsonl(meta: dict) -> dict[str, str]:
             out[key] = "".join(json.dumps(clean_json({"effect": key, **r}), allow_nan=False) + "\n"
                                for r in rows if isinstance(r, dict))
     return out
+
+
+def unavailable_md(lines: list, out: dict, name: str) -> str:
+    """A section's ``summary.md`` part when it did not run: its heading ``lines``, its note and its notes."""
+    return "\n".join(lines + [out.get("note") or f"{name} section unavailable."]
+                     + [f"- {n}" for n in out.get("notes", [])]) + "\n"

@@ -18,6 +18,8 @@ from typing import Optional
 
 import torch
 
+from .summary import unavailable_md
+
 #: methods tuned in the report, training scenes and held-out scenes
 METHODS = ("hbao", "gtao")
 TRAIN = ("crease", "sphere_on_plane")
@@ -152,8 +154,7 @@ def summary_md(out: dict) -> str:
     """The tuning section of ``summary.md``: per method default vs tuned held-out RMSE and the verdict."""
     lines = ["", "## Tuning", ""]
     if not out.get("available"):
-        return "\n".join(lines + [out.get("note") or "Tuning section unavailable."]
-                         + [f"- {n}" for n in out.get("notes", [])]) + "\n"
+        return unavailable_md(lines, out, "Tuning")
     lines.append(f"Tuned on {', '.join(out['train'])}, held out {', '.join(out['held_out'])}; cosine GT radius "
                  f"{out['gt_radius']}, {out['rays']} rays, {out['size']}; {out['search']}.")
     lines.append("")

@@ -11,17 +11,8 @@ has_llvm() {
 if has_llvm; then
     exit 0
 fi
-SUDO=""
-if [ "$(id -u)" != "0" ]; then
-    if command -v sudo >/dev/null 2>&1 && sudo -n true 2>/dev/null; then SUDO="sudo -n"; fi
-fi
-if command -v apt-get >/dev/null 2>&1 && { [ "$(id -u)" = "0" ] || [ -n "$SUDO" ]; }; then
-    echo "ssbench: installing libllvm19 for Dr.Jit (apt-get)"
-    if $SUDO apt-get update -qq >/dev/null 2>&1 && DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq libllvm19 >/dev/null 2>&1; then
-        echo "ssbench: libllvm19 installed"
-        exit 0
-    fi
-    echo "ssbench: apt-get could not install libllvm19"
+if sh "$(dirname "$0")/apt_install.sh" libllvm19 "Dr.Jit"; then
+    exit 0
 fi
 echo "ssbench: no libLLVM >= 19 found. Install it with:  sudo apt-get install -y libllvm19"
 echo "ssbench: continuing with Mitsuba's scalar_rgb fallback (ground truth ~50x slower)"

@@ -38,7 +38,8 @@ import torch
 
 from ssbench import reference
 from ssbench.passes.ssr_common import clip_ray_length, reflection_rays
-from ssbench.passes.ssr_dda import DDASSRParams, project_to_pixel_matrix, visit_map
+from ssbench.passes.ssr_dda import DDASSRParams, project_to_pixel_matrix
+from ssbench.passes.ssr_visits import visit_map
 from ssbench.scenes import load
 from _setup import size
 

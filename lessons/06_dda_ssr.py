@@ -23,7 +23,8 @@
 #
 # > **You will learn**
 # > 1. DDA and Bresenham line drawing (§2.1), and why one pixel per column is the right budget;
-# > 2. visit maps: the linear march skips and re-reads pixels, the DDA does neither (Fig. 11);
+# > 2. visit maps: the linear march skips and re-reads pixels, the DDA does neither (Fig. 11) — but it skips
+# >    the corner pixels its line clips, which a supercover walk reads;
 # > 3. `PixelStride` and `Jitter`: fewer steps, staircase vs noise (Fig. 12);
 # > 4. the per-step depth interval `[rayZMin, rayZMax]` and the hit test, traced by hand for one ray;
 # > 5. refining a strided hit by binary search or a short re-march;
@@ -42,7 +43,9 @@ import torch
 from ssbench import reference
 from ssbench.metrics import ssr as ssr_metrics
 from ssbench.passes.ssr_common import HIT, TERMINATION_NAMES, clip_ray_length, reflection_rays
-from ssbench.passes.ssr_dda import DDASSRParams, crossed_pixels, project_to_pixel_matrix, ssr_dda, visit_map
+from ssbench.passes.ssr_dda import DDASSRParams, project_to_pixel_matrix, ssr_dda
+from ssbench.passes.ssr_dda_supercover import SupercoverDDASSRParams, ssr_dda_supercover
+from ssbench.passes.ssr_visits import crossed_pixels, visit_map
 from ssbench.scenes import load
 from _setup import pick, size
 
@@ -144,7 +147,11 @@ plt.show()
 # Fig. 11 compares how often each pixel's depth is read by one ray. Lesson 4's march takes equal steps in view
 # space: close to the camera a step spans several pixels (**skipped** pixels — a thin object there is stepped
 # over), far away many steps land in the same pixel (**oversampling**, wasted reads). The DDA reads exactly one
-# pixel per row of its line (per column, for a flatter line): the line-drawing budget of Step 1.
+# pixel per row of its line (per column, for a flatter line): the line-drawing budget of Step 1. That is not
+# every pixel the ray *crosses*: where the line passes from one column to the next inside a row, it clips the
+# corner of a pixel the DDA never reads. A **supercover** walk (Amanatides & Woo's grid traversal,
+# `ssr_dda_supercover`) steps across whichever pixel edge the segment meets next, so it reads each crossed pixel
+# exactly once — a few more reads per ray, and no thin occluder hides in a clipped corner.
 
 # %%
 px, py = W // 2 + W // 5, int(0.85 * H)                                   # a floor pixel; its ray runs up the screen
@@ -161,6 +168,7 @@ for x, y in cam.view_to_pixel(samples, dim=-1).floor().long().tolist():
     if 0 <= x < W and 0 <= y < H:
         lin_visits[y, x] += 1
 dda = visit_map(g, DDASSRParams(z_thickness=Z_THICKNESS), (px, py))
+sc = visit_map(g, SupercoverDDASSRParams(z_thickness=Z_THICKNESS), (px, py))
 
 def per_row(visits):
     """Reads per image row, over the rows between the first and the last pixel read (the ray runs up the screen)."""
@@ -170,8 +178,9 @@ def per_row(visits):
 
 check("this ray runs mostly up the screen (rows are its major axis)",
       abs(dda["p1"][1] - dda["p0"][1]) > abs(dda["p1"][0] - dda["p0"][0]))
-fig, ax = plt.subplots(1, 2, figsize=(12, 4.2), layout="constrained")
-for a, visits, title in [(ax[0], lin_visits, "linear view-space march (lesson 4)"), (ax[1], dda["visits"], "DDA")]:
+fig, ax = plt.subplots(1, 3, figsize=(15, 4.2), layout="constrained")
+for a, visits, title in [(ax[0], lin_visits, "linear view-space march (lesson 4)"), (ax[1], dda["visits"], "DDA"),
+                         (ax[2], sc["visits"], "supercover DDA")]:
     rows, cols = (visits > 0).nonzero(as_tuple=True)
     window = (slice(max(0, int(rows.min()) - 2), int(rows.max()) + 3),
               slice(max(0, int(cols.min()) - 6), int(cols.max()) + 7))
@@ -190,6 +199,16 @@ fig.suptitle("Step 2 — which pixels one ray reads (Fig. 11): green once, red s
 plt.show()
 check("the DDA reads each row of its line exactly once", bool((per_row(dda["visits"]) == 1).all()))
 check("every pixel the DDA reads lies on its segment", bool((dda["crossed"] | (dda["visits"] == 0)).all()))
+sc_params = SupercoverDDASSRParams(z_thickness=Z_THICKNESS)
+sc_hit = ssr_dda_supercover(g, sc_params).hit_pixel[0, :, py, px].tolist()   # where this ray stopped (its hit)
+supercover_crossed = crossed_pixels(sc["p0"], sc_hit if sc["termination"] == HIT else sc["p1"], H, W)
+supercover_crossed[py, px] = False                                          # the origin pixel is never read
+check("the supercover reads each pixel at most once", int(sc["visits"].max()) == 1)
+check("... and exactly the pixels its segment crosses up to where it stopped",
+      bool(torch.equal(sc["visits"].bool(), supercover_crossed)))
+check("the DDA's reads are a subset of the supercover's", bool((dda["visits"].bool() <= sc["visits"].bool()).all()))
+print(f"reads along this ray: DDA {int(dda['visits'].sum())}, supercover {int(sc['visits'].sum())} "
+      f"(corner pixels the DDA skips: {int((sc['visits'].bool() & ~dda['visits'].bool()).sum())})")
 check("the linear march reads some rows several times (far away)", int((per_row(lin_visits) > 1).sum()) > 0)
 check("and skips rows (close by)", int((per_row(lin_visits) == 0).sum()) > 0)
 

@@ -489,7 +489,7 @@ def test_ssr_wrong_output_shape_is_an_error(stub_ssr):
 
 @pytest.mark.slow
 @pytest.mark.mitsuba
-@pytest.mark.parametrize("method", ["linear", "dda"])
+@pytest.mark.parametrize("method", ["linear", "dda", "dda_supercover"])
 def test_real_ssr_pass_against_real_reflections(method, tmp_path, monkeypatch):
     """End to end on a tiny image: the real pass, G-buffer and exact reflections."""
     monkeypatch.setenv("SSBENCH_CACHE_DIR", str(tmp_path / "cache"))

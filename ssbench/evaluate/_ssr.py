@@ -227,7 +227,7 @@ def ssr(scene, method: str, params=None, *, width: int = 320, height: int = 240,
 
     Args:
         scene: catalog name, scene file, dict or :class:`~ssbench.scenes.Scene`.
-        method: a name of :data:`ssbench.passes.SSR_METHODS` (``"linear"``, ``"dda"``).
+        method: a name of :data:`ssbench.passes.SSR_METHODS` (``"linear"``, ``"dda"``, ``"dda_supercover"``).
         params: ``None`` (defaults), the pass's params dataclass, or a dict of overrides (unknown names →
             ``ValueError`` naming them).
         width, height: image size of the reference G-buffer.

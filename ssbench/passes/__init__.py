@@ -31,6 +31,7 @@ def ao_method(name: str):
 SSR_METHODS: dict[str, str] = {
     "linear": "ssbench.passes.ssr_linear:ssr_linear:LinearSSRParams",
     "dda": "ssbench.passes.ssr_dda:ssr_dda:DDASSRParams",
+    "dda_supercover": "ssbench.passes.ssr_dda_supercover:ssr_dda_supercover:SupercoverDDASSRParams",
 }
 
 

@@ -45,7 +45,8 @@ Fixes and choices (anchors: ``/work/shared/notes/ssr_anchors.md``):
 * Jitter: every pixel draws ``U[0, 1)·jitter`` strides from the seeded generator (the article dithers
   ``mod((x + y)/4, 1)``). Fades as the article and :mod:`.ssr_linear`: vignette at ``vUv``, circular at the hit.
 * Limits (pinned in the tests): one sample per major-axis pixel line, so pixels whose corner the segment clips
-  are skipped (Fig. 11's "no oversampling", not a supercover); a stride wider than a feature steps over it
+  are skipped (Fig. 11's "no oversampling", not a supercover: :mod:`.ssr_dda_supercover` walks every crossed
+  pixel once, :mod:`.ssr_visits` draws both); a stride wider than a feature steps over it
   (punch-through); a ray grazing the surface it hits stops up to ~½/slope px early (texels are flat boxes).
 """
 from __future__ import annotations
@@ -341,12 +342,21 @@ def ssr_dda(gbuffer: GBuffer, params: DDASSRParams = DDASSRParams(), *, generato
         (False, [2], torch.Size([1, 3, 6, 8]))
     """
     _check(gbuffer, params)
-    cam, (B, _, H, W) = gbuffer.camera, gbuffer.view_z.shape
-    dt, dev = gbuffer.view_z.dtype, gbuffer.view_z.device
+    B, _, H, W = gbuffer.view_z.shape
     jitter = jitter_fractions(params, (B, 1, H, W), make_generator(params.seed, generator))
     s, sel, P0, P1 = _rays(gbuffer, params, jitter)
-    visits = torch.zeros(B * H * W, dtype=torch.int32, device=dev) if debug else None
+    visits = torch.zeros(B * H * W, dtype=torch.int32, device=gbuffer.view_z.device) if debug else None
     o = _march(s, (gbuffer.view_z.reshape(-1), gbuffer.mask.reshape(-1)), params, H, W, visits)
+    return assemble(gbuffer, params, sel, P1, o, visits)
+
+
+def assemble(gbuffer: GBuffer, params, sel: torch.Tensor, P1: torch.Tensor, o: dict,
+             visits: Optional[torch.Tensor]) -> SSRResult:
+    """Per-ray march outputs ``o`` (``term``, ``steps``, ``P``, ``Q``, ``k``) of the rays ``sel`` → the
+    :class:`SSRResult` images: colour at the hit texel, fades (``params``' edge/distance fields), ``debug``
+    (``visits``, ``ray_end``) when ``visits`` is given. Shared by :func:`ssr_dda` and the supercover DDA."""
+    cam, (B, _, H, W) = gbuffer.camera, gbuffer.view_z.shape
+    dt, dev = gbuffer.view_z.dtype, gbuffer.view_z.device
 
     def image(values, fill, dtype=dt):                                            # per-ray (N, C) -> (B, C, H, W)
         x = torch.full((B * H * W, values.shape[1]), fill, dtype=dtype, device=dev)
@@ -365,7 +375,7 @@ def ssr_dda(gbuffer: GBuffer, params: DDASSRParams = DDASSRParams(), *, generato
     fade = edge_fade(at, W, H, params.edge_distance, params.edge_exponent, params.edge_fade_mode) * \
         distance_fade((hit_view - origin).norm(dim=1, keepdim=True), params.fade_distance, params.fade_exponent)
     fade = torch.where(hit, fade, 0.0)
-    dbg = {"visits": visits.reshape(B, 1, H, W), "ray_end": image(P1, -1.0)} if debug else {}
+    dbg = {"visits": visits.reshape(B, 1, H, W), "ray_end": image(P1, -1.0)} if visits is not None else {}
     return SSRResult(color=raw * fade, hit=hit, hit_pixel=hit_pixel, hit_view=hit_view, steps=steps,
                      termination=term, fade=fade, raw_color=raw, debug=dbg)
 
@@ -379,47 +389,3 @@ class DDASSR(nn.Module):
 
     def forward(self, gbuffer: GBuffer, generator: Optional[torch.Generator] = None) -> SSRResult:
         return ssr_dda(gbuffer, self.params, generator=generator, debug=self.debug)
-
-
-def crossed_pixels(p0, p1, height: int, width: int) -> torch.Tensor:
-    """:math:`(H, W)` bool: the pixels the segment ``p0 → p1`` (pixel coordinates) passes through.
-
-    Amanatides–Woo cell traversal in float64, independent of the DDA; through a lattice corner it steps diagonally.
-    """
-    out = torch.zeros(height, width, dtype=torch.bool)
-    (x0, y0), (x1, y1) = (float(v) for v in p0), (float(v) for v in p1)
-    x, y, dx, dy = math.floor(x0), math.floor(y0), x1 - x0, y1 - y0
-    sx, sy = (1 if dx > 0 else -1), (1 if dy > 0 else -1)
-    tx = ((x + (sx > 0)) - x0) / dx if dx else math.inf                           # t of the next column edge
-    ty = ((y + (sy > 0)) - y0) / dy if dy else math.inf                           # t of the next row edge
-    ddx, ddy = (abs(1.0 / dx) if dx else math.inf), (abs(1.0 / dy) if dy else math.inf)
-    while True:
-        if 0 <= x < width and 0 <= y < height:
-            out[y, x] = True
-        if min(tx, ty) > 1.0:
-            return out
-        stepx, stepy = tx <= ty, ty <= tx
-        x, tx = (x + sx, tx + ddx) if stepx else (x, tx)
-        y, ty = (y + sy, ty + ddy) if stepy else (y, ty)
-
-
-def visit_map(gbuffer: GBuffer, params: DDASSRParams = DDASSRParams(), pixel=(0, 0), *,
-              generator: Optional[torch.Generator] = None) -> dict:
-    """Seed Fig. 11 for the ray of ``pixel = (x, y)`` (batch item 0, on ``mask``): fetched vs crossed texels.
-
-    Returns ``{"visits": (H, W) int32 fetches, "crossed": (H, W) bool`` (:func:`crossed_pixels` of ``P0 → P1``,
-    origin pixel included though never sampled), ``"p0", "p1"`` (pixels), ``"termination"}``; jitter as in ssr_dda.
-    """
-    _check(gbuffer, params)
-    B, _, H, W = gbuffer.view_z.shape
-    x, y = pixel
-    if not (0 <= x < W and 0 <= y < H) or not bool(gbuffer.mask[0, 0, y, x]):
-        raise ValueError(f"pixel: must be a mask pixel inside the {W}x{H} image, got {pixel!r}")
-    jitter = jitter_fractions(params, (B, 1, H, W), make_generator(params.seed, generator))
-    s, sel, P0, P1 = _rays(gbuffer, params, jitter)
-    r = int((sel == y * W + x).nonzero()[0, 0])
-    one = {key: v[r:r + 1] for key, v in s.items()}
-    one["i"], visits = one["i"] * 0, torch.zeros(B * H * W, dtype=torch.int32, device=gbuffer.view_z.device)
-    o = _march(one, (gbuffer.view_z.reshape(-1), gbuffer.mask.reshape(-1)), params, H, W, visits)
-    return {"visits": visits[:H * W].reshape(H, W).cpu(), "crossed": crossed_pixels(P0[r], P1[r], H, W),
-            "p0": P0[r].tolist(), "p1": P1[r].tolist(), "termination": int(o["term"][0])}

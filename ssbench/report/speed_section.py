@@ -53,7 +53,8 @@ _SSR_HITS = [Panel(m, p, _SSR_WRONG, fix, ylabel="share of reflective pixels") f
     ("dda", "max_steps", (("jitter", 0.0), ("z_thickness", 0.1), ("pixel_stride", 1.0))),
     ("dda", "pixel_stride", (("jitter", 0.0), ("z_thickness", 0.1), ("max_steps", 128))),
     ("dda", "z_thickness", (("max_steps", 128), ("pixel_stride", 1.0))),
-    ("dda", "jitter", (("max_steps", 128), ("pixel_stride", 4.0), ("z_thickness", 0.1))))]
+    ("dda", "jitter", (("max_steps", 128), ("pixel_stride", 4.0), ("z_thickness", 0.1))),
+    ("dda_supercover", "max_steps", (("z_thickness", 0.1),)))]
 _IMP_PUNCH = [Panel("fixed", "steps", "punch_through_rate"), Panel("sphere", "max_steps", "punch_through_rate"),
               Panel("progressive", "steps", "punch_through_rate"),
               Panel("progressive", "frame", "punch_through_per_frame"),

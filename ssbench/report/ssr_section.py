@@ -12,7 +12,9 @@ G-buffer (the report's own render when it has one, else a fresh one), traces the
   classes (stippled: an unfixable target where the pass still reported a hit); ``<method>_visits.png`` —
   ``debug["visits"]`` (depth fetches per texel, log scale, seed Fig. 11); ``<method>_error.png`` — mean
   absolute RGB error of the raw (fade-free) colour against the truth radiance (magma, saturating at
-  :data:`ERR_RANGE`).
+  :data:`ERR_RANGE`);
+* ``fig11.png`` — one ray's reads per marcher against the pixels it crosses (:mod:`.ssr_fig11`, seed Fig. 11),
+  when the linear march and both DDAs ran;
 
 plus the class-fraction table with times and a table mapping one physical thickness onto each anchor's
 "thickness" knob (:mod:`ssbench.metrics.thickness`). Nothing here may crash the report: a missing reference
@@ -186,7 +188,7 @@ def _scene(run_dir, name, methods, channels, width, height, spp, seed, k_px, use
     write_png(os.path.join(d, "truth.png"), color_rgb(truth.radiance, valid))
     write_png(os.path.join(d, "truth_classes.png"), M.class_rgb(tclasses))
     tf = M.class_fractions(tclasses)
-    method_rows, rows, notes = [], [], []
+    method_rows, rows, notes, results = [], [], [], {}
     for m in methods:
         try:
             ev = evaluate.run_ssr(sc, m, seed=seed, spp=spp, k_px=k_px, repeats=1, warmup=False, gbuffer=g,
@@ -196,6 +198,7 @@ def _scene(run_dir, name, methods, channels, width, height, spp, seed, k_px, use
             notes.append(f"{m}: {type(e).__name__}: {e}")
             continue
         row, res = ev.row, ev.result
+        results[m] = res
         files = {"color": color_rgb(res.color, valid), "classes": M.class_rgb(ev.classes, res.hit.bool()),
                  "error": magma_rgb(M.color_error_map(res.raw_color, truth.radiance), valid, ERR_RANGE)}
         visits = ev.debug.get("visits")
@@ -213,11 +216,32 @@ def _scene(run_dir, name, methods, channels, width, height, spp, seed, k_px, use
         method_rows.append({"method": m, "images": imgs, "visits_max": vmax,
                             "params": ", ".join(f"{k}={v}" for k, v in row["params"].items()),
                             "cells": [fmt(row.get(k), spec) for k, _, spec in TABLE]})
+    fig11 = _fig11(d, rel, g, results, notes)
+    if fig11:
+        images["fig11"] = fig11.pop("image")
     return ({"name": name, "description": sc.description, "images": images, "methods": method_rows,
-             "notes": notes, "gt_seconds": gt_s,
+             "notes": notes, "gt_seconds": gt_s, "fig11": fig11,
              "truth_cells": {k: fmt(tf.get(k), "{:.1%}") for k in ("correct", "off_screen_target",
                                                                    "occluded_target", "back_face_target",
                                                                    "true_miss")}}, rows, g)
+
+
+def _fig11(d: str, rel: str, g, results: dict, notes: list) -> Optional[dict]:
+    """One ray's reads per marcher (:mod:`.ssr_fig11`) when the linear march and both DDAs ran; else ``None``."""
+    from . import ssr_fig11
+    if not all(m in results for _, m in ssr_fig11.MARCHERS):
+        return None
+    try:
+        pixel = ssr_fig11.pick_pixel(g, results["dda"])
+        if pixel is None:
+            return None
+        rays = ssr_fig11.one_ray(g, pixel, results)
+        ssr_fig11.plot(os.path.join(d, "fig11.png"), rays, pixel)
+    except Exception as e:
+        notes.append(f"one-ray visit figure: {type(e).__name__}: {e}")
+        return None
+    keys = ("label", "reads", "pixels", "twice", "skipped", "outside")
+    return {"image": f"{rel}/fig11.png", "pixel": list(pixel), "rays": [{k: r[k] for k in keys} for r in rays]}
 
 
 def summary_md(ssr: dict) -> str:

@@ -64,6 +64,7 @@ from ..gbuffer import GBuffer
 from .common import check_count, check_unit_normals, fetch, make_generator
 from .ssr_common import (BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult,
                          clip_ray_length, reflection_rays)
+from .ssr_dda_refine import _count, _fetch, _refine, _z
 from .ssr_fade import EDGE_FADE_MODES, distance_fade, edge_fade
 
 REQUIRES = ("view_z", "normal", "mask", "color")
@@ -198,26 +199,6 @@ def _rays(gbuffer: GBuffer, params: DDASSRParams, jitter: torch.Tensor):
     return s, sel, P0, P1
 
 
-def _fetch(s: dict, at: dict, tex, H: int, W: int):
-    """``(on_screen, flat texel, sceneZMax, mask)`` at ``hitPixel = permute ? P.yx : P`` (``texelFetch``)."""
-    px, py = torch.where(s["permute"], at["Py"], at["Px"]), torch.where(s["permute"], at["Px"], at["Py"])
-    on = (px >= 0) & (px < W) & (py >= 0) & (py < H)
-    t = s["b"] * (H * W) + py.floor().clamp(0, H - 1).long() * W + px.floor().clamp(0, W - 1).long()
-    return on, t, tex[0][t], tex[1][t]
-
-
-def _z(Qz, k, lo, hi):
-    """Perspective-correct view z ``Q.z / k``, clamped to the segment's z range (finite where ``k`` ≤ 0)."""
-    return torch.minimum(torch.maximum(Qz / k.clamp_min(torch.finfo(k.dtype).tiny), lo), hi)
-
-
-def _count(out: dict, visits, i, t, active) -> None:
-    """Add the fetches of ``active`` rays to their step counts and to the visit map."""
-    out["steps"].index_add_(0, i, active.int())
-    if visits is not None:
-        visits.index_add_(0, t[active], torch.ones_like(t[active], dtype=visits.dtype))
-
-
 def _march(s: dict, tex, params: DDASSRParams, H: int, W: int, visits: Optional[torch.Tensor]) -> dict:
     """The DDA loop; per-ray outputs by ``s["i"]``. Finished rays freeze (``alive``), dropped when 1/8 of ``s``."""
     N, f = s["i"].numel(), dict(dtype=s["k"].dtype, device=s["k"].device)
@@ -268,48 +249,6 @@ def _march(s: dict, tex, params: DDASSRParams, H: int, W: int, visits: Optional[
                 keep = s["alive"].nonzero().squeeze(1)
                 s, dead = {key: v.index_select(0, keep) for key, v in s.items()}, 0
     return out
-
-
-def _refine(h: dict, tex, params: DDASSRParams, H: int, W: int, out: dict, visits) -> None:
-    """Refine hits in place (``h``: rays at their coarse hit ``P``) where the stride exceeds 1 px.
-
-    ``"binary"`` bisects the footprint ``[P − ½dP, P + ½dP]`` and keeps the nearest probe with the ray at or behind
-    its texel; if none is, the far end when the ray is within ``z_thickness`` in front of its texel there (texel
-    quantisation), else ``P`` (a thin feature the probes stepped off). ``"remarch"`` walks pixels from ``P − dP``.
-    """
-    binary, keys, need = params.refinement == "binary", ("Px", "Py", "Qz", "k", "n"), h["stride"] > 1.0
-    rounds = params.binary_search_iterations if binary else int(1.4 * float(h["stride"].max()))
-    if params.refinement == "none" or rounds == 0 or not bool(need.any()):
-        return
-    h["dn"], inv, back = torch.ones_like(h["k"]), 1.0 / h["stride"], (0.5 if binary else 1.0)
-    cur = {key: h[key] - h["d" + key] * back for key in keys}                    # footprint start / last miss
-    best, found = {key: h[key] for key in keys}, torch.zeros_like(need)           # the coarse hit by default
-    original = h["stride"] * 0.5
-    stride = original if binary else torch.ones_like(inv)                        # pixels (article §1.3; G3D)
-    for r in range(1, rounds + 1):
-        cur = {key: cur[key] + h["d" + key] * inv * stride for key in keys}
-        on, t, sceneZMax, m = _fetch(h, cur, tex, H, W)
-        if binary:
-            active = need & on
-            behind = active & m & (_z(cur["Qz"], cur["k"], h["zlo"], h["zhi"]) <= sceneZMax)
-            original = original * 0.5
-            stride = torch.where(behind, -original, original)
-        else:
-            active = need & on & ~found & (r <= 1.4 * h["stride"])
-            zA = _z(cur["Qz"] - 0.5 * h["dQz"] * inv, cur["k"] - 0.5 * h["dk"] * inv, h["zlo"], h["zhi"])
-            zB = _z(cur["Qz"] + 0.5 * h["dQz"] * inv, cur["k"] + 0.5 * h["dk"] * inv, h["zlo"], h["zhi"])
-            behind = active & m & (torch.minimum(zA, zB) <= sceneZMax)
-        take = behind & (~found | (cur["n"] <= best["n"]))                         # the nearest probe behind
-        best, found = {key: torch.where(take, cur[key], best[key]) for key in keys}, found | behind
-        _count(out, visits, h["i"], t, active)
-    if binary:                                  # no probe behind: the far end, if the ray is just in front there
-        far = {key: h[key] + h["d" + key] * 0.5 for key in keys}
-        on, t, sceneZMax, m = _fetch(h, far, tex, H, W)
-        active = need & on & ~found
-        use = active & m & (_z(far["Qz"], far["k"], h["zlo"], h["zhi"]) <= sceneZMax + params.z_thickness)
-        best = {key: torch.where(use, far[key], best[key]) for key in keys}
-        _count(out, visits, h["i"], t, active)
-    h.update(best)
 
 
 def ssr_dda(gbuffer: GBuffer, params: DDASSRParams = DDASSRParams(), *, generator: Optional[torch.Generator] = None,

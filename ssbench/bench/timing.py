@@ -1,31 +1,55 @@
-"""Timing that can be trusted: blocked autorange, median and IQR, and the *gather floor* measured beside it.
+"""Timing that can be trusted: interleaved rounds of the pass and its *gather floor*, median and IQR.
 
 :func:`time_pass` checks the pass output first (no NaN/Inf on valid pixels; otherwise nothing is timed and
-``timing_error`` says why), warms the pass up, then times it with ``torch.utils.benchmark`` (blocked
-autorange: median and interquartile range of per-block times) at a fixed thread count, and in the same run
-times the **gather floor**: a pure gather (:func:`ssbench.passes.common.fetch`) of as many depth texels per
-pixel as the pass reads. ``floor_ratio = time / floor`` survives a noisy machine better than the time itself.
+``timing_error`` says why), then times the pass beside its **gather floor** (a pure gather,
+:func:`ssbench.passes.common.fetch`, of as many depth texels per pixel as the pass reads) at a fixed torch
+thread count:
+
+1. inside :func:`steady_heap`: otherwise glibc's malloc page-faults a pass's temporaries on every call or not,
+   depending on what the process ran before — by far the largest gap between two runs (up to 4x);
+2. after ``warmup`` untimed calls of each (at least one: it sizes the blocks);
+3. in ``rounds`` rounds, each a block of pass calls then a block of floor calls (about ``min_run_time /
+   rounds`` seconds each, one call at least). ``floor_ratio`` is the median of the per-round ratios and
+   ``floor_ratio_iqr`` their IQR: the spread includes the machine's drift during the run, and the ratio
+   cancels what the pass and the floor share (a slow or busy machine).
+
+Cost: about ``2 * min_run_time`` plus the warm-up; a pass slower than a block gets the rounds that budget pays
+for, but at least :data:`MIN_ROUNDS` (or ``rounds`` if fewer); ``time_blocks`` is the number run. Why many
+rounds: with identically distributed rounds, the medians of two runs of n rounds differ by less than the
+larger of their IQRs with probability ~86 % (n = 5), ~96 % (9), ~99 % (15); the two blocks a blocked
+autorange gives a pass slower than ``min_run_time / 2`` give ~54 %. Measured agreement on a shared machine
+is lower (drift between runs): see ``benchmarks/bench_sweep_timing.py``, where claims about speed belong.
 
 Fields it returns (:data:`TIMING_FIELDS`): ``time_median_ms, time_iqr_ms, time_blocks, floor_median_ms,
 floor_iqr_ms, floor_samples, floor_ratio, floor_ratio_iqr, threads, timing_min_run_time, timing_error``.
-
-Claims about speed belong in ``benchmarks/`` (e.g. ``benchmarks/bench_sweep_timing.py``), never in unit tests.
 """
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import dataclasses
 import math
-from typing import Any, Callable, Mapping, Optional
+import time
+import timeit
+from typing import Any, Callable, Iterator, Mapping, Sequence
 
+import numpy as np
 import torch
-import torch.utils.benchmark as tb
 
-__all__ = ["TimingSpec", "Stats", "measure", "gather_floor", "nonfinite_on_valid", "time_pass", "agree",
-           "TIMING_FIELDS"]
+__all__ = ["TimingSpec", "Stats", "floor_indices", "nonfinite_on_valid", "median_iqr", "steady_heap", "timeit_calls",
+           "warm_up", "plan_rounds", "run_rounds", "round_fields", "time_pass", "agree",
+           "TIMING_FIELDS", "MIN_ROUNDS"]
 
 TIMING_FIELDS = ("time_median_ms", "time_iqr_ms", "time_blocks", "floor_median_ms", "floor_iqr_ms",
                  "floor_samples", "floor_ratio", "floor_ratio_iqr", "threads", "timing_min_run_time",
                  "timing_error")
+
+#: fewest rounds a slow pass is cut to (below this the IQR says little about a second run)
+MIN_ROUNDS = 5
+
+
+def _is_int(v: Any) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -33,47 +57,37 @@ class TimingSpec:
     """The ``timing:`` block of a sweep file.
 
     Attributes:
-        min_run_time: seconds of blocked autorange per measurement (the pass and its floor each).
-        warmup: untimed calls before timing (the evaluation already ran the pass once).
+        min_run_time: seconds of timed calls per measurement (the pass and its floor each), spread over the
+            rounds; a slow pass may take longer (see the module docstring).
+        warmup: untimed calls of the pass and the floor before timing (at least one is always made).
         floor: also time the gather floor (``False``: floor fields are ``nan``).
+        rounds: interleaved rounds of pass and floor blocks (median and IQR over them), at least 3.
     """
 
     min_run_time: float = 0.2
     warmup: int = 1
     floor: bool = True
+    rounds: int = 15
 
     def __post_init__(self) -> None:
         if isinstance(self.min_run_time, bool) or not isinstance(self.min_run_time, (int, float)) \
                 or not self.min_run_time > 0 or not math.isfinite(self.min_run_time):
             raise ValueError(f"min_run_time: must be a number > 0, got {self.min_run_time!r}")
-        if isinstance(self.warmup, bool) or not isinstance(self.warmup, int) or self.warmup < 0:
+        if not _is_int(self.warmup) or self.warmup < 0:
             raise ValueError(f"warmup: must be an integer >= 0, got {self.warmup!r}")
         if not isinstance(self.floor, bool):
             raise ValueError(f"floor: expected true or false, got {self.floor!r}")
+        if not _is_int(self.rounds) or self.rounds < 3:
+            raise ValueError(f"rounds: must be an integer >= 3, got {self.rounds!r}")
 
 
 @dataclasses.dataclass(frozen=True)
 class Stats:
-    """Median and IQR (seconds per call) of a blocked-autorange measurement, and its number of blocks."""
+    """Median and IQR (seconds per call) of one measurement, and its number of blocks (rounds)."""
 
     median: float
     iqr: float
     blocks: int
-
-
-def measure(call: Callable[[], Any], *, min_run_time: float, threads: int, warmup: int = 1) -> Stats:
-    """Time ``call()`` with ``torch.utils.benchmark.Timer.blocked_autorange`` at ``threads`` torch threads,
-    after ``warmup`` untimed calls."""
-    prev = torch.get_num_threads()
-    torch.set_num_threads(threads)
-    try:
-        for _ in range(warmup):
-            call()
-        m = tb.Timer("call()", globals={"call": call}, num_threads=threads).blocked_autorange(
-            min_run_time=min_run_time)
-    finally:
-        torch.set_num_threads(prev)
-    return Stats(float(m.median), float(m.iqr), len(m.times))
 
 
 def floor_indices(texture: torch.Tensor, samples: int, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
@@ -93,14 +107,6 @@ def floor_indices(texture: torch.Tensor, samples: int, seed: int = 0) -> tuple[t
     return col, row
 
 
-def gather_floor(texture: torch.Tensor, samples: int, *, min_run_time: float, threads: int,
-                 seed: int = 0) -> Stats:
-    """Time a pure gather of ``samples`` texels per pixel of ``texture`` (indices drawn outside the timing)."""
-    from ..passes.common import fetch
-    col, row = floor_indices(texture, samples, seed)
-    return measure(lambda: fetch(texture, col, row), min_run_time=min_run_time, threads=threads, warmup=1)
-
-
 def nonfinite_on_valid(output: torch.Tensor, valid: torch.Tensor) -> int:
     """NaN/Inf values of ``output`` :math:`(B, C, H, W)` on the pixels where ``valid`` :math:`(B, 1, H, W)`.
 
@@ -113,13 +119,135 @@ def nonfinite_on_valid(output: torch.Tensor, valid: torch.Tensor) -> int:
     return int((bad & valid.bool().expand_as(bad)).sum())
 
 
-def _ratio_iqr(t: Stats, f: Stats) -> float:
-    """IQR of ``t/f`` propagated from the relative IQRs (first order)."""
-    return (t.median / f.median) * math.hypot(t.iqr / t.median, f.iqr / f.median)
+def median_iqr(values: Sequence[float]) -> tuple[float, float]:
+    """Median and interquartile range of ``values`` (``numpy.quantile``, linear interpolation, as
+    ``torch.utils.benchmark`` does).
+
+    Example:
+        >>> median_iqr([4.0, 1.0, 3.0, 2.0, 5.0])
+        (3.0, 2.0)
+    """
+    if len(values) == 0:
+        raise ValueError("values: expected at least one value, got none")
+    q1, q2, q3 = np.quantile(np.asarray(values, dtype=np.float64), [0.25, 0.5, 0.75])
+    return float(q2), float(q3 - q1)
 
 
-def time_pass(inputs, spec: TimingSpec, threads: int, seed: int = 0) -> dict:
-    """The timing fields (:data:`TIMING_FIELDS`) of a pass given its :class:`~ssbench.bench.effects.BenchInputs`.
+#: glibc ``mallopt`` parameters
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
+#: where glibc's dynamic thresholds settle on 64-bit once a block of 32 MiB was freed (mmap 32 MiB, trim 2x)
+SETTLED_MMAP, SETTLED_TRIM = 32 << 20, 64 << 20
+#: the trim threshold while timing: the largest ``mallopt`` takes, so freed heap stays with the process
+TIMING_TRIM = (1 << 31) - 1
+
+
+def _glibc() -> Any:
+    """glibc's ``mallopt``/``malloc_trim`` (an object with both), or ``None`` off glibc."""
+    try:
+        libc = ctypes.CDLL(None)
+        libc.mallopt, libc.malloc_trim                                        # noqa: B018 - probe
+        return libc
+    except (OSError, AttributeError, TypeError):
+        return None
+
+
+@contextlib.contextmanager
+def steady_heap() -> Iterator[bool]:
+    """Keep freed heap memory in the process for the ``with`` block; yields whether it could (glibc only).
+
+    glibc's malloc serves blocks above its *mmap threshold* from fresh pages and gives freed heap above its
+    *trim threshold* back to the kernel; both thresholds grow with the largest block the process has freed so far.
+    So one pass either reuses memory or page-faults all of its temporaries on every call (2-4x slower for a large
+    gather), depending on what the process did before, and two runs of one configuration disagree far beyond
+    their IQR. Inside the block, blocks up to 32 MiB come from the heap and freed heap is kept (up to 2 GiB;
+    larger blocks page-fault on every call, the same in every run); on leaving, the thresholds
+    are where glibc's own adjustment settles (:data:`SETTLED_MMAP`, :data:`SETTLED_TRIM`; ``mallopt`` cannot
+    switch the adjustment back on) and ``malloc_trim(0)`` returns the free memory to the kernel.
+    """
+    libc = _glibc()
+    ok = libc is not None and libc.mallopt(_M_MMAP_THRESHOLD, SETTLED_MMAP) == 1 \
+        and libc.mallopt(_M_TRIM_THRESHOLD, TIMING_TRIM) == 1
+    try:
+        yield ok
+    finally:
+        if ok:
+            libc.mallopt(_M_TRIM_THRESHOLD, SETTLED_TRIM)
+            libc.malloc_trim(0)
+
+
+def timeit_calls(call: Callable[[], Any], number: int) -> float:
+    """Seconds taken by ``number`` calls of ``call`` (:class:`timeit.Timer`: garbage collection off)."""
+    return timeit.Timer(call, timer=time.perf_counter).timeit(number)
+
+
+def warm_up(calls: Sequence[Callable[[], Any]], seconds: float = 0.0, *, at_least: int = 1,
+            clock: Callable[[], float] = time.perf_counter) -> list[float]:
+    """Call each of ``calls`` in turn, again and again, until ``seconds`` have passed and each ran at least
+    ``at_least`` times (at least once); return each call's fastest duration (what :func:`plan_rounds` needs)."""
+    best = [math.inf] * len(calls)
+    start, n = clock(), 0
+    while n < max(1, at_least) or clock() - start < seconds:
+        for i, call in enumerate(calls):
+            t0 = clock()
+            call()
+            best[i] = min(best[i], clock() - t0)
+        n += 1
+    return best
+
+
+def plan_rounds(seconds: Sequence[float], min_run_time: float, rounds: int) -> tuple[int, list[int]]:
+    """Rounds to run and calls per block for calls taking ``seconds`` each.
+
+    Blocks last about ``min_run_time / rounds`` (one call at least). When that makes the rounds cost more than
+    ``len(seconds) * min_run_time`` (a slow pass), they are cut to what that pays for, but not below
+    :data:`MIN_ROUNDS` (nor ``rounds``).
+
+    Example:
+        >>> plan_rounds([0.001, 0.0001], min_run_time=0.2, rounds=10)     # fast calls: 20 ms blocks
+        (10, [20, 200])
+        >>> plan_rounds([0.1, 0.001], min_run_time=0.5, rounds=9)         # 0.1 s a pass: 9 rounds cost 1.4 s
+        (6, [1, 55])
+    """
+    block = min_run_time / rounds
+    numbers = [max(1, int(block / max(t, 1e-12))) for t in seconds]
+    per_round = sum(n * t for n, t in zip(numbers, seconds))
+    fit = int(len(seconds) * min_run_time / per_round + 1e-9) if per_round > 0 else rounds
+    return max(min(rounds, MIN_ROUNDS), min(rounds, fit)), numbers
+
+
+def run_rounds(calls: Sequence[Callable[[], Any]], numbers: Sequence[int], rounds: int,
+               timer: Callable[[Callable[[], Any], int], float] = timeit_calls) -> list[list[float]]:
+    """``rounds`` rounds, each timing every call back to back (``numbers[i]`` calls of ``calls[i]`` as one
+    block, ``timer(call, number)`` seconds); returns, per call, its seconds per call in each round."""
+    out: list[list[float]] = [[] for _ in calls]
+    for _ in range(rounds):
+        for i, (call, n) in enumerate(zip(calls, numbers)):
+            out[i].append(timer(call, n) / n)
+    return out
+
+
+def round_fields(per_round: Sequence[Sequence[float]]) -> dict:
+    """The time (and, given a second list, floor) fields of per-round seconds per call ``[pass, floor]``:
+    medians and IQRs in ms, ``floor_ratio`` and ``floor_ratio_iqr`` the median and IQR of per-round ratios.
+
+    Example:
+        >>> f = round_fields([[0.010, 0.012, 0.011], [0.002, 0.002, 0.001]])
+        >>> f["time_median_ms"], f["time_blocks"], f["floor_ratio"], f["floor_ratio_iqr"]
+        (11.0, 3, 6.0, 3.0)
+    """
+    tm, ti = median_iqr(per_round[0])
+    out = {"time_median_ms": tm * 1e3, "time_iqr_ms": ti * 1e3, "time_blocks": len(per_round[0])}
+    if len(per_round) > 1:
+        fm, fi = median_iqr(per_round[1])
+        rm, ri = median_iqr([p / f for p, f in zip(per_round[0], per_round[1])])
+        out.update(floor_median_ms=fm * 1e3, floor_iqr_ms=fi * 1e3, floor_ratio=rm, floor_ratio_iqr=ri)
+    return out
+
+
+def time_pass(inputs, spec: TimingSpec, threads: int, seed: int = 0, *,
+              timer: Callable[[Callable[[], Any], int], float] = timeit_calls) -> dict:
+    """The timing fields (:data:`TIMING_FIELDS`) of a pass given its :class:`~ssbench.bench.effects.BenchInputs`
+    (the protocol is the module docstring's; ``timer`` times one block, replaceable in tests).
 
     The output is checked first; with NaN/Inf on valid pixels nothing is timed, the numbers are ``nan`` and
     ``timing_error`` names the count. Times are in milliseconds per call.
@@ -132,13 +260,21 @@ def time_pass(inputs, spec: TimingSpec, threads: int, seed: int = 0) -> dict:
     if bad:
         row["timing_error"] = f"output has {bad} NaN/Inf values on valid pixels; not timed"
         return row
-    t = measure(inputs.call, min_run_time=spec.min_run_time, threads=threads, warmup=spec.warmup)
-    row.update(time_median_ms=t.median * 1e3, time_iqr_ms=t.iqr * 1e3, time_blocks=t.blocks)
+    calls = [inputs.call]
     if spec.floor:
-        f = gather_floor(inputs.texture, int(inputs.samples), min_run_time=spec.min_run_time, threads=threads,
-                         seed=seed)
-        row.update(floor_median_ms=f.median * 1e3, floor_iqr_ms=f.iqr * 1e3, floor_ratio=t.median / f.median,
-                   floor_ratio_iqr=_ratio_iqr(t, f))
+        from ..passes.common import fetch
+        col, rw = floor_indices(inputs.texture, int(inputs.samples), seed)
+        calls.append(lambda: fetch(inputs.texture, col, rw))
+    prev = torch.get_num_threads()
+    torch.set_num_threads(threads)
+    try:
+        with steady_heap():
+            best = warm_up(calls, at_least=spec.warmup)
+            rounds, numbers = plan_rounds(best, spec.min_run_time, spec.rounds)
+            per_round = run_rounds(calls, numbers, rounds, timer)
+    finally:
+        torch.set_num_threads(prev)
+    row.update(round_fields(per_round))
     return row
 
 
@@ -163,12 +299,3 @@ def agree(a: Mapping, b: Mapping, *, field: str = "floor_ratio", k: float = 1.0,
     if any(math.isnan(v) for v in (va, vb, qa, qb)):
         return False
     return abs(va - vb) <= k * max(qa, qb) + rel * max(abs(va), abs(vb))
-
-
-def timing_summary(rows, field: str = "floor_ratio") -> Optional[dict]:
-    """Median and spread of ``field`` over timing rows (``None`` without any), for benchmark printouts."""
-    vals = sorted(float(r[field]) for r in rows if field in r and not math.isnan(float(r[field])))
-    if not vals:
-        return None
-    q = lambda p: vals[min(len(vals) - 1, int(round(p * (len(vals) - 1))))]      # noqa: E731
-    return {"n": len(vals), "median": q(0.5), "iqr": q(0.75) - q(0.25), "min": vals[0], "max": vals[-1]}

@@ -116,9 +116,9 @@ def test_timing_block_and_scene_files(tmp_path):
         effect: ssr
         scenes: [sc/ball.yaml]
         methods: [dda, linear]
-        timing: {min_run_time: 0.05}
+        timing: {min_run_time: 0.05, rounds: 9}
     """))
-    assert s.timing.min_run_time == 0.05 and s.timing.floor is True
+    assert s.timing.min_run_time == 0.05 and s.timing.floor is True and s.timing.rounds == 9
     c = s.configs[0]
     assert c.scene == "sc/ball.yaml" and os.path.isabs(c.scene_file) and len(c.scene_sha256) == 64
     assert c.settings == {"threads": 1, "repeats": 1, "spp": 16, "k_px": 1.5, "reflective": None, "flip": True}
@@ -152,6 +152,8 @@ def test_timing_block_and_scene_files(tmp_path):
     ("effect: ao\nscenes: [crease]\nmethods: {hbao: {}}\nresolution: [32]\n", ":4: resolution:", ["[width, height]"]),
     ("effect: ao\nscenes: [crease]\nmethods: {hbao: {}}\ntiming: {min_run_time: 0}\n", ":4: timing.min_run_time:",
      ["must be a number > 0"]),
+    ("effect: ao\nscenes: [crease]\nmethods: {hbao: {}}\ntiming: {rounds: 2}\n", ":4: timing.rounds:",
+     ["integer >= 3"]),
     ("effect: ao\nscenes: [crease]\nmethods: {hbao: {}}\nseeds: []\n", ":4: seeds:", ["empty grid"]),
     ("effect: ao\nmethods: {hbao: {}}\n", ":1: scenes:", ["missing required field"]),
     ("effect: ao\nscenes: [crease]\nmethods: {hbao: {}}\nmethods: {gtao: {}}\n", ":4:", ["duplicate key"]),

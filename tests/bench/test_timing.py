@@ -28,9 +28,93 @@ def test_time_pass_fields_and_the_floor_gathers_the_pass_sample_count(monkeypatc
     row = T.time_pass(_inputs(samples=7), T.TimingSpec(min_run_time=0.01, warmup=0), threads=1)
     assert set(row) == set(T.TIMING_FIELDS)
     assert seen == [(1, 7, 6, 8)] and row["floor_samples"] == 7                  # 7 texels for each of 6×8 pixels
-    assert row["time_median_ms"] > 0 and row["floor_median_ms"] > 0 and row["time_blocks"] >= 1
-    assert row["floor_ratio"] == pytest.approx(row["time_median_ms"] / row["floor_median_ms"])
-    assert row["threads"] == 1 and row["timing_error"] is None and row["floor_ratio_iqr"] >= 0
+    assert row["time_median_ms"] > 0 and row["floor_median_ms"] > 0 and row["time_blocks"] == 15   # fast calls
+    assert row["floor_ratio"] > 0 and row["floor_ratio_iqr"] >= 0
+    assert row["threads"] == 1 and row["timing_error"] is None
+
+
+def test_time_pass_takes_median_and_iqr_of_interleaved_per_round_ratios():
+    inputs = _inputs()
+    pass_ms, floor_ms = [10, 12, 11, 30, 10], [2, 2, 1, 3, 2]           # ratios 5, 6, 11, 10, 5
+    seen = []
+
+    def timer(call, number):                                           # an injected clock: no real timing
+        is_pass = call is inputs.call
+        seen.append("p" if is_pass else "f")
+        ms = (pass_ms if is_pass else floor_ms)[seen.count(seen[-1]) - 1]
+        return number * ms * 1e-3
+    row = T.time_pass(inputs, T.TimingSpec(min_run_time=0.05, warmup=0, rounds=5), threads=1, timer=timer)
+    assert seen == ["p", "f"] * 5                                      # pass and floor back to back, 5 rounds
+    assert row["time_blocks"] == 5
+    assert row["time_median_ms"] == pytest.approx(11) and row["time_iqr_ms"] == pytest.approx(2)
+    assert row["floor_median_ms"] == pytest.approx(2) and row["floor_iqr_ms"] == pytest.approx(0)
+    assert row["floor_ratio"] == pytest.approx(6) and row["floor_ratio_iqr"] == pytest.approx(5)    # 10 - 5
+
+
+def test_median_iqr_interpolates_and_rejects_empty():
+    assert T.median_iqr([3.0]) == (3.0, 0.0)
+    assert T.median_iqr([1.0, 2.0, 3.0, 4.0]) == pytest.approx((2.5, 1.5))
+    with pytest.raises(ValueError, match="^values:"):
+        T.median_iqr([])
+
+
+def test_plan_rounds_cuts_slow_passes_to_the_budget_but_not_below_min_rounds():
+    assert T.plan_rounds([0.001, 0.0001], 0.15, 15) == (15, [10, 100])
+    assert T.plan_rounds([0.02, 0.001], 0.2, 15) == (12, [1, 13])        # 15 x 33 ms > 0.4 s: 12 rounds
+    assert T.plan_rounds([1.0, 0.001], 0.2, 15) == (T.MIN_ROUNDS, [1, 13])
+    assert T.plan_rounds([1.0], 0.2, 3) == (3, [1])                     # fewer rounds asked: those
+    assert T.plan_rounds([0.001], 0.15, 15) == (15, [10])               # no floor: the pass alone
+
+
+def test_warm_up_runs_until_the_time_and_count_and_returns_fastest_calls():
+    now = [0.0]
+    durations = {"a": iter([0.05, 0.03, 0.04, 0.03]), "b": iter([0.01, 0.02, 0.01, 0.01])}
+    calls = {k: 0 for k in durations}
+
+    def make(k):
+        def call():
+            calls[k] += 1
+            now[0] += next(durations[k])
+        return call
+    best = T.warm_up([make("a"), make("b")], 0.1, at_least=1, clock=lambda: now[0])
+    assert calls == {"a": 2, "b": 2} and best == pytest.approx([0.03, 0.01])   # 0.06 + 0.05 >= 0.1 s
+    calls.update(a=0, b=0)
+    durations.update(a=iter([0.0] * 3), b=iter([0.0] * 3))
+    assert T.warm_up([make("a"), make("b")], 0.0, at_least=3, clock=lambda: now[0]) == [0.0, 0.0]
+    assert calls == {"a": 3, "b": 3}
+
+
+class _FakeLibc:
+    def __init__(self, ok=1):
+        self.ok, self.log = ok, []
+
+    def mallopt(self, param, value):
+        self.log.append(("mallopt", param, value))
+        return self.ok
+
+    def malloc_trim(self, pad):
+        self.log.append(("malloc_trim", pad))
+        return 1
+
+
+def test_steady_heap_keeps_freed_memory_while_timing_and_settles_after(monkeypatch):
+    libc = _FakeLibc()
+    monkeypatch.setattr(T, "_glibc", lambda: libc)
+    with pytest.raises(RuntimeError):
+        with T.steady_heap() as ok:
+            assert ok and libc.log == [("mallopt", -3, 32 << 20), ("mallopt", -1, T.TIMING_TRIM)]
+            raise RuntimeError("a failing pass")
+    assert libc.log[2:] == [("mallopt", -1, T.SETTLED_TRIM), ("malloc_trim", 0)]      # restored on errors too
+
+
+@pytest.mark.parametrize("libc", [None, _FakeLibc(ok=0)])
+def test_steady_heap_without_glibc_changes_nothing(monkeypatch, libc):
+    monkeypatch.setattr(T, "_glibc", lambda: libc)
+    with T.steady_heap() as ok:
+        assert ok is False
+    assert libc is None or all(entry[0] == "mallopt" for entry in libc.log)       # no settling, no trim
+    with T.steady_heap():                                              # the real one (glibc or not) runs
+        pass
 
 
 def test_nonfinite_output_is_not_timed():
@@ -48,7 +132,8 @@ def test_floor_off_and_thread_count_restored():
 
 
 @pytest.mark.parametrize("kw, field", [({"min_run_time": 0}, "min_run_time"), ({"warmup": -1}, "warmup"),
-                                       ({"floor": "yes"}, "floor")])
+                                       ({"floor": "yes"}, "floor"), ({"rounds": 2}, "rounds"),
+                                       ({"rounds": True}, "rounds")])
 def test_spec_validation(kw, field):
     with pytest.raises(ValueError, match=f"^{field}:"):
         T.TimingSpec(**kw)
@@ -97,9 +182,13 @@ def test_ssr_sample_count_is_the_mean_steps_of_the_hit_buffer(monkeypatch):
 @pytest.mark.slow
 @pytest.mark.mitsuba
 def test_repeated_timings_of_one_configuration_agree_statistically():
-    """Two timings of the same configuration agree on the floor ratio within a generous IQR-based tolerance
-    (2 IQR + 50 %: a loaded 2-core machine; the strict share within 1 IQR is measured by
-    benchmarks/bench_sweep_timing.py, not asserted here)."""
+    """Two timings of the same configuration agree on the floor ratio within 2 IQR + 25 %.
+
+    Why not 1 IQR: even with identically distributed rounds, 15 rounds agree within 1 IQR only ~99 % of the
+    time, and a shared machine drifts between runs. On the 2-core development machine 25 back-to-back pairs of
+    this configuration (15 rounds) were 76 % within 1 IQR, 96 % within 2 IQR, and never more than 20 % apart
+    (benchmarks/bench_sweep_timing.py measures the shares; they are not asserted here).
+    """
     from ssbench.bench import sweep_from_dict
     from ssbench.bench.sweep import run_config
     s = sweep_from_dict({"effect": "ao", "scenes": ["crease"], "resolution": [64, 48], "rays": 4, "flip": False,
@@ -108,5 +197,6 @@ def test_repeated_timings_of_one_configuration_agree_statistically():
     a, b = (run_config(s.configs[0], s.timing) for _ in range(2))
     assert a["error"] is None and a["timing_error"] is None and a["floor_samples"] == b["floor_samples"] == 16
     assert a["floor_ratio"] > 0 and b["floor_ratio"] > 0
-    assert T.agree(a, b, field="floor_ratio", k=2.0, rel=0.5), (a["floor_ratio"], a["floor_ratio_iqr"],
+    assert min(a["time_blocks"], b["time_blocks"]) >= T.MIN_ROUNDS
+    assert T.agree(a, b, field="floor_ratio", k=2.0, rel=0.25), (a["floor_ratio"], a["floor_ratio_iqr"],
                                                                 b["floor_ratio"], b["floor_ratio_iqr"])

@@ -105,8 +105,8 @@ def _parser() -> _Parser:
     q.add_argument("--spp", type=_positive("spp"), default=64)
     q.add_argument("--seed", type=_non_negative, default=0)
     q.add_argument("--scenes", type=_scene_list, default=None, help="comma-separated subset of the catalog")
-    q.add_argument("--cache", action="store_true", help="use the render cache for the scene previews too (their "
-                   "timings then measure the cache)")
+    q.add_argument("--fresh-previews", action="store_true", help="render and time the scene previews afresh (by "
+                   "default they come from the render cache when there, with the times recorded when rendered)")
     q.add_argument("--no-gt-cache", action="store_true", help="trace every section's ground truth afresh (by "
                    "default the reference cache is read and written)")
     q.add_argument("--no-ao", action="store_true", help="leave out the ambient-occlusion section")

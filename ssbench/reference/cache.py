@@ -59,8 +59,10 @@ def path_for(key: str) -> str:
     return os.path.join(cache_dir(), key[-2:], key + ".npz")
 
 
-def load(key: str) -> Optional[dict[str, np.ndarray]]:
-    """The arrays stored under ``key``, or ``None`` when absent, disabled or corrupt (then it is removed)."""
+def load(key: str, meta: Optional[dict] = None) -> Optional[dict[str, np.ndarray]]:
+    """The arrays stored under ``key``, or ``None`` when absent, disabled or corrupt (then it is removed).
+
+    ``meta``: a dict to receive the entry's stored metadata (e.g. ``"seconds"``, the original render time)."""
     if not enabled():
         return None
     p = path_for(key)
@@ -69,9 +71,11 @@ def load(key: str) -> Optional[dict[str, np.ndarray]]:
     try:
         with np.load(p, allow_pickle=False) as z:
             arrays = {k: z[k] for k in z.files if k != "__meta__"}
-            meta = json.loads(bytes(z["__meta__"]).decode())
-        if meta.get("sha256") != _digest(arrays):
+            stored = json.loads(bytes(z["__meta__"]).decode())
+        if stored.get("sha256") != _digest(arrays):
             raise ValueError("checksum mismatch")
+        if meta is not None:
+            meta.update(stored)
         return arrays
     except Exception as e:  # truncated zip, bad checksum, unreadable JSON ...
         warnings.warn(f"ssbench cache: corrupt entry {p} ({e}); recomputing", RuntimeWarning, stacklevel=2)

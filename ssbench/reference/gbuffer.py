@@ -202,7 +202,7 @@ def _fill(sc: Scene, cam: Camera, raw: dict[str, np.ndarray], chans: tuple[str, 
 
 def gbuffer(scene, width: Optional[int] = None, height: Optional[int] = None,
             channels: Optional[Iterable[str]] = None, *, spp: int = 64, seed: int = 0,
-            use_cache: bool = True) -> GBuffer:
+            use_cache: bool = True, info: Optional[dict] = None) -> GBuffer:
     """Render a reference :class:`~ssbench.gbuffer.GBuffer` with one ray per pixel centre.
 
     Args:
@@ -211,6 +211,8 @@ def gbuffer(scene, width: Optional[int] = None, height: Optional[int] = None,
         channels: names from :data:`ssbench.gbuffer.CHANNELS` (default :data:`DEFAULT_CHANNELS`). ``color``
             is path traced by :func:`ssbench.reference.color` with ``spp`` and ``seed``.
         use_cache: read and write the on-disk cache (``ssbench.reference.cache``).
+        info: a dict to receive ``{"cached": bool, "seconds": float or None}`` of the geometric channels: whether
+            they came from the cache and how long their rendering took (then, when they were rendered).
 
     Returns:
         A batch-1 G-buffer whose camera is the scene camera at ``width × height``.
@@ -221,13 +223,20 @@ def gbuffer(scene, width: Optional[int] = None, height: Optional[int] = None,
     gb = None
     if geo:
         key = cache.make_key("gbuffer", _KERNEL_VERSION, sc.content_hash(), cam, sorted(geo))
-        raw = cache.load(key) if use_cache else None
+        stored: dict = {}
+        raw = cache.load(key, stored) if use_cache else None
         if raw is None:
             t0 = time.perf_counter()
             raw = (_render_jit if backend.is_jit() else _render_scalar)(sc, cam, geo)
             raw = {k: v for k, v in raw.items() if k in geo or k in ("mask", "shape_id")}
+            stored = {"seconds": time.perf_counter() - t0}
             if use_cache:
-                cache.store(key, raw, {"seconds": time.perf_counter() - t0})
+                cache.store(key, raw, stored)
+        elif info is not None:
+            info["cached"] = True
+        if info is not None:
+            info.setdefault("cached", False)
+            info["seconds"] = stored.get("seconds")
         gb = _fill(sc, cam, raw, geo)
     if "color" in chans:
         from .color import color as render_color

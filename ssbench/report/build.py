@@ -34,20 +34,25 @@ _REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__
 def render_scene(scene, width: Optional[int] = None, height: Optional[int] = None,
                  channels: Sequence[str] = ALL_CHANNELS, *, spp: int = 64, seed: int = 0,
                  use_cache: bool = True) -> tuple[GBuffer, dict]:
-    """Render ``channels`` of ``scene`` (``mask`` always included); timings ``{"gbuffer_s", "color_s"}``.
+    """Render ``channels`` of ``scene`` (``mask`` always included); timings ``{"gbuffer_s", "color_s",
+    "gbuffer_cached", "color_cached"}``.
 
     The geometric channels and the path-traced colour are rendered and timed separately
-    (``time.perf_counter``); either time is ``None`` when that part was not asked for.
+    (``time.perf_counter`` around scene conversion and rendering, as the reference functions report them in
+    ``info``; cache I/O excluded); either time is ``None`` when that part was not asked for. A part read from the
+    render cache (``use_cache``) is flagged ``*_cached`` and its time is the one recorded when it was rendered
+    (``None`` for entries that recorded none).
     """
     from .. import reference
     geo = tuple(dict.fromkeys([c for c in channels if c != "color"] + ["mask"]))
-    t0 = time.perf_counter()
-    g = reference.gbuffer(scene, width, height, channels=geo, spp=spp, seed=seed, use_cache=use_cache)
-    timings = {"gbuffer_s": time.perf_counter() - t0, "color_s": None}
+    info = {}
+    g = reference.gbuffer(scene, width, height, channels=geo, spp=spp, seed=seed, use_cache=use_cache, info=info)
+    timings = {"gbuffer_s": info.get("seconds"), "color_s": None, "gbuffer_cached": bool(info.get("cached")),
+               "color_cached": False}
     if "color" in channels:
-        t0 = time.perf_counter()
-        col = reference.color(scene, g.width, g.height, spp=spp, seed=seed, use_cache=use_cache)
-        timings["color_s"] = time.perf_counter() - t0
+        info = {}
+        col = reference.color(scene, g.width, g.height, spp=spp, seed=seed, use_cache=use_cache, info=info)
+        timings.update(color_s=info.get("seconds"), color_cached=bool(info.get("cached")))
         g = GBuffer(g.camera, color=col, **g.as_dict())
     return g, timings
 
@@ -210,14 +215,15 @@ def _render_index(tpl_env, meta: dict) -> str:
 
 
 def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = None, width: int = 320,
-                 height: int = 240, spp: int = 64, seed: int = 0, *, use_cache: bool = False,
+                 height: int = 240, spp: int = 64, seed: int = 0, *, use_cache: bool = True,
                  progress: Optional[bool] = None, ao: bool = True, ao_radius: float = 0.5,
                  ao_rays: int = 128, ssr: bool = True, ssr_spp: int = 16, implicit: Optional[bool] = None,
                  speed: Optional[bool] = None, tuning: Optional[bool] = None, gt_cache: bool = True) -> str:
     """Render every catalog scene (or ``scenes``) and write a report run; returns the run's ``index.html``.
 
-    ``use_cache=False`` (default) renders the scene previews afresh so their timings measure rendering, not the
-    disk cache; ``gt_cache=True`` (default) lets the sections read and write the ground-truth cache (a warm run
+    ``use_cache=True`` (default) reads the scene previews from the render cache when they are there (their times
+    are then the ones recorded when they were rendered, flagged "cached" in the page); ``use_cache=False``
+    renders and times them afresh. ``gt_cache=True`` (default) lets the sections read and write the ground-truth cache (a warm run
     reuses the ray-traced references; the sections' pass timings never come from a cache).
     ``ao`` adds the ambient-occlusion section (:mod:`ssbench.report.ao_section`; scenes: ``scenes`` or its
     small default subset) at radius ``ao_radius`` with ``ao_rays`` ground-truth rays per pixel; ``ssr`` the

@@ -127,8 +127,9 @@ def summary_md(meta: dict) -> str:
               "(first calls include Dr.Jit kernel compilation when its cache is cold).", "",
               "| scene | G-buffer s | colour s | coverage | description |", "|---|---:|---:|---:|---|"]
     for s in meta["scenes"]:
-        lines.append(f"| {s['name']} | {fmt(s['timings']['gbuffer_s'])} | {fmt(s['timings']['color_s'])} | "
-                     f"{s['coverage']:.1%} | {s['description']} |")
+        t = s["timings"]
+        g, c = (fmt(t[k + "_s"]) + (" (cached)" if t.get(k + "_cached") else "") for k in ("gbuffer", "color"))
+        lines.append(f"| {s['name']} | {g} | {c} | {s['coverage']:.1%} | {s['description']} |")
     lines += ["", "## Metadata", "", "| key | value |", "|---|---|"]
     for k, v in meta["metadata_rows"]:
         lines.append(f"| {k} | {str(v).replace('|', '/')} |")

@@ -99,3 +99,21 @@ def test_scalar_fallback_matches_llvm():
         fin = torch.isfinite(a[k]) & torch.isfinite(b[k])
         assert torch.equal(torch.isfinite(a[k]), torch.isfinite(b[k]))
         assert (a[k][fin] - b[k][fin]).abs().max() <= 1e-4, k
+
+
+def test_cache_reports_the_recorded_render_time(tmp_path, monkeypatch):
+    """``info=``: a fresh render reports its own time, a cache hit the time recorded when it was rendered."""
+    monkeypatch.setenv("SSBENCH_CACHE_DIR", str(tmp_path))
+    for render in (lambda info: color("crease", 24, 18, spp=4, info=info),
+                   lambda info: gbuffer("crease", 24, 18, channels=["view_z", "mask"], info=info)):
+        first, again, off = {}, {}, {}
+        a, b = render(first), render(again)
+        assert first["cached"] is False and first["seconds"] > 0
+        assert again == {"cached": True, "seconds": first["seconds"]}
+        meta = {}
+        key = os.path.basename(next(os.path.join(d, f) for d, _, fs in os.walk(tmp_path) for f in fs))[:-4]
+        assert cache.load(key, meta) is not None and meta["seconds"] > 0 and "sha256" in meta
+        monkeypatch.setenv("SSBENCH_CACHE", "0")
+        render(off)
+        assert off["cached"] is False
+        monkeypatch.delenv("SSBENCH_CACHE")

@@ -79,6 +79,20 @@ def test_metadata(report):
     assert meta["total_s"] > 0 and meta["width"] == 48 and meta["spp"] == 4
 
 
+@pytest.mark.slow
+@pytest.mark.mitsuba
+def test_previews_from_the_cache_keep_their_recorded_times(tmp_path, monkeypatch):
+    from ssbench.report.build import render_scene
+    monkeypatch.setenv("SSBENCH_CACHE_DIR", str(tmp_path / "cache"))
+    _, cold = render_scene("crease", 32, 24, spp=4)
+    _, warm = render_scene("crease", 32, 24, spp=4)
+    _, fresh = render_scene("crease", 32, 24, spp=4, use_cache=False)
+    assert not cold["gbuffer_cached"] and not cold["color_cached"] and cold["color_s"] > 0
+    assert warm["gbuffer_cached"] and warm["color_cached"]
+    assert warm["gbuffer_s"] == cold["gbuffer_s"] and warm["color_s"] == cold["color_s"]   # recorded, not re-timed
+    assert not fresh["color_cached"] and fresh["color_s"] > 0
+
+
 def test_refresh_latest_replaces_previous_copy(tmp_path):
     root = tmp_path / "r"
     for run, text in (("a", "first"), ("b", "second")):

@@ -94,7 +94,7 @@ def _plot_punch(path: str, prog: dict, fixed: dict) -> None:
     ax.set(xlabel="frame", ylabel="punch-through (share of truth hits)",
            title=f"{prog['scene']}: N = {prog['params']['steps']}, {prog['width']}×{prog['height']}")
     ax.legend(fontsize=7)
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.14, right=0.98, bottom=0.14, top=0.9)          # (tight_layout: a second draw)
     _save(fig, path)
 
 
@@ -125,7 +125,7 @@ def _plot_invalidations(path: str, row: dict, segments) -> None:
            label="invalidated pixels")
     ax.set(xlabel="frame", ylabel="pixels", title=f"{row['scene']}: (1+ε)t' probe invalidations per frame")
     ax.legend(fontsize=7)
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.1, right=0.98, bottom=0.17, top=0.88)
     _save(fig, path)
 
 

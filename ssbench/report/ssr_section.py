@@ -13,8 +13,8 @@ G-buffer (the report's own render when it has one, else a fresh one), traces the
   ``debug["visits"]`` (depth fetches per texel, log scale, seed Fig. 11); ``<method>_error.png`` — mean
   absolute RGB error of the raw (fade-free) colour against the truth radiance (magma, saturating at
   :data:`ERR_RANGE`);
-* ``fig11.png`` — one ray's reads per marcher against the pixels it crosses (:mod:`.ssr_fig11`, seed Fig. 11),
-  when the linear march and both DDAs ran;
+* ``fig11.png`` (first scene only) — one ray's reads per marcher against the pixels it crosses
+  (:mod:`.ssr_fig11`, seed Fig. 11), when the linear march and both DDAs ran;
 
 plus the class-fraction table with times and a table mapping one physical thickness onto each anchor's
 "thickness" knob (:mod:`ssbench.metrics.thickness`). Nothing here may crash the report: a missing reference
@@ -146,7 +146,7 @@ def build_ssr_section(run_dir: str, scenes: Optional[Iterable[str]] = None, widt
     for name in tqdm(names, desc="SSR", unit="scene", disable=None if progress is None else not progress):
         try:
             s, r, g = _scene(run_dir, name, methods, channels, width, height, spp, seed, k_px, use_cache,
-                             (gbuffers or {}).get(name), evaluate, reflections)
+                             (gbuffers or {}).get(name), evaluate, reflections, fig11=name == names[0])
             out_scenes.append(s)
             rows += r
             cam = cam or g.camera
@@ -169,7 +169,8 @@ def build_ssr_section(run_dir: str, scenes: Optional[Iterable[str]] = None, widt
             "seconds": time.perf_counter() - t_start, "err_range": ERR_RANGE, "threads": torch.get_num_threads()}
 
 
-def _scene(run_dir, name, methods, channels, width, height, spp, seed, k_px, use_cache, g, evaluate, reflections):
+def _scene(run_dir, name, methods, channels, width, height, spp, seed, k_px, use_cache, g, evaluate, reflections,
+           fig11: bool = True):
     from .. import reference
     from ..metrics import ssr as M
     from ..scenes import load
@@ -216,7 +217,7 @@ def _scene(run_dir, name, methods, channels, width, height, spp, seed, k_px, use
         method_rows.append({"method": m, "images": imgs, "visits_max": vmax,
                             "params": ", ".join(f"{k}={v}" for k, v in row["params"].items()),
                             "cells": [fmt(row.get(k), spec) for k, _, spec in TABLE]})
-    fig11 = _fig11(d, rel, g, results, notes)
+    fig11 = _fig11(d, rel, g, results, notes) if fig11 else None
     if fig11:
         images["fig11"] = fig11.pop("image")
     return ({"name": name, "description": sc.description, "images": images, "methods": method_rows,

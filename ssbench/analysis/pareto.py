@@ -75,7 +75,7 @@ def _num(v: Any) -> float:
 def row_time_ms(row: Mapping) -> float:
     """Milliseconds per call of a sweep row's pass (NaN when unknown).
 
-    ``time_median_ms`` (the ``timing:`` block's blocked autorange) when finite, else the evaluation's own
+    ``time_median_ms`` (the ``timing:`` block's median over rounds) when finite, else the evaluation's own
     ``seconds_per_frame`` (implicit) or ``seconds``; plus ``blur_seconds`` (AO with a blur: the timed pass
     excludes the blur, the effect's cost includes it).
 

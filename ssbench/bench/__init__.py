@@ -5,7 +5,7 @@
 * :mod:`~ssbench.bench.sweep` — :func:`run_sweep` (resumable, one atomic row per configuration) and
   :func:`run_config`;
 * :mod:`~ssbench.bench.rows` — the row store, run metadata, volatile fields;
-* :mod:`~ssbench.bench.timing` — blocked-autorange timing with the gather floor;
+* :mod:`~ssbench.bench.timing` — timing in interleaved rounds with the gather floor (median, IQR, floor ratio);
 * :mod:`~ssbench.bench.executors` — local and Dask executors;
 * :mod:`~ssbench.bench.effects` — the effect registry (``ao``, ``ssr``; one entry per effect);
 * :mod:`~ssbench.bench.cli` — ``ssbench sweep``.

@@ -5,21 +5,29 @@ TORCH_SPEC  ?= torch==2.13.0
 PYTHON      := $(VENV)/bin/python
 PIP         := $(VENV)/bin/pip
 STAMP       := $(VENV)/.ssbench-installed
+DEV_STAMP   := $(VENV)/.ssbench-dev-installed
 LESSONS_STAMP := $(VENV)/.ssbench-lessons-installed
 REPORT_ARGS ?=
 PYTEST_ARGS ?=
 JUPYTER_ARGS ?=
 
-.PHONY: setup llvm browser test test-fast report info bench lessons lessons-sync clean
+.PHONY: setup setup-dev llvm browser test test-fast report info bench lessons lessons-sync clean
 
-## setup: create .venv, install CPU torch first (override TORCH_SPEC), then the project with its extras
+## setup: create .venv, install CPU torch first (override TORCH_SPEC), then the project (what `make report` needs)
 setup: $(STAMP) llvm
+
+## setup-dev: setup plus the test extras (pytest, notebook execution) that `make test` needs
+setup-dev: $(DEV_STAMP) llvm
 
 $(STAMP): pyproject.toml
 	test -x $(PYTHON) || $(PY) -m venv $(VENV)
 	$(PIP) install -q "$(TORCH_SPEC)"
-	$(PIP) install -q -e ".[dev]"
+	$(PIP) install -q -e .
 	touch $(STAMP)
+
+$(DEV_STAMP): $(STAMP)
+	$(PIP) install -q -e ".[dev]"
+	touch $(DEV_STAMP)
 
 ## llvm: make sure Dr.Jit has a working libLLVM (installs Debian's libllvm19 when apt is usable)
 llvm:
@@ -30,11 +38,11 @@ browser:
 	@sh scripts/ensure_chromium.sh
 
 ## test: the whole suite (slow tests included, as in CI)
-test: setup browser
+test: setup-dev browser
 	MPLBACKEND=Agg $(PYTHON) -m pytest $(PYTEST_ARGS)
 
 ## test-fast: skip the slow (rendering / subprocess) tests
-test-fast: setup
+test-fast: setup-dev
 	MPLBACKEND=Agg $(PYTHON) -m pytest -m "not slow" $(PYTEST_ARGS)
 
 ## report: the main job — reference renders of the built-in scenes into reports/latest/index.html
@@ -53,7 +61,7 @@ $(LESSONS_STAMP): $(STAMP)
 	touch $(LESSONS_STAMP)
 
 ## lessons-sync: rebuild every lessons/NN_*.ipynb from its .py source (no outputs); tests/lessons checks the pairs
-lessons-sync: $(STAMP)
+lessons-sync: $(DEV_STAMP)
 	$(PYTHON) lessons/_sync.py
 
 ## bench: G-buffer timing at 640x360, implicit evaluators (torch vs Dr.Jit) and marchers (prints numbers; not a test)

@@ -225,18 +225,16 @@ def gbuffer(scene, width: Optional[int] = None, height: Optional[int] = None,
         key = cache.make_key("gbuffer", _KERNEL_VERSION, sc.content_hash(), cam, sorted(geo))
         stored: dict = {}
         raw = cache.load(key, stored) if use_cache else None
-        if raw is None:
+        cached = raw is not None
+        if not cached:
             t0 = time.perf_counter()
             raw = (_render_jit if backend.is_jit() else _render_scalar)(sc, cam, geo)
             raw = {k: v for k, v in raw.items() if k in geo or k in ("mask", "shape_id")}
             stored = {"seconds": time.perf_counter() - t0}
             if use_cache:
                 cache.store(key, raw, stored)
-        elif info is not None:
-            info["cached"] = True
         if info is not None:
-            info.setdefault("cached", False)
-            info["seconds"] = stored.get("seconds")
+            info.update(cached=cached, seconds=stored.get("seconds"))
         gb = _fill(sc, cam, raw, geo)
     if "color" in chans:
         from .color import color as render_color

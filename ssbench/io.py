@@ -177,8 +177,24 @@ def preview_rgb(name: str, x, mask=None, camera=None, exposure: float = 1.0) -> 
     return (np.clip(rgb, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
 
 
+def write_rgb_png(path, rgb: np.ndarray) -> str:
+    """Write an ``(H, W, 3)`` uint8 image as an RGB PNG, atomically; returns ``path``.
+
+    zlib level 1: 2-3x faster than the default 6 for the report's images, for files ~10-50 % larger.
+    """
+    from PIL import Image
+    rgb = np.ascontiguousarray(rgb)
+    if rgb.dtype != np.uint8 or rgb.ndim != 3 or rgb.shape[-1] != 3:
+        raise ValueError(f"rgb: expected an (H, W, 3) uint8 array, got {rgb.dtype} {rgb.shape}")
+    return _atomic(path, ".png", lambda tmp: Image.fromarray(rgb).save(tmp, format="png", compress_level=1))
+
+
+def save_figure(fig, path, dpi: int = 100) -> str:
+    """Save a matplotlib figure as PNG atomically (zlib level 1, as :func:`write_rgb_png`); returns ``path``."""
+    return _atomic(path, ".png", lambda tmp: fig.savefig(tmp, format="png", dpi=dpi,
+                                                          pil_kwargs={"compress_level": 1}))
+
+
 def preview_png(path, name: str, tensor, mask=None, camera=None, exposure: float = 1.0) -> str:
     """Write the 8-bit PNG preview of channel ``name`` to ``path`` (atomically); returns ``path``."""
-    import matplotlib.image as mimage
-    rgb = np.ascontiguousarray(preview_rgb(name, tensor, mask=mask, camera=camera, exposure=exposure))
-    return _atomic(path, ".png", lambda tmp: mimage.imsave(tmp, rgb, format="png"))
+    return write_rgb_png(path, preview_rgb(name, tensor, mask=mask, camera=camera, exposure=exposure))

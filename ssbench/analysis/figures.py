@@ -98,6 +98,6 @@ def error_time_figure(rows: Sequence[Mapping], metrics: Sequence[tuple], path: O
                 ax.legend(fontsize=6, loc="best")
     if title:
         fig.suptitle(title, fontsize=10)
-    from ..io import _atomic
-    _atomic(path, ".png", lambda tmp: fig.savefig(tmp, format="png", dpi=90))
+    from ..io import save_figure
+    save_figure(fig, path, dpi=90)
     return fronts

@@ -197,6 +197,6 @@ def small_multiples(rows: Sequence[Mapping], panels: Sequence[Panel], path: Opti
         ax.set_axis_off()
     if title:
         fig.suptitle(title, fontsize=10)
-    from ..io import _atomic
-    _atomic(path, ".png", lambda tmp: fig.savefig(tmp, format="png", dpi=90))
+    from ..io import save_figure
+    save_figure(fig, path, dpi=90)
     return data

@@ -47,6 +47,7 @@ from typing import Any, Optional
 
 import torch
 
+from ..passes.common import length
 from ._ssr_checks import _check_pair, _field, _k, _mask_arg
 from .ssr_classes import (BACK_FACE_TARGET, CLASS_NAMES, CORRECT, FALSE_HIT, MISSED, OCCLUDED_TARGET,
                           OFF_SCREEN_TARGET, PUNCH_THROUGH, TRUE_MISS)
@@ -139,7 +140,7 @@ def classify(result: Any, truth: Any, gbuffer=None, k_px: float = 1.5, *,
     t = _target_masks(truth, valid)
     target, truth_miss = t[-1], t[-2]
     ph = result.hit.bool() & valid
-    d_px = (result.hit_pixel.double() - truth.hit_pixel.double()).norm(dim=1, keepdim=True)
+    d_px = length(result.hit_pixel.double() - truth.hit_pixel.double())
     near = torch.nan_to_num(d_px, nan=math.inf) <= k                       # NaN never counts as close
     wrong = target & ph & ~near
     punch = wrong & _behind(result, truth, gbuffer, hit, wrong)
@@ -163,7 +164,7 @@ def _behind(result: Any, truth: Any, gbuffer, like: torch.Tensor, where: torch.T
         return torch.zeros_like(where)
     P = _origin(gbuffer, like)
     X, Xh = truth.hit_view.double(), result.hit_view.double()
-    t = (X - P).norm(dim=1, keepdim=True)
+    t = length(X - P)
     d = (X - P) / t.clamp_min(1e-300)
     th = ((Xh - P) * d).sum(1, keepdim=True)
     behind = torch.nan_to_num(th, nan=-math.inf) > t

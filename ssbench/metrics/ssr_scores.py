@@ -19,6 +19,7 @@ from typing import Any, Optional
 import torch
 
 from .. import checks
+from ..passes.common import length
 from ._ssr_checks import _check_classes, _check_pair, _mask_arg
 from .ssr_classes import (BACK_FACE_TARGET, CLASS_NAMES, NOT_REFLECTIVE, OCCLUDED_TARGET, OFF_SCREEN_TARGET,
                           UNFIXABLE)
@@ -86,8 +87,8 @@ def hit_error_maps(result: Any, truth: Any) -> tuple[torch.Tensor, torch.Tensor]
     """
     _check_pair(result, truth)
     both = result.hit.bool() & truth.hit.bool()
-    px = (result.hit_pixel.double() - truth.hit_pixel.double()).norm(dim=1, keepdim=True)
-    vw = (result.hit_view.double() - truth.hit_view.double()).norm(dim=1, keepdim=True)
+    px = length(result.hit_pixel.double() - truth.hit_pixel.double())
+    vw = length(result.hit_view.double() - truth.hit_view.double())
     nan = torch.full_like(px, math.nan)
     return torch.where(both, px, nan), torch.where(both, vw, nan)
 

@@ -24,6 +24,7 @@ from typing import Optional
 import torch
 
 from ..camera import Camera
+from .common import length
 
 # Termination reasons (``ImplicitResult.termination``, int8)
 MISS = 0            #: nothing found on [t_near, t_far] (transparent / background)
@@ -85,11 +86,11 @@ def camera_rays(camera: Camera, batch: int = 1, jitter: Optional[torch.Tensor] =
         px = px.expand(batch, -1, -1, -1)
     uv = camera.pixel_to_uv(px, dim=1)
     v = camera.uv_to_view(uv, torch.full_like(uv[:, :1], -1.0), dim=1)    # z = -1
-    v = v / v.norm(dim=1, keepdim=True)
+    v = v / length(v)
     cos_t = -v[:, 2:3]
     c2w = camera.camera_to_world(dtype=dtype, device=device)
     d = torch.einsum("ij,bjhw->bihw", c2w[:3, :3], v)
-    d = d / d.norm(dim=1, keepdim=True)
+    d = d / length(d)
     eye = torch.tensor(camera.eye, dtype=dtype, device=device).view(1, 3, 1, 1)
     return CameraRays(origin=eye.expand_as(d), direction=d, t_near=camera.near / cos_t,
                       t_far=camera.far / cos_t, view_dir=v)

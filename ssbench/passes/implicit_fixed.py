@@ -86,24 +86,29 @@ def march_lattice(surface, origin: torch.Tensor, direction: torch.Tensor, offset
     """
     n = origin.shape[0]
     dev = origin.device
+    total = count + (1 if last is not None else 0)
     found = torch.zeros(n, dtype=torch.bool, device=dev)
     lo, hi = origin.new_zeros(n), origin.new_zeros(n)
-    steps = torch.ones(n, dtype=torch.int32, device=dev)
+    steps = torch.full((n,), total + 1, dtype=torch.int32, device=dev)   # t_0 and every sample: no bracket
     ids = torch.arange(n, device=dev)
+    o, d, off, st, la = origin, direction, offset, step, last             # the rays still marching (compacted)
     t_prev = origin.new_zeros(n)
     f_prev = surface.f(origin)                                        # t_0 = 0, the ray origin
-    total = count + (1 if last is not None else 0)
     for k in range(1, total + 1):
         if ids.numel() == 0:
             break
-        t_k = offset[ids] + (k - 1) * step[ids] if k <= count else last[ids]
-        f_k = surface.f(origin[ids] + t_k.unsqueeze(-1) * direction[ids])
-        steps[ids] += 1
+        t_k = off + (k - 1) * st if k <= count else la
+        f_k = surface.f(o + t_k.unsqueeze(-1) * d)
         br = (f_prev >= 0) & (f_k < 0)
-        sel = ids[br]
-        found[sel], lo[sel], hi[sel] = True, t_prev[br], t_k[br]
-        keep = ~br
-        ids, t_prev, f_prev = ids[keep], t_k[keep], f_k[keep]
+        done = br.nonzero().squeeze(1)                                # integer indices: one nonzero per step
+        if done.numel():
+            sel = ids.index_select(0, done)
+            found[sel], lo[sel], hi[sel] = True, t_prev.index_select(0, done), t_k.index_select(0, done)
+            steps[sel] = k + 1                                        # t_0 and samples 1..k
+            keep = (~br).nonzero().squeeze(1)
+            ids, o, d, off, st, t_k, f_k = (x.index_select(0, keep) for x in (ids, o, d, off, st, t_k, f_k))
+            la = la.index_select(0, keep) if la is not None else None
+        t_prev, f_prev = t_k, f_k
     return found, lo, hi, steps
 
 

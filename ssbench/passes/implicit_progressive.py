@@ -43,6 +43,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from .common import length
 from .implicit_common import (HIT, INVALIDATED, MISS, CameraRays, ImplicitResult, as_rays, bisect,
                               camera_rays, check_surface, finish, flat, unflat)
 from .implicit_fixed import check_int, march_lattice
@@ -229,7 +230,7 @@ def progressive_secondary(surface, origins: torch.Tensor, directions: torch.Tens
             raise ValueError(f"{name}: expected shape (B, 3, H, W), got {getattr(x, 'shape', type(x))}")
     B, _, H, W = directions.shape
     o, d = flat(origins), flat(directions)
-    nd = d.norm(dim=1, keepdim=True)
+    nd = length(d)
     d = torch.where(nd > 0, d / torch.where(nd > 0, nd, torch.ones_like(nd)), torch.zeros_like(d))
     tm = torch.as_tensor(t_max, dtype=o.dtype, device=o.device)
     t_far = flat(tm.expand(B, 1, H, W)).squeeze(1) if tm.dim() else torch.full_like(o[:, 0], float(tm))

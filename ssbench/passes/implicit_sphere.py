@@ -123,12 +123,15 @@ def sphere_trace(surface, camera, params: SphereTraceParams = SphereTraceParams(
     omega = torch.full_like(t, float(params.omega))
     armed = fa / lam > eps * t_near                                    # clearly outside at the eye
 
-    def retire(mask, code):
+    def retire(mask, code):                                            # integer indices: one nonzero each
         nonlocal ids, t, fa, omega, armed
-        term[ids[mask]] = code
-        t_out[ids[mask]] = t[mask]
-        keep = ~mask
-        ids, t, fa, omega, armed = ids[keep], t[keep], fa[keep], omega[keep], armed[keep]
+        gone = mask.nonzero().squeeze(1)
+        if gone.numel() == 0:
+            return
+        sel = ids.index_select(0, gone)
+        term[sel], t_out[sel] = code, t.index_select(0, gone)
+        keep = (~mask).nonzero().squeeze(1)
+        ids, t, fa, omega, armed = (x.index_select(0, keep) for x in (ids, t, fa, omega, armed))
 
     retire(torch.isnan(fa), MISS)                                      # NaN at the eye: nothing to trace
     for _ in range(params.max_steps):
@@ -148,9 +151,14 @@ def sphere_trace(surface, camera, params: SphereTraceParams = SphereTraceParams(
         steps[ids] += 1
         fail = armed & (omega > 1) & (r + fn / lam < tn - t)          # spheres do not overlap (Keinert)
         cross = ~fail & (fa >= 0) & (fn < 0)
-        sel = ids[cross]
-        crossing[sel], overshoot[sel], lo[sel], hi[sel] = True, armed[cross], t[cross], tn[cross]
-        fallbacks[ids[fail]] += 1
+        ci = cross.nonzero().squeeze(1)
+        if ci.numel():
+            sel = ids.index_select(0, ci)
+            crossing[sel], overshoot[sel] = True, armed.index_select(0, ci)
+            lo[sel], hi[sel] = t.index_select(0, ci), tn.index_select(0, ci)
+        fi = fail.nonzero().squeeze(1)
+        if fi.numel():
+            fallbacks[ids.index_select(0, fi)] += 1
         omega = torch.where(fail, torch.ones_like(omega), omega)       # step back, continue with ω = 1
         acc = ~fail & ~cross
         t, fa = torch.where(acc, tn, t), torch.where(acc, fn, fa)

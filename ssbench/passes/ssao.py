@@ -41,7 +41,7 @@ from torch import nn
 from .. import checks
 from ..camera import Camera
 from ..gbuffer import GBuffer
-from .common import AOResult, check_count, check_radius, check_unit_normals, fetch_uv, make_generator
+from .common import AOResult, check_count, check_radius, check_unit_normals, fetch_uv, length, make_generator
 from .sampling import hemisphere_kernel, noise_texel, noise_texture
 
 FLAVOUR = "uniform"  # the ground-truth weighting this pass estimates (ssbench.reference.ao)
@@ -224,7 +224,7 @@ def hemisphere_ssao(gbuffer: GBuffer, params: HemisphereSSAOParams = HemisphereS
     col, row = noise_texel(cam.uv_grid(dtype, device), cam.width, cam.height, p.noise_size)   # (H, W)
     random = noise[:, row, col].unsqueeze(0)                                       # (1, 3, H, W)
     tangent = random - n * (random * n).sum(1, keepdim=True)                      # (B, 3, H, W)
-    tangent = tangent / tangent.norm(dim=1, keepdim=True).clamp_min(torch.finfo(dtype).tiny)
+    tangent = tangent / length(tangent).clamp_min(torch.finfo(dtype).tiny)
     bitangent = torch.cross(n, tangent, dim=1)
 
     # ---- §2.2 sample loop, all K samples at once ---------------------------------------------------

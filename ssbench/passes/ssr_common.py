@@ -10,6 +10,8 @@ from typing import Optional
 
 import torch
 
+from .common import length
+
 # Termination reasons (``SSRResult.termination``, int8)
 NO_RAY = 0          #: background or non-reflective pixel: no ray was marched
 HIT = 1             #: thickness test passed (after refinement)
@@ -61,9 +63,9 @@ def reflection_rays(position: torch.Tensor, normal: torch.Tensor) -> torch.Tenso
         position: :math:`(B, 3, H, W)` view-space positions (the eye is at the origin).
         normal: :math:`(B, 3, H, W)` unit view-space normals.
     """
-    incident = position / position.norm(dim=1, keepdim=True).clamp_min(torch.finfo(position.dtype).tiny)
+    incident = position / length(position).clamp_min(torch.finfo(position.dtype).tiny)
     r = reflect(incident, normal)
-    return r / r.norm(dim=1, keepdim=True).clamp_min(torch.finfo(r.dtype).tiny)
+    return r / length(r).clamp_min(torch.finfo(r.dtype).tiny)
 
 
 def clip_ray_length(origin_z: torch.Tensor, dir_z: torch.Tensor, max_distance: float,

@@ -61,7 +61,7 @@ from torch import nn
 from .. import checks
 from ..camera import Camera
 from ..gbuffer import GBuffer
-from .common import check_count, check_unit_normals, fetch, make_generator
+from .common import check_count, check_unit_normals, fetch, length, make_generator
 from .ssr_common import (BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult,
                          clip_ray_length, reflection_rays)
 from .ssr_dda_refine import _count, _fetch, _refine, _z
@@ -312,7 +312,7 @@ def assemble(gbuffer: GBuffer, params, sel: torch.Tensor, P1: torch.Tensor, o: d
     origin = cam.uv_to_view(cam.uv_grid(dt, dev).unsqueeze(0), gbuffer.view_z)
     at = hit_pixel if params.edge_fade_mode == "circular" else cam.pixel_centers(dt, dev)[None]   # hit / vUv
     fade = edge_fade(at, W, H, params.edge_distance, params.edge_exponent, params.edge_fade_mode) * \
-        distance_fade((hit_view - origin).norm(dim=1, keepdim=True), params.fade_distance, params.fade_exponent)
+        distance_fade(length(hit_view - origin), params.fade_distance, params.fade_exponent)
     fade = torch.where(hit, fade, 0.0)
     dbg = {"visits": visits.reshape(B, 1, H, W), "ray_end": image(P1, -1.0)} if visits is not None else {}
     return SSRResult(color=raw * fade, hit=hit, hit_pixel=hit_pixel, hit_view=hit_view, steps=steps,

@@ -25,6 +25,7 @@ from torch import nn
 
 from .. import checks
 from ..gbuffer import GBuffer
+from .common import length
 
 REQUIRES = ("position", "normal", "albedo", "roughness", "metallic", "color")
 
@@ -96,7 +97,7 @@ def resolve(gbuffer: GBuffer, reflection: torch.Tensor, params: ResolveParams = 
     gbuffer.require(*REQUIRES)
     checks.check_shape(reflection, ["B", "3", str(gbuffer.height), str(gbuffer.width)], "reflection")
     p = gbuffer.position
-    v = -p / p.norm(dim=1, keepdim=True).clamp_min(torch.finfo(p.dtype).tiny)
+    v = -p / length(p).clamp_min(torch.finfo(p.dtype).tiny)
     cos_theta = (gbuffer.normal * v).sum(1, keepdim=True)
     f0 = params.f0_dielectric + (gbuffer.albedo - params.f0_dielectric) * gbuffer.metallic
     fresnel = schlick_fresnel(cos_theta, f0)                                          # (B, 3, H, W)

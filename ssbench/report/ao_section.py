@@ -105,10 +105,9 @@ def spectrum_rgb(ao: torch.Tensor, mask: torch.Tensor, tile: int = 4) -> np.ndar
 
 
 def write_png(path: str, rgb: np.ndarray) -> str:
-    """Write an ``(H, W, 3)`` uint8 image atomically."""
-    import matplotlib.image as mimage
-    from ..io import _atomic
-    return _atomic(path, ".png", lambda tmp: mimage.imsave(tmp, np.ascontiguousarray(rgb), format="png"))
+    """Write an ``(H, W, 3)`` uint8 image atomically (:func:`ssbench.io.write_rgb_png`)."""
+    from ..io import write_rgb_png
+    return write_rgb_png(path, rgb)
 
 
 # ------------------------------------------------------------------------------------------ section

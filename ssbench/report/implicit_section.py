@@ -65,8 +65,8 @@ def heat_rgb(x: torch.Tensor, vmax: float, cmap: str = "magma") -> np.ndarray:
 
 
 def _save(fig, path: str) -> None:
-    from ..io import _atomic
-    _atomic(path, ".png", lambda tmp: fig.savefig(tmp, format="png", dpi=100))
+    from ..io import save_figure
+    save_figure(fig, path, dpi=100)
 
 
 def _legend() -> list[dict]:

@@ -113,3 +113,16 @@ def test_preview_all_background_nan_free():
         rgb = preview_rgb("view_z", torch.full((1, 1, 4, 4), -cam.far), camera=cam)
         rgb2 = preview_rgb("back_z", torch.full((1, 1, 4, 4), -float("inf")))
     assert (rgb == 0).all() and (rgb2 == 0).all()
+
+
+def test_write_rgb_png_round_trips_and_rejects_other_arrays(tmp_path):
+    from ssbench.io import write_rgb_png
+    rgb = np.random.default_rng(0).integers(0, 256, (5, 7, 3), dtype=np.uint8)
+    path = str(tmp_path / "x.png")
+    assert write_rgb_png(path, rgb) == path
+    back = (mimage.imread(path)[..., :3] * 255 + 0.5).astype(np.uint8)
+    assert np.array_equal(back, rgb)                                  # lossless, whatever the zlib level
+    for bad in (rgb.astype(np.float32), rgb[..., :2], rgb[..., 0]):
+        with pytest.raises(ValueError, match="^rgb:"):
+            write_rgb_png(str(tmp_path / "bad.png"), bad)
+    assert sorted(os.listdir(tmp_path)) == ["x.png"]                  # nothing half-written

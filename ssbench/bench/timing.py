@@ -18,7 +18,9 @@ for, but at least :data:`MIN_ROUNDS` (or ``rounds`` if fewer); ``time_blocks`` i
 rounds: with identically distributed rounds, the medians of two runs of n rounds differ by less than the
 larger of their IQRs with probability ~86 % (n = 5), ~96 % (9), ~99 % (15); the two blocks a blocked
 autorange gives a pass slower than ``min_run_time / 2`` give ~54 %. Measured agreement on a shared machine
-is lower (drift between runs): see ``benchmarks/bench_sweep_timing.py``, where claims about speed belong.
+is lower: there a pass's speed can switch between regimes every second or so (an SSR march at 160×120 between
+~60 and ~100 ms per call) that the floor follows only in part, so the rounds of one run are not independent.
+See ``benchmarks/bench_sweep_timing.py``, where claims about speed belong.
 
 Fields it returns (:data:`TIMING_FIELDS`): ``time_median_ms, time_iqr_ms, time_blocks, floor_median_ms,
 floor_iqr_ms, floor_samples, floor_ratio, floor_ratio_iqr, threads, timing_min_run_time, timing_error``.

@@ -31,6 +31,7 @@ import math
 import os
 import time
 import traceback
+import zlib
 from typing import Any, Optional, Union
 
 from .config import Config, Sweep, SweepError, load_sweep
@@ -39,7 +40,7 @@ from .executors import make_executor
 from .rows import RowStore, new_run_id, run_metadata
 from .timing import TIMING_FIELDS, TimingSpec, time_pass
 
-__all__ = ["run_config", "run_sweep", "SweepResult", "default_out"]
+__all__ = ["run_config", "run_group", "run_sweep", "SweepResult", "default_out"]
 
 
 def _variant() -> Optional[str]:
@@ -75,16 +76,15 @@ def error_row(config: Config, exc: BaseException, timing: Optional[TimingSpec] =
     return row
 
 
-def run_config(config: Config, timing: Optional[TimingSpec] = None) -> dict:
-    """Evaluate one configuration (and time it when ``timing`` is given); always returns a row.
-
-    Torch threads are set to ``config.settings["threads"]`` for the call and restored afterwards.
-    """
+def _evaluate(config: Config, timing: Optional[TimingSpec]) -> tuple[dict, Any, int, float]:
+    """``(row, bench inputs or None, threads, seconds)``: the configuration's row without timing fields (an error
+    row when it fails), the inputs to time (``None`` when nothing is to be timed) and its wall time."""
     import torch
     effect = get_effect(config.effect)
     threads = int(config.settings.get("threads", 1))
     prev = torch.get_num_threads()
     t0 = time.perf_counter()
+    inputs = None
     try:
         torch.set_num_threads(threads)
         try:
@@ -101,15 +101,58 @@ def run_config(config: Config, timing: Optional[TimingSpec] = None) -> dict:
             if timing is not None:
                 try:
                     inputs = effect.bench_inputs(ev, config.method, config.params, config.seed)
-                    row.update(time_pass(inputs, timing, threads, seed=config.seed))
                 except Exception as e:                   # noqa: BLE001 - keep the evaluation's row
                     row.update(_nan_timing(config, timing, f"not timed: {_error_text(e)}"))
-            row["config"] = config.canonical()
     finally:
         torch.set_num_threads(prev)
-    row["elapsed_s"] = time.perf_counter() - t0
+    return row, inputs, threads, time.perf_counter() - t0
+
+
+def _finish(config: Config, row: dict, seconds: float) -> dict:
+    row.setdefault("config", config.canonical())
+    row["elapsed_s"] = seconds
     row["variant"] = _variant()
     return row
+
+
+def run_config(config: Config, timing: Optional[TimingSpec] = None) -> dict:
+    """Evaluate one configuration (and time it when ``timing`` is given); always returns a row.
+
+    Torch threads are set to ``config.settings["threads"]`` for the call and restored afterwards.
+    """
+    row, inputs, threads, seconds = _evaluate(config, timing)
+    if inputs is not None:
+        t0 = time.perf_counter()
+        try:
+            row.update(time_pass(inputs, timing, threads, seed=config.seed))
+        except Exception as e:                           # noqa: BLE001 - keep the evaluation's row
+            row.update(_nan_timing(config, timing, f"not timed: {_error_text(e)}"))
+        seconds += time.perf_counter() - t0
+    return _finish(config, row, seconds)
+
+
+def run_group(configs: list, timing: Optional[TimingSpec] = None) -> list:
+    """Evaluate several configurations, then time them together in randomized interleaved rounds
+    (:func:`ssbench.bench.interleave.time_interleaved`; the order seeded from their ids); one row each, in order.
+
+    ``elapsed_s`` is each configuration's evaluation plus an equal share of the group's timing.
+    """
+    from .interleave import time_interleaved
+    done = [_evaluate(c, timing) for c in configs]
+    live = [k for k, d in enumerate(done) if d[1] is not None]
+    share = 0.0
+    if live:
+        t0 = time.perf_counter()
+        try:
+            timed = time_interleaved([(done[k][1], done[k][2], configs[k].seed) for k in live], timing,
+                                     order_seed=zlib.crc32(" ".join(c.config_id for c in configs).encode()))
+        except Exception as e:                           # noqa: BLE001 - keep the evaluations' rows
+            timed = [_nan_timing(configs[k], timing, f"not timed: {_error_text(e)}") for k in live]
+        share = (time.perf_counter() - t0) / len(live)
+        for k, fields in zip(live, timed):
+            done[k][0].update(fields)
+    return [_finish(c, row, seconds + (share if k in live else 0.0))
+            for k, (c, (row, _, _, seconds)) in enumerate(zip(configs, done))]
 
 
 @dataclasses.dataclass
@@ -190,15 +233,19 @@ def run_sweep(sweep: Union[Sweep, str, "os.PathLike"], out: Optional[str] = None
         stamp = {"run_id": run_id, "git_commit": meta["git"]["commit"], "git_dirty": meta["git"]["dirty"]}
         bar = tqdm(total=len(ids), initial=len(skip), desc=f"sweep {sweep.name}", unit="config",
                    disable=None if progress is None else not progress)
+        n = sweep.timing.interleave if sweep.timing is not None else 0
+        tasks = [todo[i:i + n] for i in range(0, len(todo), n)] if n else todo
         try:
-            for config, row, exc in ex.imap_unordered(run_config, todo, timing=sweep.timing):
+            for task, got, exc in ex.imap_unordered(run_group if n else run_config, tasks, timing=sweep.timing):
+                configs, rows_ = (task, got) if n else ([task], [got])
                 if exc is not None:                      # the task itself died (e.g. a lost Dask worker)
-                    row = error_row(config, exc, sweep.timing)
-                row.update(stamp)
-                store.write_row(row)
-                ran += 1
-                errors += bool(row.get("error"))
-                bar.update(1)
+                    rows_ = [error_row(c, exc, sweep.timing) for c in configs]
+                for row in rows_:
+                    row.update(stamp)
+                    store.write_row(row)
+                    ran += 1
+                    errors += bool(row.get("error"))
+                    bar.update(1)
                 bar.set_postfix(errors=errors, refresh=False)
         except BaseException:
             meta.update(status="interrupted", ran=ran, errors=errors, finished=_now())

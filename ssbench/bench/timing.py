@@ -33,13 +33,13 @@ import dataclasses
 import math
 import time
 import timeit
-from typing import Any, Callable, Iterator, Mapping, Sequence
+from typing import Any, Callable, Iterator, Mapping, Optional, Sequence
 
 import numpy as np
 import torch
 
 __all__ = ["TimingSpec", "Stats", "floor_indices", "nonfinite_on_valid", "median_iqr", "steady_heap", "timeit_calls",
-           "warm_up", "plan_rounds", "run_rounds", "round_fields", "time_pass", "agree",
+           "warm_up", "plan_rounds", "run_rounds", "round_fields", "prepare", "time_pass", "agree",
            "TIMING_FIELDS", "MIN_ROUNDS"]
 
 TIMING_FIELDS = ("time_median_ms", "time_iqr_ms", "time_blocks", "floor_median_ms", "floor_iqr_ms",
@@ -65,12 +65,16 @@ class TimingSpec:
         warmup: untimed calls of the pass and the floor before timing (at least one is always made).
         floor: also time the gather floor (``False``: floor fields are ``nan``).
         rounds: interleaved rounds of pass and floor blocks (median and IQR over them), at least 3.
+        interleave: ``0`` (default): time each configuration alone, right after its evaluation; ``N >= 2``: a
+            sweep times its configurations in groups of ``N``, in randomized interleaved rounds
+            (:mod:`ssbench.bench.interleave`), so that each one's rounds spread over the whole group.
     """
 
     min_run_time: float = 0.2
     warmup: int = 1
     floor: bool = True
     rounds: int = 15
+    interleave: int = 0
 
     def __post_init__(self) -> None:
         if isinstance(self.min_run_time, bool) or not isinstance(self.min_run_time, (int, float)) \
@@ -82,6 +86,8 @@ class TimingSpec:
             raise ValueError(f"floor: expected true or false, got {self.floor!r}")
         if not _is_int(self.rounds) or self.rounds < 3:
             raise ValueError(f"rounds: must be an integer >= 3, got {self.rounds!r}")
+        if not _is_int(self.interleave) or self.interleave < 0 or self.interleave == 1:
+            raise ValueError(f"interleave: must be 0 (off) or an integer >= 2, got {self.interleave!r}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -249,6 +255,25 @@ def round_fields(per_round: Sequence[Sequence[float]]) -> dict:
     return out
 
 
+def prepare(inputs, spec: TimingSpec, threads: int, seed: int = 0) -> tuple[dict, Optional[list]]:
+    """The row of an untimed pass (``nan`` times) and the calls to time, ``[pass, floor]`` (``[pass]`` without a
+    floor); the calls are ``None`` when the output has NaN/Inf on valid pixels (``timing_error`` says so)."""
+    nan = math.nan
+    row = {"time_median_ms": nan, "time_iqr_ms": nan, "time_blocks": 0, "floor_median_ms": nan,
+           "floor_iqr_ms": nan, "floor_samples": int(inputs.samples), "floor_ratio": nan, "floor_ratio_iqr": nan,
+           "threads": int(threads), "timing_min_run_time": float(spec.min_run_time), "timing_error": None}
+    bad = nonfinite_on_valid(inputs.output, inputs.valid)
+    if bad:
+        row["timing_error"] = f"output has {bad} NaN/Inf values on valid pixels; not timed"
+        return row, None
+    calls = [inputs.call]
+    if spec.floor:
+        from ..passes.common import fetch
+        col, rw = floor_indices(inputs.texture, int(inputs.samples), seed)
+        calls.append(lambda: fetch(inputs.texture, col, rw))
+    return row, calls
+
+
 def time_pass(inputs, spec: TimingSpec, threads: int, seed: int = 0, *,
               timer: Callable[[Callable[[], Any], int], float] = timeit_calls) -> dict:
     """The timing fields (:data:`TIMING_FIELDS`) of a pass given its :class:`~ssbench.bench.effects.BenchInputs`
@@ -257,19 +282,9 @@ def time_pass(inputs, spec: TimingSpec, threads: int, seed: int = 0, *,
     The output is checked first; with NaN/Inf on valid pixels nothing is timed, the numbers are ``nan`` and
     ``timing_error`` names the count. Times are in milliseconds per call.
     """
-    nan = math.nan
-    row = {"time_median_ms": nan, "time_iqr_ms": nan, "time_blocks": 0, "floor_median_ms": nan,
-           "floor_iqr_ms": nan, "floor_samples": int(inputs.samples), "floor_ratio": nan, "floor_ratio_iqr": nan,
-           "threads": int(threads), "timing_min_run_time": float(spec.min_run_time), "timing_error": None}
-    bad = nonfinite_on_valid(inputs.output, inputs.valid)
-    if bad:
-        row["timing_error"] = f"output has {bad} NaN/Inf values on valid pixels; not timed"
+    row, calls = prepare(inputs, spec, threads, seed)
+    if calls is None:
         return row
-    calls = [inputs.call]
-    if spec.floor:
-        from ..passes.common import fetch
-        col, rw = floor_indices(inputs.texture, int(inputs.samples), seed)
-        calls.append(lambda: fetch(inputs.texture, col, rw))
     prev = torch.get_num_threads()
     torch.set_num_threads(threads)
     try:

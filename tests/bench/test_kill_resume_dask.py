@@ -110,3 +110,17 @@ def test_dask_gives_the_same_rows_as_local(sweep_file, reference_rows, tmp_path)
     assert meta["executor"]["kind"] == "dask" and meta["executor"]["workers"] == 2
     assert {r["variant"] for r in res.rows} == {meta["backend"]["variant"]} and res.notes == []   # pinned
     assert load_sweep(sweep_file).ids() == [r["config_id"] for r in res.rows]
+
+
+def test_dask_with_interleaved_timing_gives_the_same_rows(sweep_file, reference_rows, tmp_path):
+    pytest.importorskip("dask.distributed")
+    plain, inter = tmp_path / "plain.yaml", tmp_path / "inter.yaml"
+    plain.write_text(open(sweep_file).read() + "timing: {min_run_time: 0.005}\n")
+    inter.write_text(open(sweep_file).read() + "timing: {min_run_time: 0.005, interleave: 2}\n")
+    local = run_sweep(str(plain), tmp_path / "local", progress=False)
+    res = run_sweep(str(inter), tmp_path / "out", executor="dask", workers=2, progress=False)
+    assert [canonical_json(r) for r in res.rows] == [canonical_json(r) for r in local.rows]
+    assert all(canonical_json(r) == canonical_json(dict(q, floor_samples=r["floor_samples"], timing_error=None,
+                                                        timing_min_run_time=0.005))
+               for r, q in zip(res.rows, reference_rows))               # the untimed rows plus timing fields
+    assert all(r["floor_ratio"] > 0 and r["time_blocks"] >= 3 and r["timing_error"] is None for r in res.rows)

@@ -19,6 +19,8 @@ Protocols (``+``-joined, e.g. ``rounds+warm+pin``):
 * ``rounds``: one calibration call of each, then exactly ``--rounds`` rounds each timing a block of the pass and
   a block of the floor back to back (blocks of about ``min_run_time / rounds``); median and IQR of per-round
   ratios (no budget cut: slow passes cost ``rounds`` calls);
+* ``interleaved``: what a sweep with ``timing: {interleave: N}`` does: every job of the repeat timed together in
+  randomized interleaved rounds (:func:`ssbench.bench.interleave.time_interleaved`, order seeded by the repeat);
 * ``+warm``: call the pass and the floor in turn for ``--warm-time`` seconds first (caches, clock);
 * ``+pin``: pin the thread to the CPU it runs on while timing (``os.sched_setaffinity``), then restore it;
 * ``+heap``: time inside :func:`ssbench.bench.timing.steady_heap` (glibc keeps freed heap; see there).
@@ -46,9 +48,10 @@ import torch.utils.benchmark as tb
 
 from ssbench.bench import effects as E
 from ssbench.bench import timing as T
+from ssbench.bench.interleave import time_interleaved
 from ssbench.passes.common import fetch
 
-BASES = ("sweep", "autorange", "rounds")
+BASES = ("sweep", "autorange", "rounds", "interleaved")
 MODIFIERS = ("warm", "pin", "heap")
 
 
@@ -57,8 +60,8 @@ def parse_protocol(name: str) -> tuple[str, set]:
     base, *mods = name.split("+")
     if base not in BASES or any(m not in MODIFIERS for m in mods):
         raise SystemExit(f"--protocol: {name!r} is not BASE[+MOD...] with BASE in {BASES}, MOD in {MODIFIERS}")
-    if base == "sweep" and mods:
-        raise SystemExit(f"--protocol: 'sweep' takes no modifiers, got {name!r}")
+    if base in ("sweep", "interleaved") and mods:
+        raise SystemExit(f"--protocol: {base!r} takes no modifiers, got {name!r}")
     return base, set(mods)
 
 
@@ -139,14 +142,29 @@ def rotated(xs: list, k: int) -> list:
     return xs[k % len(xs):] + xs[:k % len(xs)]
 
 
+def interleaved(all_inputs: dict, a: argparse.Namespace, repeat: int) -> list[dict]:
+    """One repeat of the ``interleaved`` protocol: every job timed together (rows with ``cost_s``: its share)."""
+    spec = T.TimingSpec(min_run_time=a.min_run_time, rounds=a.rounds, warmup=a.warmup)
+    t0 = time.perf_counter()
+    got = time_interleaved([(inp, a.threads, 0) for inp in all_inputs.values()], spec, order_seed=repeat)
+    cost = (time.perf_counter() - t0) / max(1, len(got))
+    return [{"job": list(job), "protocol": "interleaved", "samples": int(inp.samples), **row, "cost_s": cost}
+            for (job, inp), row in zip(all_inputs.items(), got)]
+
+
 def one_process(a: argparse.Namespace, protocols: list[str]) -> None:
     """``--child``: one repeat of every job under every protocol, as JSON lines on stdout."""
+    alone = [p for p in protocols if p != "interleaved"]
+    all_inputs = {}
     for job in jobs(a):
-        inputs = inputs_of(job, a)
-        for name in rotated(protocols, a.child):
+        inputs = all_inputs[job] = inputs_of(job, a)
+        for name in rotated(alone, a.child) if alone else []:
             row = time_protocol(inputs, name, a)
             print(json.dumps({"job": list(job), "protocol": name, "samples": int(inputs.samples), **row}),
                   flush=True)
+    if "interleaved" in protocols:
+        for row in interleaved(all_inputs, a, a.child):
+            print(json.dumps(row), flush=True)
 
 
 def collect(a: argparse.Namespace, protocols: list[str]) -> list[dict]:
@@ -159,12 +177,17 @@ def collect(a: argparse.Namespace, protocols: list[str]) -> list[dict]:
                                  check=True, capture_output=True, text=True).stdout
             rows += [dict(json.loads(line), repeat=r) for line in out.splitlines() if line.startswith("{")]
         return rows
+    alone = [p for p in protocols if p != "interleaved"]
+    all_inputs = {}
     for job in jobs(a):
-        inputs = inputs_of(job, a)
-        for r in range(a.repeats):
-            for name in rotated(protocols, r):
+        inputs = all_inputs[job] = inputs_of(job, a)
+        for r in range(a.repeats) if alone else []:
+            for name in rotated(alone, r):
                 rows.append({"job": list(job), "protocol": name, "samples": int(inputs.samples), "repeat": r,
                              **time_protocol(inputs, name, a)})
+    if "interleaved" in protocols:
+        for r in range(a.repeats):
+            rows += [dict(row, repeat=r) for row in interleaved(all_inputs, a, r)]
     return rows
 
 

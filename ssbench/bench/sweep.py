@@ -5,7 +5,10 @@ already in the output folder (resume), runs the rest on an executor (:mod:`ssben
 tqdm bar, writes each row as it arrives (:class:`ssbench.bench.rows.RowStore`) and finally the consolidated
 ``rows.jsonl`` + ``rows.parquet`` in sweep order and the run's metadata. :func:`run_config` is the unit of
 work (what a Dask worker runs): it never raises for a failing configuration, it returns a row whose
-``error`` reads ``"<ExceptionType>: <message>"``. Ground truth comes from the reference layer's cache.
+``error`` reads ``"<ExceptionType>: <message>"``. Ground truth comes from the reference layer's cache. With
+``timing: {interleave: N}`` the unit of work is :func:`run_group`: ``N`` configurations evaluated, then timed
+together in randomized interleaved rounds (:mod:`ssbench.bench.interleave`), their rows written as the group
+ends (an interrupted sweep re-runs the groups in flight).
 
 Row schema (one flat dict per configuration):
 

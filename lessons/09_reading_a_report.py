@@ -296,6 +296,14 @@ plt.show()
 # with glibc's malloc thresholds held still — otherwise whether a pass page-faults its temporaries on every call
 # depends on what the process did before, the largest gap between two runs; `timing.steady_heap`.)
 #
+# A shared machine does one more thing: its speed switches between regimes every second or so, and the floor
+# follows only in part, so the rounds of a pass timed alone sit in one or two regimes and a second run can land in
+# others. A sweep therefore times its configurations in **groups** (`timing: {interleave: 8}` by default): it
+# evaluates 8 configurations, then runs one round of each in a shuffled order, the next round in another order,
+# and so on (`ssbench/bench/interleave.py`, *randomized interleaved trials*). Each configuration's rounds then
+# span the whole group's timing and its IQR takes in the regimes; `benchmarks/bench_sweep_timing.py --protocol
+# interleaved,sweep` measures how often repeated runs agree within it.
+#
 # To see it, the same configuration is timed twice: once as it is, and once while busy-looping processes, one
 # per core, compete for the CPU (they are stopped right after).
 

@@ -5,10 +5,11 @@ already in the output folder (resume), runs the rest on an executor (:mod:`ssben
 tqdm bar, writes each row as it arrives (:class:`ssbench.bench.rows.RowStore`) and finally the consolidated
 ``rows.jsonl`` + ``rows.parquet`` in sweep order and the run's metadata. :func:`run_config` is the unit of
 work (what a Dask worker runs): it never raises for a failing configuration, it returns a row whose
-``error`` reads ``"<ExceptionType>: <message>"``. Ground truth comes from the reference layer's cache. With
-``timing: {interleave: N}`` the unit of work is :func:`run_group`: ``N`` configurations evaluated, then timed
-together in randomized interleaved rounds (:mod:`ssbench.bench.interleave`), their rows written as the group
-ends (an interrupted sweep re-runs the groups in flight).
+``error`` reads ``"<ExceptionType>: <message>"``. Ground truth comes from the reference layer's cache. A sweep
+with a ``timing:`` block has :func:`run_group` as its unit of work instead: ``interleave`` configurations (8 by
+default) evaluated, then timed together in randomized interleaved rounds (:mod:`ssbench.bench.interleave`),
+their rows written as the group ends (an interrupted sweep re-runs the groups in flight); ``interleave: 0``
+times each configuration alone and writes its row at once.
 
 Row schema (one flat dict per configuration):
 

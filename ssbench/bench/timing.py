@@ -65,16 +65,17 @@ class TimingSpec:
         warmup: untimed calls of the pass and the floor before timing (at least one is always made).
         floor: also time the gather floor (``False``: floor fields are ``nan``).
         rounds: interleaved rounds of pass and floor blocks (median and IQR over them), at least 3.
-        interleave: ``0`` (default): time each configuration alone, right after its evaluation; ``N >= 2``: a
-            sweep times its configurations in groups of ``N``, in randomized interleaved rounds
-            (:mod:`ssbench.bench.interleave`), so that each one's rounds spread over the whole group.
+        interleave: ``N >= 2`` (default 8): a sweep times its configurations in groups of ``N``, in randomized
+            interleaved rounds (:mod:`ssbench.bench.interleave`), so that each one's rounds spread over the whole
+            group (repeated runs agree far better on a shared machine); ``0``: time each configuration alone,
+            right after its evaluation, and write its row at once.
     """
 
     min_run_time: float = 0.2
     warmup: int = 1
     floor: bool = True
     rounds: int = 15
-    interleave: int = 0
+    interleave: int = 8
 
     def __post_init__(self) -> None:
         if isinstance(self.min_run_time, bool) or not isinstance(self.min_run_time, (int, float)) \

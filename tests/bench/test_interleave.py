@@ -71,7 +71,7 @@ def test_slow_passes_get_their_planned_rounds_and_threads_are_restored():
 
 
 def test_a_sweep_with_interleave_gives_the_rows_of_plain_timing(toy, tmp_path):
-    plain = run_sweep(_toy(timing={"min_run_time": 0.01}), tmp_path / "plain", progress=False)
+    plain = run_sweep(_toy(timing={"min_run_time": 0.01, "interleave": 0}), tmp_path / "plain", progress=False)
     inter = run_sweep(_toy(timing={"min_run_time": 0.01, "interleave": 5}), tmp_path / "inter", progress=False)
     assert [canonical_json(r) for r in inter.rows] == [canonical_json(r) for r in plain.rows]
     assert inter.ran == 12 and inter.errors == 4
@@ -86,5 +86,6 @@ def test_a_sweep_with_interleave_gives_the_rows_of_plain_timing(toy, tmp_path):
 
 @pytest.mark.parametrize("bad", [1, -1, 2.5, True])
 def test_interleave_must_be_off_or_a_group_size(bad):
+    assert T.TimingSpec().interleave == 8 and T.TimingSpec(interleave=0).interleave == 0
     with pytest.raises(ValueError, match="^interleave:"):
         T.TimingSpec(interleave=bad)

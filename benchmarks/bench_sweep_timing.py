@@ -34,6 +34,7 @@ Run: ``.venv/bin/python benchmarks/bench_sweep_timing.py [--width 320 --height 2
 from __future__ import annotations
 
 import argparse
+import collections
 import contextlib
 import itertools
 import json
@@ -78,11 +79,14 @@ def pinned():
         os.sched_setaffinity(0, before)
 
 
-def autorange(call, a: argparse.Namespace) -> T.Stats:
+Stats = collections.namedtuple("Stats", "median iqr blocks")      # seconds per call; blocks of the autorange
+
+
+def autorange(call, a: argparse.Namespace) -> Stats:
     """The earlier protocol's measurement: ``Timer.blocked_autorange`` (after the caller's warm-up)."""
     m = tb.Timer("call()", globals={"call": call}, num_threads=a.threads).blocked_autorange(
         min_run_time=a.min_run_time)
-    return T.Stats(float(m.median), float(m.iqr), len(m.times))
+    return Stats(float(m.median), float(m.iqr), len(m.times))
 
 
 def time_protocol(inputs: E.BenchInputs, name: str, a: argparse.Namespace) -> dict:

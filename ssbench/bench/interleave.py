@@ -14,8 +14,9 @@ order shuffled per round from ``order_seed``. Each pass's rounds spread over the
 ``2 · min_run_time`` per pass in the group), so its median and IQR take in the regimes the machine went
 through. The fields are :func:`~ssbench.bench.timing.time_pass`'s.
 
-A sweep uses it when its ``timing:`` block sets ``interleave: N``: groups of ``N`` configurations, each group one
-task of the executor (:func:`ssbench.bench.sweep.run_group`).
+A sweep times its configurations in groups of ``interleave`` (8 by default; ``0``: one at a time), each group one
+task of the executor (:func:`ssbench.bench.sweep.run_group`). :func:`~ssbench.bench.timing.time_pass` is a
+group of one: its rounds run back to back.
 """
 from __future__ import annotations
 

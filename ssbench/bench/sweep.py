@@ -3,13 +3,13 @@
 :func:`run_sweep` validates the sweep (:mod:`ssbench.bench.config`), skips the configurations whose row is
 already in the output folder (resume), runs the rest on an executor (:mod:`ssbench.bench.executors`) with a
 tqdm bar, writes each row as it arrives (:class:`ssbench.bench.rows.RowStore`) and finally the consolidated
-``rows.jsonl`` + ``rows.parquet`` in sweep order and the run's metadata. :func:`run_config` is the unit of
-work (what a Dask worker runs): it never raises for a failing configuration, it returns a row whose
-``error`` reads ``"<ExceptionType>: <message>"``. Ground truth comes from the reference layer's cache. A sweep
-with a ``timing:`` block has :func:`run_group` as its unit of work instead: ``interleave`` configurations (8 by
-default) evaluated, then timed together in randomized interleaved rounds (:mod:`ssbench.bench.interleave`),
-their rows written as the group ends (an interrupted sweep re-runs the groups in flight); ``interleave: 0``
-times each configuration alone and writes its row at once.
+``rows.jsonl`` + ``rows.parquet`` in sweep order and the run's metadata. :func:`run_group` is the unit of
+work (what a Dask worker runs): it never raises for a failing configuration, it returns rows whose
+``error`` reads ``"<ExceptionType>: <message>"``. Ground truth comes from the reference layer's cache. Without
+a ``timing:`` block (or with ``interleave: 0``) a group is one configuration (:func:`run_config`) and its row is
+written at once; with one, ``interleave`` configurations (8 by default) are evaluated, then timed together in
+randomized interleaved rounds (:mod:`ssbench.bench.interleave`), their rows written as the group ends (an
+interrupted sweep re-runs the groups in flight).
 
 Row schema (one flat dict per configuration):
 
@@ -42,7 +42,7 @@ from .config import Config, Sweep, SweepError, load_sweep
 from .effects import get_effect
 from .executors import make_executor
 from .rows import RowStore, new_run_id, run_metadata
-from .timing import TIMING_FIELDS, TimingSpec, time_pass
+from .timing import TIMING_FIELDS, TimingSpec
 
 __all__ = ["run_config", "run_group", "run_sweep", "SweepResult", "default_out"]
 
@@ -124,19 +124,11 @@ def run_config(config: Config, timing: Optional[TimingSpec] = None) -> dict:
 
     Torch threads are set to ``config.settings["threads"]`` for the call and restored afterwards.
     """
-    row, inputs, threads, seconds = _evaluate(config, timing)
-    if inputs is not None:
-        t0 = time.perf_counter()
-        try:
-            row.update(time_pass(inputs, timing, threads, seed=config.seed))
-        except Exception as e:                           # noqa: BLE001 - keep the evaluation's row
-            row.update(_nan_timing(config, timing, f"not timed: {_error_text(e)}"))
-        seconds += time.perf_counter() - t0
-    return _finish(config, row, seconds)
+    return run_group([config], timing)[0]
 
 
 def run_group(configs: list, timing: Optional[TimingSpec] = None) -> list:
-    """Evaluate several configurations, then time them together in randomized interleaved rounds
+    """Evaluate several configurations, then (given ``timing``) time them together in randomized interleaved rounds
     (:func:`ssbench.bench.interleave.time_interleaved`; the order seeded from their ids); one row each, in order.
 
     ``elapsed_s`` is each configuration's evaluation plus an equal share of the group's timing.
@@ -237,11 +229,10 @@ def run_sweep(sweep: Union[Sweep, str, "os.PathLike"], out: Optional[str] = None
         stamp = {"run_id": run_id, "git_commit": meta["git"]["commit"], "git_dirty": meta["git"]["dirty"]}
         bar = tqdm(total=len(ids), initial=len(skip), desc=f"sweep {sweep.name}", unit="config",
                    disable=None if progress is None else not progress)
-        n = sweep.timing.interleave if sweep.timing is not None else 0
-        tasks = [todo[i:i + n] for i in range(0, len(todo), n)] if n else todo
+        n = max(1, sweep.timing.interleave if sweep.timing is not None else 1)        # configurations per task
         try:
-            for task, got, exc in ex.imap_unordered(run_group if n else run_config, tasks, timing=sweep.timing):
-                configs, rows_ = (task, got) if n else ([task], [got])
+            for configs, rows_, exc in ex.imap_unordered(run_group, [todo[i:i + n] for i in range(0, len(todo), n)],
+                                                         timing=sweep.timing):
                 if exc is not None:                      # the task itself died (e.g. a lost Dask worker)
                     rows_ = [error_row(c, exc, sweep.timing) for c in configs]
                 for row in rows_:

@@ -38,7 +38,7 @@ from typing import Any, Callable, Iterator, Mapping, Optional, Sequence
 import numpy as np
 import torch
 
-__all__ = ["TimingSpec", "Stats", "floor_indices", "nonfinite_on_valid", "median_iqr", "steady_heap", "timeit_calls",
+__all__ = ["TimingSpec", "floor_indices", "nonfinite_on_valid", "median_iqr", "steady_heap", "timeit_calls",
            "warm_up", "plan_rounds", "run_rounds", "round_fields", "prepare", "time_pass", "agree",
            "TIMING_FIELDS", "MIN_ROUNDS"]
 
@@ -89,15 +89,6 @@ class TimingSpec:
             raise ValueError(f"rounds: must be an integer >= 3, got {self.rounds!r}")
         if not _is_int(self.interleave) or self.interleave < 0 or self.interleave == 1:
             raise ValueError(f"interleave: must be 0 (off) or an integer >= 2, got {self.interleave!r}")
-
-
-@dataclasses.dataclass(frozen=True)
-class Stats:
-    """Median and IQR (seconds per call) of one measurement, and its number of blocks (rounds)."""
-
-    median: float
-    iqr: float
-    blocks: int
 
 
 def floor_indices(texture: torch.Tensor, samples: int, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
@@ -283,20 +274,8 @@ def time_pass(inputs, spec: TimingSpec, threads: int, seed: int = 0, *,
     The output is checked first; with NaN/Inf on valid pixels nothing is timed, the numbers are ``nan`` and
     ``timing_error`` names the count. Times are in milliseconds per call.
     """
-    row, calls = prepare(inputs, spec, threads, seed)
-    if calls is None:
-        return row
-    prev = torch.get_num_threads()
-    torch.set_num_threads(threads)
-    try:
-        with steady_heap():
-            best = warm_up(calls, at_least=spec.warmup)
-            rounds, numbers = plan_rounds(best, spec.min_run_time, spec.rounds)
-            per_round = run_rounds(calls, numbers, rounds, timer)
-    finally:
-        torch.set_num_threads(prev)
-    row.update(round_fields(per_round))
-    return row
+    from .interleave import time_interleaved              # a group of one: its rounds back to back
+    return time_interleaved([(inputs, threads, seed)], spec, timer=timer)[0]
 
 
 def agree(a: Mapping, b: Mapping, *, field: str = "floor_ratio", k: float = 1.0, rel: float = 0.0) -> bool:

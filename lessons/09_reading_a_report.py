@@ -304,6 +304,14 @@ plt.show()
 # span the whole group's timing and its IQR takes in the regimes; `benchmarks/bench_sweep_timing.py --protocol
 # interleaved,sweep` measures how often repeated runs agree within it.
 #
+# What no number of rounds in one process samples is the process itself: where its memory landed and what the
+# machine did while it ran shift all of its rounds alike, so two runs' medians differ by more than their IQRs more
+# often than the rounds alone would allow. `timing: {processes: 3}` times each group again in two fresh Python
+# processes, one after the other, and pools the rounds of all three (`ssbench/bench/processes.py`: repeated
+# invocations, as benchmarking practice does for virtual machines and JITs). It costs three times the timing plus
+# an evaluation per extra process; `benchmarks/bench_sweep_repeats.py` runs a sweep again and again, with and
+# without it, and prints how often the runs agree.
+#
 # To see it, the same configuration is timed twice: once as it is, and once while busy-looping processes, one
 # per core, compete for the CPU (they are stopped right after).
 
@@ -607,7 +615,7 @@ assert checks and all(checks.values())
 # ## See also
 #
 # * `ssbench/bench/` — sweep files (`config.py`: the format, grids, `config_id`), `sweep.py` (`run_sweep`,
-#   resume), `rows.py` (the row store, volatile fields), `timing.py` (interleaved rounds of the pass and the gather floor);
+#   resume), `rows.py` (the row store, volatile fields), `timing.py` (interleaved rounds of the pass and the gather floor), `processes.py` (rounds pooled over processes);
 #   `ssbench sweep FILE` runs a sweep from the command line.
 # * `ssbench/analysis/` — `pareto.py`, `equal_error.py`, `multiples.py`, `figures.py`; their docstrings state
 #   the definitions used here.

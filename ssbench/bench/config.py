@@ -18,7 +18,8 @@ Format (YAML shown; TOML carries the same keys, e.g. ``[methods.hbao]`` tables):
     rays: 64                             # the effect's settings (ssbench.bench.effects), each a value or grid
     threads: 1                           # torch threads per configuration (default 1), also a grid
     timing: {min_run_time: 0.2}          # optional: time each pass and its gather floor (ssbench.bench.timing;
-                                         #   also warmup, floor, rounds, interleave: the fields of its TimingSpec)
+                                         #   also warmup, floor, rounds, interleave, processes: the fields of its
+                                         #   TimingSpec)
 
 A value that is itself a list (a GTAO noise tile) is given as ``{values: [[...]]}``. Every error is a
 :class:`SweepError` reading ``file:line: field.path: what is wrong`` (the scene files' machinery,

@@ -21,13 +21,51 @@ group of one: its rounds run back to back.
 from __future__ import annotations
 
 import random
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Optional, Sequence
 
 import torch
 
 from . import timing as T
 
-__all__ = ["time_interleaved"]
+__all__ = ["interleaved_rounds", "time_interleaved"]
+
+
+def interleaved_rounds(items: Sequence[tuple[Any, int, int]], spec: T.TimingSpec, *, order_seed: int = 0,
+                       timer: Callable[[Callable[[], Any], int], float] = T.timeit_calls
+                       ) -> tuple[list[dict], list[Optional[list[list[float]]]]]:
+    """The rounds of :func:`time_interleaved` before they are summarized: ``(rows, per_round)``.
+
+    ``rows`` are the untimed rows of :func:`~ssbench.bench.timing.prepare` (``nan`` times; ``timing_error`` set
+    for a pass with NaN/Inf output); ``per_round[i]`` is ``[pass seconds per call, floor seconds per call]``
+    round by round (``[pass]`` without a floor), or ``None`` for a pass that was not timed.
+    :mod:`ssbench.bench.processes` pools these lists over several processes.
+    """
+    prepared = [T.prepare(inputs, spec, threads, seed) for inputs, threads, seed in items]
+    rows = [row for row, _ in prepared]
+    live = [i for i, (_, calls) in enumerate(prepared) if calls is not None]
+    plans: dict[int, tuple[int, list[int]]] = {}
+    per_round: list[Optional[list[list[float]]]] = [None] * len(items)
+    for i in live:
+        per_round[i] = [[] for _ in prepared[i][1]]
+    prev = torch.get_num_threads()
+    try:
+        with T.steady_heap():
+            for i in live:
+                torch.set_num_threads(items[i][1])
+                best = T.warm_up(prepared[i][1], at_least=spec.warmup)
+                plans[i] = T.plan_rounds(best, spec.min_run_time, spec.rounds)
+            rng = random.Random(order_seed)
+            for r in range(max((plans[i][0] for i in live), default=0)):
+                order = [i for i in live if plans[i][0] > r]
+                rng.shuffle(order)
+                for i in order:
+                    torch.set_num_threads(items[i][1])
+                    got = T.run_rounds(prepared[i][1], plans[i][1], 1, timer)
+                    for k, seconds in enumerate(got):
+                        per_round[i][k] += seconds
+    finally:
+        torch.set_num_threads(prev)
+    return rows, per_round
 
 
 def time_interleaved(items: Sequence[tuple[Any, int, int]], spec: T.TimingSpec, *, order_seed: int = 0,
@@ -54,29 +92,8 @@ def time_interleaved(items: Sequence[tuple[Any, int, int]], spec: T.TimingSpec, 
         >>> [r["time_blocks"] for r in rows], all(r["floor_ratio"] > 0 for r in rows)
         ([4, 4], True)
     """
-    prepared = [T.prepare(inputs, spec, threads, seed) for inputs, threads, seed in items]
-    rows = [row for row, _ in prepared]
-    live = [i for i, (_, calls) in enumerate(prepared) if calls is not None]
-    plans: dict[int, tuple[int, list[int]]] = {}
-    per_round = {i: [[] for _ in prepared[i][1]] for i in live}
-    prev = torch.get_num_threads()
-    try:
-        with T.steady_heap():
-            for i in live:
-                torch.set_num_threads(items[i][1])
-                best = T.warm_up(prepared[i][1], at_least=spec.warmup)
-                plans[i] = T.plan_rounds(best, spec.min_run_time, spec.rounds)
-            rng = random.Random(order_seed)
-            for r in range(max((plans[i][0] for i in live), default=0)):
-                order = [i for i in live if plans[i][0] > r]
-                rng.shuffle(order)
-                for i in order:
-                    torch.set_num_threads(items[i][1])
-                    got = T.run_rounds(prepared[i][1], plans[i][1], 1, timer)
-                    for k, seconds in enumerate(got):
-                        per_round[i][k] += seconds
-    finally:
-        torch.set_num_threads(prev)
-    for i in live:
-        rows[i].update(T.round_fields(per_round[i]))
+    rows, per_round = interleaved_rounds(items, spec, order_seed=order_seed, timer=timer)
+    for row, rounds in zip(rows, per_round):
+        if rounds is not None:
+            row.update(T.round_fields(rounds))
     return rows

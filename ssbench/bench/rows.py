@@ -35,7 +35,8 @@ __all__ = ["RowStore", "TIMING_FIELDS", "METADATA_FIELDS", "is_volatile", "stabl
 TIMING_FIELDS = ("seconds", "seconds_runs", "blur_seconds", "gt_seconds", "gt_seconds_cos", "gt_seconds_flavour",
                  "gt_seconds_oracle", "elapsed_s") + tuple(f for f in _PASS_TIMING
                                                            if f not in ("threads", "floor_samples",
-                                                                        "timing_min_run_time", "timing_error"))
+                                                                        "timing_min_run_time", "timing_processes",
+                                                                        "timing_error"))
 #: per-run metadata copied into every row (the full record is ``runs/<run_id>.json``)
 METADATA_FIELDS = ("run_id", "git_commit", "git_dirty", "variant")
 

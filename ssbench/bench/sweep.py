@@ -9,7 +9,8 @@ work (what a Dask worker runs): it never raises for a failing configuration, it 
 a ``timing:`` block (or with ``interleave: 0``) a group is one configuration (:func:`run_config`) and its row is
 written at once; with one, ``interleave`` configurations (8 by default) are evaluated, then timed together in
 randomized interleaved rounds (:mod:`ssbench.bench.interleave`), their rows written as the group ends (an
-interrupted sweep re-runs the groups in flight).
+interrupted sweep re-runs the groups in flight); with ``processes: N`` each group is also timed in ``N - 1``
+fresh processes and the rounds pooled (:mod:`ssbench.bench.processes`).
 
 Row schema (one flat dict per configuration):
 
@@ -62,7 +63,7 @@ def _error_text(e: BaseException) -> str:
 def _nan_timing(config: Config, timing: TimingSpec, why: str) -> dict:
     row: dict[str, Any] = {k: math.nan for k in TIMING_FIELDS}
     row.update(time_blocks=0, floor_samples=None, threads=config.settings.get("threads", 1),
-               timing_min_run_time=float(timing.min_run_time), timing_error=why)
+               timing_min_run_time=float(timing.min_run_time), timing_processes=0, timing_error=why)
     return row
 
 
@@ -129,19 +130,20 @@ def run_config(config: Config, timing: Optional[TimingSpec] = None) -> dict:
 
 def run_group(configs: list, timing: Optional[TimingSpec] = None) -> list:
     """Evaluate several configurations, then (given ``timing``) time them together in randomized interleaved rounds
-    (:func:`ssbench.bench.interleave.time_interleaved`; the order seeded from their ids); one row each, in order.
+    (:func:`ssbench.bench.interleave.time_interleaved`; the order seeded from their ids), pooled over
+    ``timing.processes`` processes (:func:`ssbench.bench.processes.time_group`); one row each, in order.
 
     ``elapsed_s`` is each configuration's evaluation plus an equal share of the group's timing.
     """
-    from .interleave import time_interleaved
+    from .processes import time_group
     done = [_evaluate(c, timing) for c in configs]
     live = [k for k, d in enumerate(done) if d[1] is not None]
     share = 0.0
     if live:
         t0 = time.perf_counter()
         try:
-            timed = time_interleaved([(done[k][1], done[k][2], configs[k].seed) for k in live], timing,
-                                     order_seed=zlib.crc32(" ".join(c.config_id for c in configs).encode()))
+            timed = time_group([(done[k][1], done[k][2], configs[k].seed) for k in live], [configs[k] for k in live],
+                               timing, order_seed=zlib.crc32(" ".join(c.config_id for c in configs).encode()))
         except Exception as e:                           # noqa: BLE001 - keep the evaluations' rows
             timed = [_nan_timing(configs[k], timing, f"not timed: {_error_text(e)}") for k in live]
         share = (time.perf_counter() - t0) / len(live)

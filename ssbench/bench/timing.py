@@ -23,7 +23,8 @@ is lower: there a pass's speed can switch between regimes every second or so (an
 See ``benchmarks/bench_sweep_timing.py``, where claims about speed belong.
 
 Fields it returns (:data:`TIMING_FIELDS`): ``time_median_ms, time_iqr_ms, time_blocks, floor_median_ms,
-floor_iqr_ms, floor_samples, floor_ratio, floor_ratio_iqr, threads, timing_min_run_time, timing_error``.
+floor_iqr_ms, floor_samples, floor_ratio, floor_ratio_iqr, threads, timing_min_run_time, timing_processes,
+timing_error`` (``timing_processes``: how many processes' rounds were pooled, :mod:`ssbench.bench.processes`).
 """
 from __future__ import annotations
 
@@ -44,7 +45,7 @@ __all__ = ["TimingSpec", "floor_indices", "nonfinite_on_valid", "median_iqr", "s
 
 TIMING_FIELDS = ("time_median_ms", "time_iqr_ms", "time_blocks", "floor_median_ms", "floor_iqr_ms",
                  "floor_samples", "floor_ratio", "floor_ratio_iqr", "threads", "timing_min_run_time",
-                 "timing_error")
+                 "timing_processes", "timing_error")
 
 #: fewest rounds a slow pass is cut to: with 9 identically distributed rounds the medians of two runs fall within
 #: the larger IQR ~96 % of the time (5 rounds: ~86 %, measured 53-73 % for slow SSR marchers across processes)
@@ -69,6 +70,11 @@ class TimingSpec:
             interleaved rounds (:mod:`ssbench.bench.interleave`), so that each one's rounds spread over the whole
             group (repeated runs agree far better on a shared machine); ``0``: time each configuration alone,
             right after its evaluation, and write its row at once.
+        processes: ``N >= 2``: time each group again in ``N - 1`` fresh Python processes, one after another, and
+            pool the rounds of all ``N`` (:mod:`ssbench.bench.processes`): a process's memory layout and the
+            machine's state while it runs shift all of its rounds alike, which no number of rounds in one
+            process samples; pooling makes the median and IQR take it in. Costs ``N`` times the timing plus
+            one evaluation of the group per extra process. ``1`` (default): time in this process only.
     """
 
     min_run_time: float = 0.2
@@ -76,6 +82,7 @@ class TimingSpec:
     floor: bool = True
     rounds: int = 15
     interleave: int = 8
+    processes: int = 1
 
     def __post_init__(self) -> None:
         if isinstance(self.min_run_time, bool) or not isinstance(self.min_run_time, (int, float)) \
@@ -89,6 +96,8 @@ class TimingSpec:
             raise ValueError(f"rounds: must be an integer >= 3, got {self.rounds!r}")
         if not _is_int(self.interleave) or self.interleave < 0 or self.interleave == 1:
             raise ValueError(f"interleave: must be 0 (off) or an integer >= 2, got {self.interleave!r}")
+        if not _is_int(self.processes) or self.processes < 1:
+            raise ValueError(f"processes: must be an integer >= 1, got {self.processes!r}")
 
 
 def floor_indices(texture: torch.Tensor, samples: int, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
@@ -253,7 +262,8 @@ def prepare(inputs, spec: TimingSpec, threads: int, seed: int = 0) -> tuple[dict
     nan = math.nan
     row = {"time_median_ms": nan, "time_iqr_ms": nan, "time_blocks": 0, "floor_median_ms": nan,
            "floor_iqr_ms": nan, "floor_samples": int(inputs.samples), "floor_ratio": nan, "floor_ratio_iqr": nan,
-           "threads": int(threads), "timing_min_run_time": float(spec.min_run_time), "timing_error": None}
+           "threads": int(threads), "timing_min_run_time": float(spec.min_run_time), "timing_processes": 1,
+           "timing_error": None}
     bad = nonfinite_on_valid(inputs.output, inputs.valid)
     if bad:
         row["timing_error"] = f"output has {bad} NaN/Inf values on valid pixels; not timed"

@@ -153,6 +153,15 @@ _CHOICE: Optional[BackendChoice] = None
 _MI = None
 
 
+def adopt(c: BackendChoice) -> None:
+    """Use ``c`` (a parent process's choice, already smoke-tested there) instead of probing; must come before
+    :func:`mitsuba` is first called. :mod:`ssbench.bench.processes` passes its choice to its timing children."""
+    global _CHOICE
+    if _MI is not None and _CHOICE is not None and _CHOICE.variant != c.variant:
+        raise RuntimeError(f"c: Mitsuba already runs variant {_CHOICE.variant!r} in this process, not {c.variant!r}")
+    _CHOICE = c
+
+
 def choice() -> BackendChoice:
     """The variant chosen for this process (probing on first call)."""
     global _CHOICE

@@ -121,6 +121,17 @@ def test_dask_with_interleaved_timing_gives_the_same_rows(sweep_file, reference_
     res = run_sweep(str(inter), tmp_path / "out", executor="dask", workers=2, progress=False)
     assert [canonical_json(r) for r in res.rows] == [canonical_json(r) for r in local.rows]
     assert all(canonical_json(r) == canonical_json(dict(q, floor_samples=r["floor_samples"], timing_error=None,
-                                                        timing_min_run_time=0.005))
+                                                        timing_min_run_time=0.005, timing_processes=1))
                for r, q in zip(res.rows, reference_rows))               # the untimed rows plus timing fields
     assert all(r["floor_ratio"] > 0 and r["time_blocks"] >= 3 and r["timing_error"] is None for r in res.rows)
+
+
+def test_timing_pooled_over_fresh_processes(sweep_file, reference_rows, tmp_path):
+    """``processes: 2``: each group is evaluated and timed again in a child process and the rounds pooled."""
+    path = tmp_path / "pooled.yaml"
+    path.write_text(open(sweep_file).read() + "timing: {min_run_time: 0.005, rounds: 3, processes: 2}\n")
+    res = run_sweep(str(path), tmp_path / "out", progress=False)
+    assert all(canonical_json(r) == canonical_json(dict(q, floor_samples=r["floor_samples"], timing_error=None,
+                                                        timing_min_run_time=0.005, timing_processes=2))
+               for r, q in zip(res.rows, reference_rows))
+    assert all(r["time_blocks"] == 6 and r["floor_ratio"] > 0 for r in res.rows)   # 3 rounds in each process

@@ -70,3 +70,15 @@ def test_forced_variant_and_bad_override():
     e = dict(os.environ, SSBENCH_VARIANT="gpu_please")
     r = subprocess.run([sys.executable, "-c", CHOOSE], env=e, capture_output=True, text=True, timeout=120)
     assert r.returncode != 0 and "SSBENCH_VARIANT" in r.stderr
+
+
+def test_an_adopted_choice_replaces_the_probe(monkeypatch):
+    monkeypatch.setattr(backend, "_CHOICE", None)
+    monkeypatch.setattr(backend, "_MI", None)
+    monkeypatch.setattr(backend, "probe", lambda *a, **k: pytest.fail("an adopted choice must not probe"))
+    given = backend.BackendChoice("scalar_rgb", None, "chosen by the parent")
+    backend.adopt(given)
+    assert backend.choice() is given
+    monkeypatch.setattr(backend, "_MI", object())                    # Mitsuba already runs that variant
+    with pytest.raises(RuntimeError, match="already runs variant 'scalar_rgb'"):
+        backend.adopt(backend.BackendChoice("llvm_ad_rgb", "/x/libLLVM.so.19"))

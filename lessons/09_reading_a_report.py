@@ -306,18 +306,19 @@ plt.show()
 #
 # What no number of rounds in one process samples is the process itself: where its memory landed and what the
 # machine did while it ran shift all of its rounds alike, so two runs' medians differ by more than their IQRs more
-# often than the rounds alone would allow. `timing: {processes: 3}` times each group again in two fresh Python
-# processes, one after the other, and pools the rounds of all three (`ssbench/bench/processes.py`: repeated
-# invocations, as benchmarking practice does for virtual machines and JITs). It costs three times the timing plus
-# an evaluation per extra process; `benchmarks/bench_sweep_repeats.py` runs a sweep again and again, with and
-# without it, and prints how often the runs agree.
+# often than the rounds alone would allow. So a sweep times each group again in two fresh Python processes, one
+# after the other, and pools the rounds of all three (`timing: {processes: 3}`, the default;
+# `ssbench/bench/processes.py`: repeated invocations, as benchmarking practice does for virtual machines and JITs).
+# It costs three times the timing plus an evaluation per extra process; `benchmarks/bench_sweep_repeats.py` runs a
+# sweep again and again, with 1 and 3 processes, and prints how often the runs agree. The report's sweeps and the
+# demonstration below time in this process only (`processes: 1`): they are overviews.
 #
 # To see it, the same configuration is timed twice: once as it is, and once while busy-looping processes, one
 # per core, compete for the CPU (they are stopped right after).
 
 # %%
 cfg = next(c for c in sweep.configs if c.method == "hbao" and dict(c.params) == HBAO_4x4)
-spec = TimingSpec(min_run_time=0.05, warmup=1)
+spec = TimingSpec(min_run_time=0.05, warmup=1, processes=1)
 quiet = run_config(cfg, spec)
 hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(min(os.cpu_count() or 1, 8))]
 try:

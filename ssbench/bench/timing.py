@@ -70,11 +70,13 @@ class TimingSpec:
             interleaved rounds (:mod:`ssbench.bench.interleave`), so that each one's rounds spread over the whole
             group (repeated runs agree far better on a shared machine); ``0``: time each configuration alone,
             right after its evaluation, and write its row at once.
-        processes: ``N >= 2``: time each group again in ``N - 1`` fresh Python processes, one after another, and
-            pool the rounds of all ``N`` (:mod:`ssbench.bench.processes`): a process's memory layout and the
-            machine's state while it runs shift all of its rounds alike, which no number of rounds in one
-            process samples; pooling makes the median and IQR take it in. Costs ``N`` times the timing plus
-            one evaluation of the group per extra process. ``1`` (default): time in this process only.
+        processes: ``N >= 2`` (default 3): time each group again in ``N - 1`` fresh Python processes, one after
+            another, and pool the rounds of all ``N`` (:mod:`ssbench.bench.processes`): a process's memory
+            layout and the machine's state while it runs shift all of its rounds alike, which no number of
+            rounds in one process samples; pooling makes the median and IQR take it in, so that repeated runs
+            agree within the IQR. Costs ``N`` times the timing plus one evaluation of the group per extra
+            process. ``1``: time in this process only (quicker; needed for effects or methods registered at
+            run time, which a fresh process does not see).
     """
 
     min_run_time: float = 0.2
@@ -82,7 +84,7 @@ class TimingSpec:
     floor: bool = True
     rounds: int = 15
     interleave: int = 8
-    processes: int = 1
+    processes: int = 3
 
     def __post_init__(self) -> None:
         if isinstance(self.min_run_time, bool) or not isinstance(self.min_run_time, (int, float)) \

@@ -71,8 +71,8 @@ def test_slow_passes_get_their_planned_rounds_and_threads_are_restored():
 
 
 def test_a_sweep_with_interleave_gives_the_rows_of_plain_timing(toy, tmp_path):
-    plain = run_sweep(_toy(timing={"min_run_time": 0.01, "interleave": 0}), tmp_path / "plain", progress=False)
-    inter = run_sweep(_toy(timing={"min_run_time": 0.01, "interleave": 5}), tmp_path / "inter", progress=False)
+    plain = run_sweep(_toy(timing={"min_run_time": 0.01, "interleave": 0, "processes": 1}), tmp_path / "plain", progress=False)
+    inter = run_sweep(_toy(timing={"min_run_time": 0.01, "interleave": 5, "processes": 1}), tmp_path / "inter", progress=False)
     assert [canonical_json(r) for r in inter.rows] == [canonical_json(r) for r in plain.rows]
     assert inter.ran == 12 and inter.errors == 4
     for r in inter.rows:
@@ -80,7 +80,7 @@ def test_a_sweep_with_interleave_gives_the_rows_of_plain_timing(toy, tmp_path):
             assert math.isnan(r["floor_ratio"]) and r["timing_error"].startswith("not timed")
         else:
             assert r["floor_ratio"] > 0 and r["time_blocks"] >= 3 and r["timing_error"] is None
-    again = run_sweep(_toy(timing={"min_run_time": 0.01, "interleave": 5}), tmp_path / "inter", progress=False)
+    again = run_sweep(_toy(timing={"min_run_time": 0.01, "interleave": 5, "processes": 1}), tmp_path / "inter", progress=False)
     assert again.ran == 0 and again.skipped == 12                      # resumable like any sweep
 
 

@@ -115,8 +115,8 @@ def test_dask_gives_the_same_rows_as_local(sweep_file, reference_rows, tmp_path)
 def test_dask_with_interleaved_timing_gives_the_same_rows(sweep_file, reference_rows, tmp_path):
     pytest.importorskip("dask.distributed")
     plain, inter = tmp_path / "plain.yaml", tmp_path / "inter.yaml"
-    plain.write_text(open(sweep_file).read() + "timing: {min_run_time: 0.005, interleave: 0}\n")
-    inter.write_text(open(sweep_file).read() + "timing: {min_run_time: 0.005, interleave: 2}\n")
+    plain.write_text(open(sweep_file).read() + "timing: {min_run_time: 0.005, interleave: 0, processes: 1}\n")
+    inter.write_text(open(sweep_file).read() + "timing: {min_run_time: 0.005, interleave: 2, processes: 1}\n")
     local = run_sweep(str(plain), tmp_path / "local", progress=False)
     res = run_sweep(str(inter), tmp_path / "out", executor="dask", workers=2, progress=False)
     assert [canonical_json(r) for r in res.rows] == [canonical_json(r) for r in local.rows]

@@ -95,6 +95,6 @@ def test_the_child_entry_point_refuses_arguments(capsys):
 
 @pytest.mark.parametrize("bad", [0, -1, 1.5, True])
 def test_processes_must_be_a_positive_integer(bad):
-    assert T.TimingSpec().processes == 1 and T.TimingSpec(processes=3).processes == 3
+    assert T.TimingSpec().processes == 3 and T.TimingSpec(processes=1).processes == 1
     with pytest.raises(ValueError, match="^processes:"):
         T.TimingSpec(processes=bad)

@@ -73,7 +73,7 @@ def test_an_output_folder_of_another_effect_is_refused(toy, tmp_path):
 
 
 def test_timing_block_adds_floor_fields_to_every_row(toy, tmp_path):
-    res = run_sweep(_toy(timing={"min_run_time": 0.01}, scenes=["crease"], seeds=[0]), tmp_path, progress=False)
+    res = run_sweep(_toy(timing={"min_run_time": 0.01, "processes": 1}, scenes=["crease"], seeds=[0]), tmp_path, progress=False)
     for r in res.rows:
         assert {"time_median_ms", "time_iqr_ms", "floor_median_ms", "floor_ratio", "threads"} <= set(r)
         if r["error"]:

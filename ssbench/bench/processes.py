@@ -29,12 +29,14 @@ import json
 import os
 import subprocess
 import sys
+import threading
+import time
 from typing import Any, Callable, Optional, Sequence
 
 from . import timing as T
 from .interleave import interleaved_rounds
 
-__all__ = ["time_group", "config_to_json", "config_from_json", "run_child", "MARK"]
+__all__ = ["time_group", "config_to_json", "config_from_json", "run_child", "watch_parent", "MARK"]
 
 #: prefix of the one stdout line a child prints its rounds on (other output is ignored)
 MARK = "SSBENCH-ROUNDS "
@@ -107,6 +109,19 @@ def time_group(items: Sequence[tuple[Any, int, int]], configs: Sequence, timing:
     return rows
 
 
+def watch_parent(parent: int, *, interval: float = 0.5, getppid: Callable[[], int] = os.getppid,
+                 leave: Callable[[int], Any] = os._exit, sleep: Callable[[float], Any] = time.sleep) -> threading.Thread:
+    """Start a daemon thread that ends this process (``leave(3)``) once its parent ``parent`` is gone (the child is
+    re-parented): a sweep killed mid-group must not leave a child timing on, slowing whatever runs next."""
+    def watch() -> None:
+        while getppid() == parent:
+            sleep(interval)
+        leave(3)
+    t = threading.Thread(target=watch, name="ssbench-watch-parent", daemon=True)
+    t.start()
+    return t
+
+
 def _child_main(stream) -> dict:
     """What a child prints: evaluate the configurations, time them, return their rounds."""
     from ..reference import backend
@@ -131,6 +146,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     if argv:
         print("usage: python -m ssbench.bench.processes < request.json  (run by ssbench sweep)", file=sys.stderr)
         return 2
+    watch_parent(os.getppid())
     print(MARK + json.dumps(_child_main(sys.stdin)), flush=True)
     return 0
 

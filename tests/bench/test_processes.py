@@ -89,6 +89,13 @@ def test_configurations_survive_the_json_trip_and_a_changed_one_is_refused(toy):
         P.config_from_json(dict(d, seed=d["seed"] + 1))
 
 
+def test_a_child_leaves_once_its_parent_is_gone():
+    parents, left, slept = iter([100, 100, 1]), [], []
+    P.watch_parent(100, interval=0.25, getppid=lambda: next(parents), leave=left.append,
+                   sleep=slept.append).join(timeout=5)
+    assert left == [3] and slept == [0.25, 0.25]                      # re-parented on the third look
+
+
 def test_the_child_entry_point_refuses_arguments(capsys):
     assert P.main(["x"]) == 2 and "usage" in capsys.readouterr().err
 

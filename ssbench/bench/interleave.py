@@ -95,5 +95,5 @@ def time_interleaved(items: Sequence[tuple[Any, int, int]], spec: T.TimingSpec, 
     rows, per_round = interleaved_rounds(items, spec, order_seed=order_seed, timer=timer)
     for row, rounds in zip(rows, per_round):
         if rounds is not None:
-            row.update(T.round_fields(rounds))
+            row.update(T.round_fields(rounds), timing_processes=1)
     return rows

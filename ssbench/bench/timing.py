@@ -19,8 +19,11 @@ rounds: with identically distributed rounds, the medians of two runs of n rounds
 larger of their IQRs with probability ~86 % (n = 5), ~96 % (9), ~99 % (15); the two blocks a blocked
 autorange gives a pass slower than ``min_run_time / 2`` give ~54 %. Measured agreement on a shared machine
 is lower: there a pass's speed can switch between regimes every second or so (an SSR march at 160×120 between
-~60 and ~100 ms per call) that the floor follows only in part, so the rounds of one run are not independent.
-See ``benchmarks/bench_sweep_timing.py``, where claims about speed belong.
+~60 and ~100 ms per call) that the floor follows only in part, so the rounds of one run are not independent,
+and a process's memory layout shifts all of its rounds alike. Sweeps therefore time configurations in
+interleaved groups (:mod:`ssbench.bench.interleave`) and pool the rounds of several processes
+(:mod:`ssbench.bench.processes`). See ``benchmarks/bench_sweep_timing.py`` and
+``benchmarks/bench_sweep_repeats.py``, where claims about speed belong.
 
 Fields it returns (:data:`TIMING_FIELDS`): ``time_median_ms, time_iqr_ms, time_blocks, floor_median_ms,
 floor_iqr_ms, floor_samples, floor_ratio, floor_ratio_iqr, threads, timing_min_run_time, timing_processes,
@@ -264,7 +267,7 @@ def prepare(inputs, spec: TimingSpec, threads: int, seed: int = 0) -> tuple[dict
     nan = math.nan
     row = {"time_median_ms": nan, "time_iqr_ms": nan, "time_blocks": 0, "floor_median_ms": nan,
            "floor_iqr_ms": nan, "floor_samples": int(inputs.samples), "floor_ratio": nan, "floor_ratio_iqr": nan,
-           "threads": int(threads), "timing_min_run_time": float(spec.min_run_time), "timing_processes": 1,
+           "threads": int(threads), "timing_min_run_time": float(spec.min_run_time), "timing_processes": 0,
            "timing_error": None}
     bad = nonfinite_on_valid(inputs.output, inputs.valid)
     if bad:

@@ -58,6 +58,7 @@ def test_a_nonfinite_pass_is_not_timed_and_the_others_are():
     rows = time_interleaved([(x, 1, 0) for x in inputs], T.TimingSpec(min_run_time=0.05, rounds=3), timer=timer)
     assert rows[0]["time_blocks"] == 3 and rows[0]["timing_error"] is None
     assert "1 NaN/Inf" in rows[1]["timing_error"] and math.isnan(rows[1]["time_median_ms"])
+    assert rows[0]["timing_processes"] == 1 and rows[1]["timing_processes"] == 0
     assert {e[1] for e in log} == {0}
 
 

@@ -51,7 +51,7 @@ def test_one_process_is_the_in_process_timing(toy):
 def test_a_configuration_a_child_cannot_time_is_not_timed(toy):
     rows = _group(toy, 2, _child_answering(lambda k, c: None if k == 1 else [[0.002] * 3, [0.001] * 3]))
     assert rows[0]["time_blocks"] == 6 and rows[0]["timing_error"] is None
-    assert math.isnan(rows[1]["floor_ratio"]) and rows[1]["time_blocks"] == 0
+    assert math.isnan(rows[1]["floor_ratio"]) and rows[1]["time_blocks"] == rows[1]["timing_processes"] == 0
     assert rows[1]["timing_error"] == "not timed: process 2 of 2 could not time it: boom"
 
 

@@ -283,7 +283,8 @@ def summary_md(speed: dict) -> str:
                          + [f"- {e['note']}" for e in speed.get("effects", []) if e.get("note")]) + "\n"
     lines.append(f"Sweeps at {speed['size']}, passes on {speed['threads']} torch thread(s), ground truth on "
                  f"{speed.get('gt_threads') or '?'} Dr.Jit thread(s); section {speed['seconds']:.1f} s. "
-                 "Time: ms per call of the pass (median over interleaved rounds; AO blur included).")
+                 "Time: ms per call of the pass (median over interleaved rounds; AO blur included); overview timings "
+                 "(a few short rounds in one process; a sweep's default pools 3 processes).")
     for e in speed["effects"]:
         lines += ["", f"### {e['title']}", ""]
         if not e["available"]:

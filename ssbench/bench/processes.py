@@ -122,7 +122,7 @@ def watch_parent(parent: int, *, interval: float = 0.5, getppid: Callable[[], in
     return t
 
 
-def _child_main(stream) -> dict:
+def _child_main(stream) -> list[dict]:
     """What a child prints: evaluate the configurations, time them, return their rounds."""
     from ..reference import backend
     from .sweep import _evaluate

@@ -17,9 +17,9 @@ spread inside the IQR and averages it out of the median. Measured through ``ssbe
 How: :func:`time_group` times a group in this process (:func:`~ssbench.bench.interleave.interleaved_rounds`),
 then runs ``python -m ssbench.bench.processes`` ``N - 1`` times, one after another (timing is never run in
 parallel). Each child gets the configurations and the :class:`~ssbench.bench.timing.TimingSpec` as JSON on stdin,
-evaluates them again exactly as the sweep did (the same Mitsuba variant, ground truth from the cache), times them in interleaved rounds
-with its own order seed and prints its per-round seconds; the parent pools them per configuration and
-summarizes them with :func:`~ssbench.bench.timing.round_fields`. A child that fails makes the group's timing fail
+evaluates them again exactly as the sweep did (the same Mitsuba variant, ground truth from the cache), times
+them in interleaved rounds with its own order seed and prints its per-round seconds; the parent pools them per
+configuration and summarizes them with :func:`~ssbench.bench.timing.round_fields`. A child that fails makes the group's timing fail
 (``timing_error`` names the process and its last stderr lines); the evaluation rows are kept.
 """
 from __future__ import annotations
@@ -110,7 +110,8 @@ def time_group(items: Sequence[tuple[Any, int, int]], configs: Sequence, timing:
 
 
 def watch_parent(parent: int, *, interval: float = 0.5, getppid: Callable[[], int] = os.getppid,
-                 leave: Callable[[int], Any] = os._exit, sleep: Callable[[float], Any] = time.sleep) -> threading.Thread:
+                 leave: Callable[[int], Any] = os._exit,
+                 sleep: Callable[[float], Any] = time.sleep) -> threading.Thread:
     """Start a daemon thread that ends this process (``leave(3)``) once its parent ``parent`` is gone (the child is
     re-parented): a sweep killed mid-group must not leave a child timing on, slowing whatever runs next."""
     def watch() -> None:

@@ -19,8 +19,8 @@ then runs ``python -m ssbench.bench.processes`` ``N - 1`` times, one after anoth
 parallel). Each child gets the configurations and the :class:`~ssbench.bench.timing.TimingSpec` as JSON on stdin,
 evaluates them again exactly as the sweep did (the same Mitsuba variant, ground truth from the cache), times
 them in interleaved rounds with its own order seed and prints its per-round seconds; the parent pools them per
-configuration and summarizes them with :func:`~ssbench.bench.timing.round_fields`. A child that fails makes the group's timing fail
-(``timing_error`` names the process and its last stderr lines); the evaluation rows are kept.
+configuration and summarizes them with :func:`~ssbench.bench.timing.round_fields`. A child that fails makes the
+group's timing fail (``timing_error`` names the process and its last stderr lines); the evaluation rows are kept.
 """
 from __future__ import annotations
 

@@ -27,7 +27,7 @@ import torch
 
 from . import timing as T
 
-__all__ = ["interleaved_rounds", "time_interleaved"]
+__all__ = ["interleaved_rounds", "summarize_rounds", "time_interleaved"]
 
 
 def interleaved_rounds(items: Sequence[tuple[Any, int, int]], spec: T.TimingSpec, *, order_seed: int = 0,
@@ -92,8 +92,13 @@ def time_interleaved(items: Sequence[tuple[Any, int, int]], spec: T.TimingSpec, 
         >>> [r["time_blocks"] for r in rows], all(r["floor_ratio"] > 0 for r in rows)
         ([4, 4], True)
     """
-    rows, per_round = interleaved_rounds(items, spec, order_seed=order_seed, timer=timer)
+    return summarize_rounds(*interleaved_rounds(items, spec, order_seed=order_seed, timer=timer), processes=1)
+
+
+def summarize_rounds(rows: list[dict], per_round: Sequence[Optional[list[list[float]]]], processes: int) -> list[dict]:
+    """``rows`` with the :func:`~ssbench.bench.timing.round_fields` of each timed pass's rounds (``None``: not
+    timed, left as it is) and ``timing_processes``, the number of processes the rounds came from."""
     for row, rounds in zip(rows, per_round):
         if rounds is not None:
-            row.update(T.round_fields(rounds), timing_processes=1)
+            row.update(T.round_fields(rounds), timing_processes=processes)
     return rows

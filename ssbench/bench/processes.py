@@ -34,7 +34,7 @@ import time
 from typing import Any, Callable, Optional, Sequence
 
 from . import timing as T
-from .interleave import interleaved_rounds
+from .interleave import interleaved_rounds, summarize_rounds
 
 __all__ = ["time_group", "config_to_json", "config_from_json", "run_child", "watch_parent", "MARK"]
 
@@ -93,20 +93,18 @@ def time_group(items: Sequence[tuple[Any, int, int]], configs: Sequence, timing:
         got = child(configs, timing, order_seed + p)
         if [g.get("config_id") for g in got] != [c.config_id for c in configs]:
             raise RuntimeError(f"timing process {p + 1} of {timing.processes} answered for other configurations")
-        for row, mine, theirs in zip(rows, pooled, got):
-            if mine is None:
+        for i, (row, theirs) in enumerate(zip(rows, got)):
+            mine = pooled[i]
+            if mine is None:                             # untimed here, or by an earlier child
                 continue
             if theirs.get("rounds") is None or len(theirs["rounds"]) != len(mine):
                 row["timing_error"] = (f"not timed: process {p + 1} of {timing.processes} could not time it: "
                                        f"{theirs.get('error') or 'no rounds'}")
-                mine.clear()
+                pooled[i] = None
                 continue
             for k, seconds in enumerate(theirs["rounds"]):
                 mine[k] += [float(s) for s in seconds]
-    for row, rounds in zip(rows, pooled):
-        if rounds:
-            row.update(T.round_fields(rounds), timing_processes=timing.processes)
-    return rows
+    return summarize_rounds(rows, pooled, timing.processes)
 
 
 def watch_parent(parent: int, *, interval: float = 0.5, getppid: Callable[[], int] = os.getppid,

@@ -55,6 +55,14 @@ def test_a_configuration_a_child_cannot_time_is_not_timed(toy):
     assert rows[1]["timing_error"] == "not timed: process 2 of 2 could not time it: boom"
 
 
+def test_a_configuration_an_earlier_child_could_not_time_stays_untimed(toy):
+    answers = iter([None, [[0.002] * 3, [0.001] * 3]])                 # process 2 fails it, process 3 would not
+    rows = _group(toy, 3, _child_answering(lambda k, c: next(answers) if k == 1 else [[0.002] * 3, [0.001] * 3]))
+    assert rows[0]["time_blocks"] == 9 and rows[0]["timing_processes"] == 3
+    assert math.isnan(rows[1]["floor_ratio"]) and rows[1]["timing_processes"] == 0
+    assert rows[1]["timing_error"] == "not timed: process 2 of 3 could not time it: boom"
+
+
 def test_a_child_answering_for_other_configurations_fails_the_group(toy):
     wrong = _child_answering(lambda k, c: [[0.002] * 3, [0.001] * 3])
     with pytest.raises(RuntimeError, match="process 2 of 2 answered for other configurations"):

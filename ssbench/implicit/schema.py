@@ -18,7 +18,8 @@ same camera / material / light rules as ``ssbench.scenes.schema``. The format (Y
                                        {frames: [40, 60], camera: {eye_per_frame: [0.05, 0, 0]}}]}
 
 ``f`` is parsed by the whitelist parser of ``expression.py`` (nothing is ever executed); ``bounds`` is the
-local box outside which f > 0 (required); ``lipschitz`` an optional declared bound on |∇f|; ``scale`` is
+local box outside which f > 0 (required; f > 0 on its faces is proved at load by ``bounds.py``, a box the
+surface reaches is refused naming the face); ``lipschitz`` an optional declared bound on |∇f|; ``scale`` is
 uniform. Expression errors are reported as ``file:line: implicit[0].f: ...``.
 """
 from __future__ import annotations
@@ -30,6 +31,7 @@ from typing import Any
 from ..scenes.files import read_data_file, read_toml, read_yaml
 from ..scenes.model import Material, SceneError
 from ..scenes.schema import _camera, _Ctx, _light, _material, _path_str
+from .bounds import BoundsError
 from .expression import parse
 from .parser import ExpressionError
 from .scene import Animation, ImplicitScene, Segment
@@ -94,11 +96,14 @@ def _object(c: _Ctx, v: Any, i: int, named: dict, params: dict, defs: dict, seen
     mat = _material(c, d.get("material", {}), path + ("material",), named)
     if isinstance(d.get("scale"), list):
         raise c.fail(path + ("scale",), "only a uniform scale (one number > 0) keeps f a distance bound")
-    return ImplicitObject(
-        id=oid, expression=expr, material=mat, bounds=(lo, hi), lipschitz=lam,
-        translate=c.vec(d.get("translate", [0, 0, 0]), path + ("translate",)),
-        rotate=c.vec(d.get("rotate", [0, 0, 0]), path + ("rotate",)),
-        scale=c.number(d.get("scale", 1.0), path + ("scale",), 0.0, lo_open=True), where=c.locate(path))
+    translate = c.vec(d.get("translate", [0, 0, 0]), path + ("translate",))
+    rotate = c.vec(d.get("rotate", [0, 0, 0]), path + ("rotate",))
+    scale = c.number(d.get("scale", 1.0), path + ("scale",), 0.0, lo_open=True)
+    try:
+        return ImplicitObject(id=oid, expression=expr, material=mat, bounds=(lo, hi), lipschitz=lam,
+                              translate=translate, rotate=rotate, scale=scale, where=c.locate(path))
+    except BoundsError as e:                               # the surface reaches a face of the box
+        raise c.fail(bp, str(e)) from None
 
 
 def _segment(c: _Ctx, v: Any, j: int, frames: int, ids: set) -> Segment:

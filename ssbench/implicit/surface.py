@@ -26,6 +26,7 @@ from typing import Any, Optional, Sequence
 import torch
 
 from ..scenes.model import Material
+from .bounds import check_bounds
 from ..scenes.transforms import rotate4
 
 Vec3 = tuple[float, float, float]
@@ -62,10 +63,15 @@ class ImplicitObject:
     Attributes:
         expression: ``f_local``, a parsed :class:`~ssbench.implicit.expression.Expression` (or anything with
             ``__call__``, ``interval`` and ``drjit``).
-        bounds: local AABB ``((x0, y0, z0), (x1, y1, z1))``, ``lo < hi``, outside which ``f_local > 0``.
+        bounds: local AABB ``((x0, y0, z0), (x1, y1, z1))``, ``lo < hi``, outside which ``f_local > 0``;
+            f > 0 on its faces is proved at construction (:func:`~ssbench.implicit.bounds.check_bounds`,
+            :class:`~ssbench.implicit.bounds.BoundsError` otherwise).
         lipschitz: declared bound on ``|∇f|`` (None: none declared); unchanged by the uniform scale.
         translate, rotate, scale: ``T``, Euler degrees of ``R = Rz·Ry·Rx``, uniform ``s > 0``.
         where: ``file:line`` of the definition (not compared).
+        verify_bounds: prove ``bounds`` honest at construction (default). ``False`` only for fields that are
+            never traced (unit tests of the field algebra on unbounded fields such as ``x``); scene files and
+            the catalog always verify.
 
     Example:
         >>> from ssbench.implicit.expression import parse
@@ -86,6 +92,7 @@ class ImplicitObject:
     rotate: Vec3 = (0.0, 0.0, 0.0)
     scale: float = 1.0
     where: str = field(default="", compare=False)
+    verify_bounds: bool = field(default=True, compare=False)
 
     def __post_init__(self) -> None:
         if not isinstance(self.bounds, (tuple, list)) or len(self.bounds) != 2:
@@ -105,6 +112,8 @@ class ImplicitObject:
             if not (math.isfinite(lam) and lam > 0):
                 raise ValueError(f"lipschitz: must be a finite number > 0 or None, got {self.lipschitz!r}")
             object.__setattr__(self, "lipschitz", lam)
+        if self.verify_bounds:
+            check_bounds(self.expression, self.bounds, self.id)      # f > 0 on the box faces, or BoundsError
 
     # ------------------------------------------------------------------ transform
     @cached_property

@@ -11,7 +11,10 @@ obscurance uniform in solid angle                ``1 − ρ(t)``, ``ρ(t) = 1 �
                                                  ``t < R`` (HBAO's ``W(r) = 1 − r²``), else 1
 ========== ===================================== ===============================================
 
-AO is the mean over ``rays`` samples per pixel; ``stderr`` is the sample standard deviation / √rays.
+AO is the mean over ``rays`` samples per pixel. ``stderr`` is never 0 on finite samples: for the binary flavours
+(uniform, cosine) it is the standard deviation of the Jeffreys posterior of the proportion
+(:func:`jeffreys_variance`, ≈ the sample ``sd/√rays`` in the middle, ≈ ``1/(√2·rays)`` where every ray agrees);
+for obscurance the sample ``sd/√rays``, floored at the Jeffreys value of an unanimous pixel.
 Directions are drawn in the **view-space** frame of the pixel's normal from a PCG32 stream per pixel, so the
 full ground truth and the oracle use the same directions (paired comparison) and the same seed gives the same
 bits. Origins are offset by Mitsuba's ``spawn_ray`` so an open plane gives exactly 1.
@@ -35,7 +38,7 @@ from ..scenes import load as load_scene
 from . import backend, cache, convert
 
 WEIGHTINGS = ("uniform", "cosine", "obscurance")
-_KERNEL_VERSION = 1
+_KERNEL_VERSION = 2  # 2: Jeffreys standard errors (never 0)
 
 
 @dataclass(frozen=True)
@@ -88,8 +91,30 @@ def _estimate(mi, dr, mscene, origin_si, n_view, R_v2s, active, radius, rays, we
         s2 += v * v
         dr.eval(s1, s2, rng.state)
     mean = s1 / rays
-    var = dr.maximum((s2 - rays * mean * mean) / (rays - 1), 0.0)
-    return mean, dr.sqrt(var / rays)
+    n = float(rays)
+    if weighting == "obscurance":                  # continuous visibility: sample variance, Jeffreys floor
+        var = dr.maximum(dr.maximum((s2 - rays * mean * mean) / (rays - 1), 0.0) / n, jeffreys_variance(n, n))
+    else:                                          # binary rays: the Jeffreys posterior Beta(k + ½, n − k + ½)
+        var = jeffreys_variance(s1, n)
+    return mean, dr.sqrt(var)
+
+
+def jeffreys_variance(k, n):
+    r"""Variance of the Jeffreys posterior :math:`\mathrm{Beta}(k + \tfrac12, n - k + \tfrac12)` of a
+    proportion after ``k`` successes in ``n`` binary trials (Brown, Cai & DasGupta, "Interval estimation for a
+    binomial proportion", Statistical Science 16(2), 2001, https://doi.org/10.1214/ss/1009213286):
+
+    .. math::  \sigma^2 = \frac{(k + \tfrac12)(n - k + \tfrac12)}{(n + 1)^2 (n + 2)}
+
+    Close to the sample :math:`p(1-p)/n` in the middle, and never 0: when every ray agrees (``k = 0`` or
+    ``n``) it is :math:`\approx 1/(2n^2)`, so an unanimous pixel still carries an honest error bar. Works
+    on floats, tensors and Dr.Jit arrays alike.
+
+    Example:
+        >>> round(jeffreys_variance(128, 256) ** 0.5, 5), round(jeffreys_variance(256, 256) ** 0.5, 5)
+        (0.03113, 0.00274)
+    """
+    return (k + 0.5) * (n - k + 0.5) / ((n + 1.0) ** 2 * (n + 2.0))
 
 
 def _to_torch(mi, dr, mean, err, hit, H, W) -> tuple[torch.Tensor, torch.Tensor]:

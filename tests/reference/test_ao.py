@@ -5,6 +5,7 @@ import pytest
 import torch
 
 from ssbench.reference import ambient_occlusion, gbuffer, screen_space_oracle
+from ssbench.reference.ao import jeffreys_variance
 from ssbench.scenes import load
 
 pytestmark = [pytest.mark.slow, pytest.mark.mitsuba]
@@ -30,7 +31,9 @@ def test_crease_matches_closed_form_and_open_floor_is_exactly_one():
     assert abs((ref.ao[0, 0].double() - expected)[band].mean()) < 3e-3
     open_floor = floor & (x > R * 1.05)
     assert torch.all(ref.ao[0, 0][open_floor] == 1.0)               # exactly: no self-intersection
-    assert torch.all(ref.stderr[0, 0][open_floor] == 0.0)
+    unanimous = math.sqrt(jeffreys_variance(1024, 1024))            # every ray free: error bar > 0, ~1/(√2 n)
+    assert torch.allclose(ref.stderr[0, 0][open_floor].double(), torch.tensor(unanimous, dtype=torch.float64),
+                          rtol=1e-5) and unanimous == pytest.approx(1 / (math.sqrt(2) * 1024), rel=2e-3)
     assert torch.all(ref.ao[0, 0][~g.mask[0, 0]] == 1.0)
 
 
@@ -55,6 +58,32 @@ def test_floor_under_a_ceiling_closed_forms(weighting):
     z = (est - expected) / ref.stderr[0, 0][floor].double()
     assert (z.abs() < 3).float().mean() >= 0.95
     assert abs(est.mean() - expected) < 2e-3
+
+
+def test_jeffreys_variance_is_the_beta_posterior_variance_and_never_zero():
+    th = torch.linspace(0, math.pi / 2, 2_000_001, dtype=torch.float64)[1:-1]
+    x = th.sin() ** 2                          # x = sin²θ: the Beta density has no end singularity in θ
+    for n in (2, 16, 256):
+        for k in (0, 1, n // 2, n - 1, n):
+            a, b = k + 0.5, n - k + 0.5
+            logw = (2 * a - 1) * th.sin().log() + (2 * b - 1) * th.cos().log()
+            w = (logw - logw.max()).exp()
+            w = w / w.sum()
+            mean = (w * x).sum()
+            assert jeffreys_variance(k, n) == pytest.approx(float((w * (x - mean) ** 2).sum()), rel=1e-4)
+            assert jeffreys_variance(k, n) > 0
+        mid = jeffreys_variance(n / 2, n)                   # close to the plug-in p(1 - p)/n in the middle
+        assert mid == pytest.approx(0.25 / n, rel=3 / n)
+
+
+@pytest.mark.parametrize("weighting", ["cosine", "obscurance"])
+def test_stderr_is_positive_on_every_pixel_even_where_all_rays_agree(weighting):
+    sc = load("cornell_box")
+    g = gbuffer(sc, 40, 30, channels=CH)
+    ref = ambient_occlusion(sc, g, 0.5, rays=16, weighting=weighting, seed=0, use_cache=False)
+    m = g.mask[0, 0]
+    assert bool((ref.stderr[0, 0][m] > 0).all()) and bool((ref.stderr[0, 0][~m] == 0).all())
+    assert bool((ref.ao[0, 0][m] == 1).any())                      # the unanimous case occurs here
 
 
 def test_same_seed_same_bits_and_argument_checks():

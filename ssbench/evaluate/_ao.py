@@ -39,7 +39,7 @@ RADIUS_NAMES = ("radius", "kernel_radius", "sample_radius")
 GT_CHANNELS = ("view_z", "position", "normal", "mask")
 #: metrics scored against each target
 TARGET_METRICS = ("mae", "rmse", "bias", "psnr", "ssim", "flip", "halo_band", "halo_elsewhere", "halo_ratio",
-                  "halo_bias", "flat_bias", "over_darkening")
+                  "halo_bias", "halo_dark", "halo_missing", "flat_bias", "over_darkening")
 TARGETS = ("cos", "flavour", "oracle")
 
 
@@ -88,7 +88,7 @@ def score(pred: torch.Tensor, target: torch.Tensor, mask: torch.Tensor, view_z: 
            "ssim": metrics.ssim(pred, target, mask),
            "flip": metrics.flip(pred, target, mask) if flip else None,
            "halo_band": h.band, "halo_elsewhere": h.elsewhere, "halo_ratio": h.ratio, "halo_bias": h.band_bias,
-           "flat_bias": metrics.flat_bias(pred, target, mask),
+           "halo_dark": h.dark, "halo_missing": h.missing, "flat_bias": metrics.flat_bias(pred, target, mask),
            "over_darkening": metrics.over_darkening(pred, target, mask)}
     return {f"{k}_{suffix}": _f(v) for k, v in row.items()}
 

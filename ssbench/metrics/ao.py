@@ -1,6 +1,7 @@
 """Artifact metrics for ambient occlusion: one number per complaint users file against SSAO-style passes.
 
-* :func:`halo` — error in a band around depth discontinuities vs elsewhere (halos behind foreground objects);
+* :func:`halo` — error in a band around depth discontinuities vs elsewhere (halos behind foreground objects),
+  split by sign into ``dark`` (false occlusion) and ``missing`` occlusion;
 * :func:`flat_bias` — occlusion where the ground truth sees none (self-occlusion, Crytek's grey floors);
 * :func:`banding` — spectral energy at the noise-tile frequency and its harmonics (structured noise, rings);
 * :func:`noise` — variance of the high-frequency residual (before vs after a blur);
@@ -32,6 +33,8 @@ class HaloResult(NamedTuple):
     ratio: torch.Tensor         #: band / elsewhere (> 1: the error concentrates at edges)
     band_bias: torch.Tensor     #: signed mean error inside the band (> 0: too bright, a "halo of non-occlusion")
     band_mask: torch.Tensor     #: (B, 1, H, W) bool band (already intersected with the valid mask)
+    dark: torch.Tensor          #: mean false occlusion in the band, max(a − â, 0) (a dark halo); absolute
+    missing: torch.Tensor       #: mean missing occlusion in the band, max(â − a, 0) (a bright halo); absolute
 
 
 def depth_edges(view_z: torch.Tensor, mask: Optional[torch.Tensor] = None, threshold: float = 0.1,
@@ -97,7 +100,16 @@ def halo(pred: torch.Tensor, target: torch.Tensor, view_z: torch.Tensor, mask: O
         \mathrm{ratio} = \frac{\mathrm{band}}{\mathrm{elsewhere}}
 
     plus ``band_bias`` :math:`= \frac{1}{|D|}\sum_{p\in D}(\hat a_p - a_p)` (positive: a bright halo of
-    non-occlusion, the classic complaint). ``ratio`` is ``inf`` when the error is all in the band, ``nan``
+    non-occlusion, the classic complaint), and the band error split by sign, in absolute AO units (not a
+    ratio, so lowering the error elsewhere cannot move them):
+
+    .. math::
+        \mathrm{dark} = \frac{1}{|D|}\sum_{p\in D}\max(a_p - \hat a_p, 0), \qquad
+        \mathrm{missing} = \frac{1}{|D|}\sum_{p\in D}\max(\hat a_p - a_p, 0)
+
+    ``dark`` is false occlusion next to depth edges (the dark halo a missing or loose range check paints
+    behind foreground objects); ``missing`` is occlusion the method fails to find there (a bright halo).
+    ``dark + missing = band``, and ``missing − dark = band_bias``. ``ratio`` is ``inf`` when the error is all in the band, ``nan``
     when a region is empty or both errors are 0.
 
     Args:
@@ -110,7 +122,7 @@ def halo(pred: torch.Tensor, target: torch.Tensor, view_z: torch.Tensor, mask: O
         silhouettes: count edges against background too (see :func:`depth_edges`).
 
     Returns:
-        :class:`HaloResult` ``(band, elsewhere, ratio, band_bias, band_mask)``.
+        :class:`HaloResult` ``(band, elsewhere, ratio, band_bias, band_mask, dark, missing)``.
 
     Example:
         >>> z = torch.full((1, 1, 8, 8), -1.0); z[..., 4:] = -3.0
@@ -119,6 +131,8 @@ def halo(pred: torch.Tensor, target: torch.Tensor, view_z: torch.Tensor, mask: O
         >>> r = halo(pred, target, z, band=1)
         >>> round(float(r.band), 4), float(r.elsewhere), round(float(r.band_bias), 4)
         (0.1, 0.0, 0.1)
+        >>> round(float(r.dark), 4), round(float(r.missing), 4)             # a bright seam: occlusion missing
+        (0.0, 0.1)
     """
     checks.check_shape(pred, ["B", "1", "H", "W"], "pred")
     if isinstance(band, bool) or not isinstance(band, int) or band < 0:
@@ -131,7 +145,7 @@ def halo(pred: torch.Tensor, target: torch.Tensor, view_z: torch.Tensor, mask: O
     e = m & ~near
     err = pred - target
     b, el = err[d].abs().mean(), err[e].abs().mean()
-    return HaloResult(b, el, b / el, err[d].mean(), d)
+    return HaloResult(b, el, b / el, err[d].mean(), d, (-err[d]).clamp_min(0).mean(), err[d].clamp_min(0).mean())
 
 
 def flat_bias(pred: torch.Tensor, target: torch.Tensor, mask: Optional[torch.Tensor] = None,

@@ -39,6 +39,7 @@ TABLE = (("seconds", "time s", "{:.3f}"), ("rmse_cos", "RMSE cos", "{:.4f}"),
          ("info_loss_rmse", "info loss RMSE", "{:.4f}"), ("bias_flavour", "bias", "{:+.4f}"),
          ("psnr_cos", "PSNR cos dB", "{:.2f}"), ("ssim_cos", "SSIM cos", "{:.3f}"),
          ("flip_cos", "ꟻLIP cos", "{:.3f}"),
+         ("halo_dark_flavour", "dark halo", "{:.4f}"), ("halo_missing_flavour", "missing occl. (band)", "{:.4f}"),
          ("halo_band_flavour", "halo band MAE", "{:.4f}"), ("halo_ratio_flavour", "halo ratio", "{:.2f}"),
          ("flat_bias_flavour", "flat bias", "{:.4f}"), ("over_darkening_flavour", "over-dark.", "{:.2f}"),
          ("banding", "banding", "{:.4f}"), ("noise", "noise var", "{:.2e}"))

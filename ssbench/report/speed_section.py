@@ -42,10 +42,10 @@ _AO_BANDING = [Panel("crytek", "kernel_size", "banding", _NB),
                Panel("hbao", "num_directions", "banding", _NB),
                Panel("gtao", "quality", "banding", _NB + (("noise", "hash"),)),
                Panel("gtao", "noise", "banding", _NB + (("quality", "high"),))]
-_AO_HALOS = [Panel("ssao", "max_distance", "halo_band_flavour", _SSAO_16),
-             Panel("ssao", "blur", "halo_band_flavour", _SSAO_16),
-             Panel("hbao", "blur", "halo_band_flavour", (("num_directions", 8), ("num_steps", 6))),
-             Panel("gtao", "blur", "halo_band_flavour", (("quality", "high"), ("noise", "hash")))]
+_AO_HALOS = [Panel("ssao", "max_distance", "halo_dark_flavour", _SSAO_16),
+             Panel("ssao", "blur", "halo_dark_flavour", _SSAO_16),
+             Panel("hbao", "blur", "halo_dark_flavour", (("num_directions", 8), ("num_steps", 6))),
+             Panel("gtao", "blur", "halo_dark_flavour", (("quality", "high"), ("noise", "hash")))]
 _SSR_HITS = [Panel(m, p, _SSR_WRONG, fix, ylabel="share of reflective pixels") for m, p, fix in (
     ("linear", "iterations", (("jitter", 0.0), ("thickness", 0.1))),
     ("linear", "thickness", (("jitter", 0.0), ("iterations", 64))),
@@ -72,7 +72,8 @@ def _ssr_derived(row: dict) -> None:
 #: and ``figures`` (small multiples: key -> (title, panels))
 SPECS: dict[str, dict] = {
     "ao": {"metrics": [("rmse_cos", "RMSE vs cosine AO"), ("flip_cos", "ꟻLIP vs cosine AO"),
-                       ("halo_band_flavour", "halo band MAE"), ("banding", "banding")], "eq": "rmse_cos",
+                       ("halo_dark_flavour", "dark halo (false occlusion at edges)"),
+                       ("banding", "banding")], "eq": "rmse_cos",
            "derive": None, "figures": {"banding": ("Banding vs sample count and noise tile", _AO_BANDING),
                                        "halos": ("Halos vs range check and blur", _AO_HALOS)}},
     "ssr": {"metrics": [("hit_error_share", "missed + false + punch-through"), ("rmse_faded", "colour RMSE"),

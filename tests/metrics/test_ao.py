@@ -65,6 +65,35 @@ class TestHalo:
         assert r.band_bias.item() > 0                                      # too bright: a halo of non-occlusion
         assert r.band_mask[0, 0].any(0).nonzero().flatten().tolist() == list(range(13, 19))
 
+    def test_dark_and_missing_split_the_band_error_by_sign_and_respond_to_their_own_artifact(self):
+        """Induce a dark halo of depth d (false occlusion at the step) over a fixed bright error elsewhere in
+        the band: ``dark`` grows as d, ``missing`` stays, and the old band MAE would mix the two."""
+        z = _step_scene()
+        target = torch.full_like(z, 0.8)
+        base = target.clone()
+        base[..., 13] += 0.1                                               # a fixed missing-occlusion column
+        darks = []
+        for d in (0.0, 0.05, 0.1, 0.2, 0.4):
+            pred = base.clone()
+            pred[..., 15:17] -= d                                          # dark halo at the edge columns
+            r = halo(pred, target, z, band=2)
+            assert r.dark.item() == pytest.approx(2 * d / 6, abs=1e-6)    # band = 6 columns
+            assert r.missing.item() == pytest.approx(0.1 / 6, abs=1e-6)
+            assert (r.dark + r.missing).item() == pytest.approx(r.band.item(), abs=1e-6)
+            assert (r.missing - r.dark).item() == pytest.approx(r.band_bias.item(), abs=1e-6)
+            darks.append(r.dark.item())
+        assert darks == sorted(darks) and darks[-1] > darks[0]
+
+    def test_dark_is_absolute_so_error_elsewhere_does_not_move_it(self):
+        z = _step_scene()
+        target = torch.full_like(z, 0.8)
+        pred = target.clone()
+        pred[..., 15:17] -= 0.2
+        quiet = halo(pred, target, z, band=2)
+        pred[..., :8] += 0.15                                              # a large error far from the edge
+        noisy = halo(pred, target, z, band=2)
+        assert noisy.dark.item() == quiet.dark.item() and noisy.ratio.item() < quiet.ratio.item()
+
     def test_band_width(self):
         z = _step_scene()
         for k in (0, 1, 3):

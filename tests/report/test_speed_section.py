@@ -45,7 +45,7 @@ def test_embedded_sweeps_parse_and_every_panel_gets_a_line_of_two_points(effect)
         p = eff.method(c.method)[1](**c.params)
         rows.append({"config_id": c.config_id, "scene": c.scene, "method": c.method, **c.settings,
                      "params": dataclasses.asdict(p), "config": c.canonical(), "error": None,
-                     **{m: 1.0 for m, _ in S.SPECS[effect]["metrics"]}, "banding": 1.0, "halo_band_flavour": 1.0,
+                     **{m: 1.0 for m, _ in S.SPECS[effect]["metrics"]}, "banding": 1.0, "halo_dark_flavour": 1.0,
                      "frac_missed": 1.0, "frac_false_hit": 1.0, "frac_punch_through": 1.0,
                      "punch_through_per_frame": [1.0] * c.settings.get("frames", 1)})
     for title, panels in S.SPECS[effect]["figures"].values():

@@ -10,9 +10,10 @@ jitter per frame when its ``jitter`` is on), traces the certified reference (``s
 * per frame (lists, one entry per frame; ``None`` where the frame was not scored): ``punch_through_per_frame``,
   ``evaluations_mean_per_frame``, ``hit_share_per_frame``, ``seconds_frames``, ``invalidated_per_frame``
   (progressive only, else ``None``);
-* the h/w prediction (static scenes): ``predicted_punch_through`` — progressive (every frame scored):
-  ``mean Π_k (1 − min(1, w/h_k))`` with ``w = t_exit − t`` the truth's chord and ``h_k = t'_k/N`` from the
-  run's state before frame ``k``, frozen once the run found the pixel's first root (see :func:`_prediction`);
+* the h/w prediction (static scenes): ``predicted_punch_through`` — progressive (every frame scored): the
+  survivor form :func:`ssbench.metrics.implicit.survivor_punch_through`, ``mean [unfound after k−1]·(1 − min(1,
+  w/h_k))`` with ``w = t_exit − t`` the truth's chord and ``h_k = t'_k/N`` from the run's state before frame
+  ``k`` (only pixels the run has not found yet are at risk; see :func:`_prediction`);
   fixed: the one-frame value with ``h = t_far/N`` held flat (a fixed lattice has no memory); ``prediction_h``,
   ``frames_to_1pct`` / ``predicted_frames_to_1pct`` (first frame, 1-based, under 1%);
 * final frame (the last scored one): ``frac_<class>`` for every class of ``CLASS_NAMES`` (share of all pixels,
@@ -118,19 +119,14 @@ def _first_under(rates, level: float = 0.01) -> Optional[int]:
 
 def _prediction(kind: str, truth, h_maps: list, found_maps: list, t_far: torch.Tensor, n: int,
                 frames: int) -> Optional[list]:
-    """The h/w prediction (module docstring). Progressive: a pixel's ``h_k`` is ``t'_k/N`` while the run has not
-    found its first root yet, then frozen at its last value (the ``t'`` it would keep while still missing), so
-    pixels found early do not pull the prediction down with their small post-hit ``t'``."""
+    """The h/w prediction (module docstring). Progressive: the survivor form, frame ``k`` putting at risk only
+    the pixels the run had not found after frame ``k−1``, each with its own ``h_k = t'_k/N``. (The product form
+    over all frames kept found pixels at risk and over-predicted late frames ~5x on thin_shell.)"""
     from ..metrics import implicit as M
     mask = truth.hit.bool() & ~truth.unfinished.bool()
     w = M.chord(truth)
     if kind == "progressive" and len(h_maps) == len(found_maps) == frames:
-        eff, h, found = [], h_maps[0], torch.zeros_like(found_maps[0])
-        for hk, fk in zip(h_maps, found_maps):
-            h = torch.where(found, h, hk)
-            eff.append(h)
-            found = found | fk
-        return M.predicted_punch_through(torch.stack(eff), w, mask=mask).tolist()
+        return M.survivor_punch_through(torch.stack(h_maps), w, torch.stack(found_maps), mask=mask).tolist()
     if kind == "fixed":
         return M.predicted_punch_through(t_far / n, w, frames=1, mask=mask).tolist() * frames
     return None

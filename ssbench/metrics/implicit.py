@@ -35,7 +35,7 @@ import torch
 from .. import checks
 
 __all__ = ["classify", "class_counts", "summary", "chord", "lipschitz_check", "detection_prediction",
-           "predicted_punch_through", "TRUE_MISS", "CORRECT", "PUNCH_THROUGH", "EARLY_HIT", "FALSE_HIT",
+           "predicted_punch_through", "survivor_punch_through", "TRUE_MISS", "CORRECT", "PUNCH_THROUGH", "EARLY_HIT", "FALSE_HIT",
            "UNKNOWN", "CLASS_NAMES", "CLASS_DESCRIPTIONS", "CLASS_COLORS"]
 
 TRUE_MISS, CORRECT, PUNCH_THROUGH, EARLY_HIT, FALSE_HIT, UNKNOWN = 0, 1, 2, 3, 4, 5
@@ -322,4 +322,50 @@ def predicted_punch_through(h_per_frame: Union[float, torch.Tensor, Sequence], c
     for k in range(frames):
         alive = alive * (1.0 - detection_prediction(per[min(k, len(per) - 1)], chord))
         out.append(alive.expand_as(chord)[m].mean())
+    return torch.stack(out)
+
+
+def survivor_punch_through(h_per_frame: torch.Tensor, chord: torch.Tensor, found: torch.Tensor,
+                           mask: Optional[torch.Tensor] = None) -> torch.Tensor:
+    r"""Survivor (hazard) form of the h/w prediction: each frame, only pixels the run has not found yet are at risk.
+
+    :func:`predicted_punch_through` multiplies miss probabilities over all frames for every pixel, so a pixel the
+    run found at frame 3 still counts as "maybe unfound" at frame 40: it over-predicts late frames (seed 004's
+    progressive method keeps a found root's ``t'``; the pixel stays found). Here the at-risk set of frame
+    :math:`k` is the run's own set of unfound pixels after frame :math:`k-1` (all pixels before frame 1), and the
+    hazard of staying unfound is the one-frame miss probability :math:`1 - \min(1, w/h_k)`:
+
+    .. math::  \hat P_k = \frac{1}{|M|}\sum_{p \in M} [p \notin F_{k-1}]\,\bigl(1 - \min(1, w_p/h_{k,p})\bigr)
+
+    It predicts the next frame from the state the run is in (a one-step survival model), so it tracks the
+    measured curve where the product form drifts; the product form remains the a-priori prediction.
+
+    Args:
+        h_per_frame: :math:`(F, B, 1, H, W)` the step of each frame (``t'/N`` before the frame).
+        chord: :math:`(B, 1, H, W)` slab chords ``w`` (:func:`chord`).
+        found: :math:`(F, B, 1, H, W)` bool, the run found the pixel's first root after frame ``k``.
+        mask: pixels to average over; default ``chord > 0``.
+
+    Returns:
+        :math:`(F,)` float64, entry ``k`` the predicted share of ``mask`` pixels unfound after frame ``k+1``.
+
+    Example:
+        >>> w = torch.tensor([0.02, 0.125], dtype=torch.float64).view(1, 1, 1, 2)
+        >>> h = torch.full((2, 1, 1, 1, 2), 0.25, dtype=torch.float64)
+        >>> found = torch.tensor([[False, True], [False, True]]).view(2, 1, 1, 1, 2)   # pixel 1 found at frame 1
+        >>> [round(p, 12) for p in survivor_punch_through(h, w, found).tolist()]      # (.92 + .5)/2, (.92 + 0)/2
+        [0.71, 0.46]
+    """
+    checks.check_shape(chord, ["B", "1", "H", "W"], "chord")
+    if h_per_frame.dim() != chord.dim() + 1 or found.shape != h_per_frame.shape:
+        raise ValueError(f"h_per_frame, found: expected (F, B, 1, H, W) each, got {tuple(h_per_frame.shape)} and "
+                         f"{tuple(found.shape)}")
+    m = chord > 0 if mask is None else mask.bool()
+    if int(m.sum()) == 0:
+        return torch.full((h_per_frame.shape[0],), math.nan, dtype=torch.float64)
+    out, at_risk = [], torch.ones_like(chord, dtype=torch.bool)
+    for hk, fk in zip(h_per_frame, found):
+        miss = 1.0 - detection_prediction(hk, chord)
+        out.append(torch.where(at_risk, miss, torch.zeros_like(miss)).expand_as(chord)[m].mean())
+        at_risk = ~fk.bool()
     return torch.stack(out)

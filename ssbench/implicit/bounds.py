@@ -11,8 +11,8 @@ Method, per face :math:`F` of the local box (axis :math:`k` fixed at its lower o
 1. Cover :math:`F` by ``grid × grid`` rectangles; a rectangle is a degenerate box (zero width along
    :math:`k`) whose enclosure ``expression.interval`` gives.
 2. ``lo > 0``: f > 0 on the whole rectangle (proved). Otherwise evaluate f at the rectangle's centre: f ≤ 0
-   (or NaN; the most negative centre is reported) is a witness that the surface reaches the face, and the box is refused naming the face and the
-   point. Otherwise split the rectangle in four and repeat.
+   (or NaN; the most negative centre is reported) is a witness that the surface reaches the face, and the
+   box is refused naming the face and the point. Otherwise split the rectangle in four and repeat.
 3. A rectangle still undecided after ``max_depth`` splits, or more than ``max_cells`` rectangles alive,
    refuses the box too ("could not prove"): a tangency on the face or interval over-estimation that
    subdivision does not remove. Widening the box by a little always helps a closed surface.

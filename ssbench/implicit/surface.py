@@ -75,12 +75,12 @@ class ImplicitObject:
 
     Example:
         >>> from ssbench.implicit.expression import parse
-        >>> ball = ImplicitObject("ball", parse("length(p) - 1"), bounds=((-1, -1, -1), (1, 1, 1)),
+        >>> ball = ImplicitObject("ball", parse("length(p) - 1"), bounds=((-1.2, -1.2, -1.2), (1.2, 1.2, 1.2)),
         ...                       lipschitz=1.0, translate=(2, 0, 0), scale=0.5)      # radius 0.5 at x = 2
         >>> ball.f(torch.tensor([[2.0, 0.0, 0.0], [3.0, 0.0, 0.0]], dtype=torch.float64)).tolist()
         [-0.5, 0.5]
         >>> [[round(v, 12) for v in corner] for corner in ball.world_bounds]    # padded by ~1e-15 outward
-        [[1.5, -0.5, -0.5], [2.5, 0.5, 0.5]]
+        [[1.4, -0.6, -0.6], [2.6, 0.6, 0.6]]
     """
 
     id: str
@@ -218,14 +218,14 @@ class ImplicitSurface:
 
     Example:
         >>> from ssbench.implicit.expression import parse
-        >>> ball = lambda i, x: ImplicitObject(i, parse("length(p) - 1"), ((-1, -1, -1), (1, 1, 1)),
+        >>> ball = lambda i, x: ImplicitObject(i, parse("length(p) - 1"), ((-1.5, -1.5, -1.5), (1.5, 1.5, 1.5)),
         ...                                    lipschitz=1.0, translate=(x, 0, 0))
         >>> s = ImplicitSurface((ball("a", -2.0), ball("b", 2.0)))
         >>> p = torch.tensor([[-2.0, 0, 0], [1.5, 0, 0]], dtype=torch.float64)
         >>> s.f(p).tolist(), s.object_index(p).tolist(), s.lipschitz
         ([-1.0, -0.5], [0, 1], 1.0)
         >>> [[round(v, 12) for v in corner] for corner in s.bounds]
-        [[-3.0, -1.0, -1.0], [3.0, 1.0, 1.0]]
+        [[-3.5, -1.5, -1.5], [3.5, 1.5, 1.5]]
     """
 
     objects: tuple[ImplicitObject, ...]

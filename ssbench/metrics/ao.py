@@ -109,8 +109,8 @@ def halo(pred: torch.Tensor, target: torch.Tensor, view_z: torch.Tensor, mask: O
 
     ``dark`` is false occlusion next to depth edges (the dark halo a missing or loose range check paints
     behind foreground objects); ``missing`` is occlusion the method fails to find there (a bright halo).
-    ``dark + missing = band``, and ``missing − dark = band_bias``. ``ratio`` is ``inf`` when the error is all in the band, ``nan``
-    when a region is empty or both errors are 0.
+    ``dark + missing = band``, and ``missing − dark = band_bias``. ``ratio`` is ``inf`` when the error is all
+    in the band, ``nan`` when a region is empty or both errors are 0.
 
     Args:
         pred: :math:`(B, 1, H, W)` method AO :math:`\hat a`.

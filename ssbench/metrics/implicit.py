@@ -35,8 +35,8 @@ import torch
 from .. import checks
 
 __all__ = ["classify", "class_counts", "summary", "chord", "lipschitz_check", "detection_prediction",
-           "predicted_punch_through", "survivor_punch_through", "TRUE_MISS", "CORRECT", "PUNCH_THROUGH", "EARLY_HIT", "FALSE_HIT",
-           "UNKNOWN", "CLASS_NAMES", "CLASS_DESCRIPTIONS", "CLASS_COLORS"]
+           "predicted_punch_through", "survivor_punch_through", "TRUE_MISS", "CORRECT", "PUNCH_THROUGH",
+           "EARLY_HIT", "FALSE_HIT", "UNKNOWN", "CLASS_NAMES", "CLASS_DESCRIPTIONS", "CLASS_COLORS"]
 
 TRUE_MISS, CORRECT, PUNCH_THROUGH, EARLY_HIT, FALSE_HIT, UNKNOWN = 0, 1, 2, 3, 4, 5
 #: code → short key

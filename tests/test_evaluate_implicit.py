@@ -112,3 +112,13 @@ def test_steps_param():
 def test_bad_input_names_the_problem(args, kwargs, err, match):
     with pytest.raises(err, match=match):
         evaluate.implicit(*args, lipschitz_samples=0, width=8, height=6, **kwargs)
+
+
+def test_plain_sphere_tracing_shows_the_displaced_torus_holes():
+    """The catalog's displaced_torus declares λ = 1 (false): the safeguard hides the article's failure case,
+    plain sphere tracing (safeguard=False) shows it as punch-through against the certified truth."""
+    guarded = evaluate.run_implicit("displaced_torus", "sphere", frames=1).row
+    plain = evaluate.run_implicit("displaced_torus", "sphere", {"safeguard": False}, frames=1).row
+    assert guarded["punch_through_rate"] == 0.0 and guarded["overshoot_pixels"] > 100
+    assert plain["punch_through_rate"] > 0.1 and plain["overshoot_pixels"] == 0
+    assert plain["params"]["safeguard"] is False

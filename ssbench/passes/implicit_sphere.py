@@ -42,6 +42,10 @@ class SphereTraceParams:
         max_steps: step budget per ray.
         epsilon: relative hit threshold, ``|f|/λ < ε·max(t, t_near)``.
         refine_iterations: bisection iterations on a crossing (overshoot or unarmed ray).
+        safeguard: catch a step that lands inside (``f ≥ 0 → f < 0``) and bisect back to the crossing
+            (default). ``False`` is plain Hart sphere tracing: the march goes on with ``|f|/λ`` from wherever it
+            landed, so with an invalid λ it tunnels through thin features and reports the far side or a miss —
+            the article's holes (seed 004, 背景), which ``safeguard=True`` hides.
     """
 
     lipschitz: Optional[float] = None
@@ -49,8 +53,11 @@ class SphereTraceParams:
     max_steps: int = 256
     epsilon: float = 1e-4
     refine_iterations: int = 20
+    safeguard: bool = True
 
     def __post_init__(self) -> None:
+        if not isinstance(self.safeguard, bool):
+            raise ValueError(f"safeguard: must be True or False, got {self.safeguard!r}")
         if self.lipschitz is not None and (isinstance(self.lipschitz, bool) or not isinstance(
                 self.lipschitz, (int, float)) or not (math.isfinite(self.lipschitz) and self.lipschitz > 0)):
             raise ValueError(f"lipschitz: must be a finite number > 0 or None, got {self.lipschitz!r}")
@@ -151,6 +158,8 @@ def sphere_trace(surface, camera, params: SphereTraceParams = SphereTraceParams(
         steps[ids] += 1
         fail = armed & (omega > 1) & (r + fn / lam < tn - t)          # spheres do not overlap (Keinert)
         cross = ~fail & (fa >= 0) & (fn < 0)
+        if not params.safeguard:                                      # plain Hart: no crossing test
+            cross = cross & ~armed
         ci = cross.nonzero().squeeze(1)
         if ci.numel():
             sel = ids.index_select(0, ci)

@@ -95,6 +95,26 @@ def test_invalid_lipschitz_overshoots_and_bisects_back():
     assert ((ok.t - dense.t).abs()[agree] < 1e-2).float().mean() > 0.99
 
 
+def test_plain_sphere_tracing_punches_through_where_the_safeguard_bisects_back():
+    """safeguard=False is Hart's loop as published: with the invalid λ it steps through the bumps (seed 004's
+    holes), so the first hit is missed or reported far behind on many pixels; with the safeguard none is."""
+    bumps = lambda p: torus_f(p, 1.0, 0.35) + 0.045 * torch.sin(20 * p[..., 0]) * torch.sin(    # noqa: E731
+        20 * p[..., 1]) * torch.sin(20 * p[..., 2])
+    surf = FunctionSurface(bumps, lipschitz=1.0)                       # wrong: max |∇f| ≈ 1.9
+    rays = camera_rays(cam((0, 2, 4)), dtype=torch.float64)
+    guarded = sphere_trace(surf, rays)
+    plain = sphere_trace(surf, rays, SphereTraceParams(safeguard=False))
+    dense = fixed_step(surf, rays, FixedStepParams(steps=4000))        # the first crossing, densely sampled
+    first = dense.hit
+    late = lambda r: first & (~r.hit | (r.t > dense.t + 0.02))         # noqa: E731  missed or far behind
+    assert int(late(guarded).sum()) <= 3
+    assert int(late(plain).sum()) > 0.1 * int(first.sum())
+    assert not bool(plain.debug["overshoot"].any()) and not torch.isnan(plain.t).any()
+    valid = FunctionSurface(bumps, lipschitz=2.0)                       # with a valid λ both modes agree
+    a, b = sphere_trace(valid, rays), sphere_trace(valid, rays, SphereTraceParams(safeguard=False))
+    assert torch.equal(a.hit, b.hit) and torch.allclose(a.t, b.t, atol=1e-6)
+
+
 def test_lipschitz_argument():
     c = cam((0, 0, 4), w=8, h=6)
     with pytest.raises(ValueError, match="lipschitz"):
@@ -160,6 +180,7 @@ def test_float32_and_module():
 
 def test_bad_params():
     for kw, name in (({"omega": 2.0}, "omega"), ({"omega": 0.5}, "omega"), ({"max_steps": 0}, "max_steps"),
-                     ({"epsilon": 0.0}, "epsilon"), ({"lipschitz": -1.0}, "lipschitz")):
+                     ({"epsilon": 0.0}, "epsilon"), ({"lipschitz": -1.0}, "lipschitz"),
+                     ({"safeguard": 1}, "safeguard")):
         with pytest.raises(ValueError, match=name):
             SphereTraceParams(**kw)

@@ -24,6 +24,7 @@ local box's faces is the sign on the world box's faces.
 """
 from __future__ import annotations
 
+import math
 from typing import Any, Optional
 
 import torch
@@ -56,8 +57,8 @@ def _face_boxes(lo: torch.Tensor, hi: torch.Tensor, axis: int, value: float) -> 
 
 
 def _prove_face(expression: Any, box: tuple, axis: int, side: int, grid: int, max_depth: int,
-                max_cells: int) -> tuple[str, Optional[tuple]]:
-    """``("proved", None)``, ``("reached", point)`` or ``("undecided", None)`` for one face."""
+                max_cells: int) -> tuple[str, Optional[tuple], float]:
+    """``("proved", None, nan)``, ``("reached", point, f(point))`` or ``("undecided", None, nan)`` for one face."""
     blo, bhi = (torch.tensor(b, dtype=torch.float64) for b in box)
     value = float((blo if side == 0 else bhi)[axis])
     others = [a for a in range(3) if a != axis]
@@ -71,7 +72,7 @@ def _prove_face(expression: Any, box: tuple, axis: int, side: int, grid: int, ma
         flo, _fhi = expression.interval(*_face_boxes(lo, hi, axis, value))
         open_ = ~(flo > 0)                                                   # NaN enclosure: not proved
         if not bool(open_.any()):
-            return "proved", None
+            return "proved", None, math.nan
         lo, hi = lo[open_], hi[open_]
         centre = (lo + hi) / 2
         p, _ = _face_boxes(centre, centre, axis, value)
@@ -79,9 +80,9 @@ def _prove_face(expression: Any, box: tuple, axis: int, side: int, grid: int, ma
         bad = ~(fc > 0)
         if bool(bad.any()):
             worst = int(torch.where(bad, fc.nan_to_num(nan=-torch.inf), torch.inf).argmin())
-            return "reached", tuple(float(v) for v in p[worst])                # the most negative witness
+            return "reached", tuple(float(v) for v in p[worst]), float(fc[worst])   # the most negative witness
         if 4 * lo.shape[0] > max_cells:
-            return "undecided", None
+            return "undecided", None, math.nan
         mid = centre
         quads = []
         for qa in (0, 1):
@@ -91,7 +92,7 @@ def _prove_face(expression: Any, box: tuple, axis: int, side: int, grid: int, ma
                 quads.append((qlo, qhi))
         lo = torch.cat([q[0] for q in quads])
         hi = torch.cat([q[1] for q in quads])
-    return "undecided", None
+    return "undecided", None, math.nan
 
 
 def check_bounds(expression: Any, bounds: tuple, name: str = "object", *, grid: int = 8, max_depth: int = 10,
@@ -123,9 +124,8 @@ def check_bounds(expression: Any, bounds: tuple, name: str = "object", *, grid: 
     if key in _PROVED:
         return
     for face, axis, side in FACES:
-        verdict, point = _prove_face(expression, bounds, axis, side, grid, max_depth, max_cells)
+        verdict, point, fval = _prove_face(expression, bounds, axis, side, grid, max_depth, max_cells)
         if verdict == "reached":
-            fval = float(expression(torch.tensor([point], dtype=torch.float64))[0])
             raise BoundsError(
                 f"object {name!r}: the surface reaches the bounds face {face} (f = {fval:.3g} at local "
                 f"({', '.join(f'{v:.4g}' for v in point)})); the reference needs f > 0 on and outside the box: "

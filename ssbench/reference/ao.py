@@ -93,7 +93,7 @@ def _estimate(mi, dr, mscene, origin_si, n_view, R_v2s, active, radius, rays, we
     mean = s1 / rays
     n = float(rays)
     if weighting == "obscurance":                  # continuous visibility: sample variance, Jeffreys floor
-        var = dr.maximum(dr.maximum((s2 - rays * mean * mean) / (rays - 1), 0.0) / n, jeffreys_variance(n, n))
+        var = dr.maximum((s2 - rays * mean * mean) / ((rays - 1) * n), jeffreys_variance(n, n))
     else:                                          # binary rays: the Jeffreys posterior Beta(k + ½, n − k + ½)
         var = jeffreys_variance(s1, n)
     return mean, dr.sqrt(var)

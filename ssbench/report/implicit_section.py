@@ -84,7 +84,8 @@ def _plot_punch(path: str, prog: dict, fixed: dict) -> None:
     clip = lambda v: np.maximum(np.array([np.nan if r is None else r for r in v], float), floor)   # noqa: E731
     ax.plot(x, clip(prog["punch_through_per_frame"]), "o-", ms=3, color="#1f77b4", label="progressive (measured)")
     if prog["predicted_punch_through"]:
-        ax.plot(x, clip(prog["predicted_punch_through"]), "--", color="#1f77b4", label="progressive h/w prediction (survivor form)")
+        ax.plot(x, clip(prog["predicted_punch_through"]), "--", color="#1f77b4",
+                label="progressive h/w prediction (survivor form)")
     ax.plot(x, clip(fixed["punch_through_per_frame"]), "s-", ms=3, color="#d62728", label="fixed step (measured)")
     if fixed["predicted_punch_through"]:
         ax.plot(x, clip(fixed["predicted_punch_through"]), ":", color="#d62728", label="fixed step h/w prediction")

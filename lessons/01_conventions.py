@@ -18,8 +18,11 @@
 # arithmetic on those images, so before any effect we need to be exact about what the numbers *mean*: which
 # way the axes point, how a pixel maps to a ray, and how depth is stored.
 #
-# The source articles (seed 002 *SSAO* §2.2 and §3.3, seed 000 *SSR* §1.1) rebuild positions and normals from
-# the depth buffer in two different ways; we derive both, check them against each other and against a G-buffer
+# The source articles rebuild positions and normals from the depth buffer in two different ways: mebiusbox,
+# 「スクリーンスペース・アンビエント・オクルージョン (SSAO)」, 2022 (demo code https://github.com/mebiusbox/ssao;
+# *seed 002* below), §2.2 and §3.3, and mebiusbox, 「スクリーンスペース・リフレクション (SSR)」, 2022
+# (https://github.com/mebiusbox/ssr; *seed 000*), §1.1 — the README's Sources lists them all. We derive both
+# ways, check them against each other and against a G-buffer
 # that Mitsuba 3 ray traced **at the same pixel centres**, and meet the one place where Mitsuba's camera frame
 # differs from OpenGL's. The rules are collected on one page, `ssbench/CONVENTIONS.md`; `ssbench/camera.py`
 # implements all of them.

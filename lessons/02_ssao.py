@@ -94,9 +94,10 @@ print(f"{W}x{H}, ground truth: {RAYS} rays, standard error {float(metrics.masked
 # ## 1. The ground truth
 #
 # For every pixel Mitsuba shoots `RAYS` rays uniformly over the hemisphere around the surface normal and counts
-# the ones that hit something within `RADIUS`: **uniform-weighted, binary visibility** (`weighting="uniform"`).
-# That is the quantity SSAO's counting estimates (each pass module declares its flavour: `FLAVOUR = "uniform"`).
-# Corners and the bases of the blocks are dark; open walls are white. (The few white pixels exactly on the
+# the ones that hit something within `RADIUS`: **uniform-weighted, binary visibility** (`weighting="uniform"`),
+# ambient occlusion as shading means it. It is *not* quite what SSAO's counting estimates — Step 4 shows the
+# quantity SSAO converges to (a volume fraction, `weighting="volume_hemisphere"`, the flavour the pass module
+# declares with `FLAVOUR`), and why the two differ. Corners and the bases of the blocks are dark; open walls are white. (The few white pixels exactly on the
 # room's edges are rays that slip through the seam where two wall rectangles meet: a quirk of how this scene is
 # modelled, not of AO.)
 
@@ -241,8 +242,24 @@ check("the library kernel crowds the centre (median radius below the uniform hal
 # buys is crisp contact shading and less influence from distant geometry — a *look*, not a better estimate of
 # ray-traced AO. And both are brighter than the truth, for a deeper reason: counting the **volume** of a
 # half-ball that lies inside geometry is not counting **blocked rays** (a thin wall at distance R blocks many
-# rays but fills almost no volume). SSAO estimates a cousin of ambient occlusion; keep that in mind when you
-# read the numbers below. The rest of the lesson uses the library kernel, as the article does.
+# rays but fills almost no volume). SSAO estimates a cousin of ambient occlusion: the fraction of the kernel's
+# points that lie inside geometry. The library traces that cousin too — `weighting="volume_hemisphere"` draws
+# points from the same law as `hemisphere_kernel` (with the noise's turn about the normal) and asks Mitsuba
+# whether each lies inside geometry (`ssbench.reference.ao_volume`; Crytek's ball is `"volume_sphere"`). With
+# many samples the pass converges to it; the gap to the directional truth is a *definition*, not an error the
+# pass could shrink. `ssbench ao` and the report score SSAO against its own flavour **and** against cosine AO
+# (what shading needs). The rest of the lesson uses the library kernel, as the article does, and the uniform
+# truth, because that is what the picture should look like.
+
+# %%
+volume = reference.ambient_occlusion(scene, g, RADIUS, rays=RAYS, weighting="volume_hemisphere", seed=0).ao
+many = hemisphere_ssao(g, HemisphereSSAOParams(kernel_size=64, kernel_radius=RADIUS)).ao
+bias_volume, bias_uniform = float(metrics.bias(many, volume, mask)), float(metrics.bias(many, gt, mask))
+show([many, volume, gt], [f"SSAO, 64 samples", f"volume truth: bias {bias_volume:+.3f}",
+                          f"uniform truth: bias {bias_uniform:+.3f}"],
+     "Step 4b — what SSAO converges to: the volume fraction, not blocked rays")
+check("with many samples SSAO sits on its own (volume) flavour, far closer than on the uniform one",
+      abs(bias_volume) < 0.5 * abs(bias_uniform))
 #
 # ## 5. Noise rotation and Gram–Schmidt (§2.2)
 #

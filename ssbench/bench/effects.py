@@ -23,6 +23,8 @@ from typing import Any, Callable, Mapping, Optional, Union
 
 import torch
 
+from ..reference.ao import WEIGHTINGS as AO_WEIGHTINGS
+
 __all__ = ["Setting", "Effect", "BenchInputs", "EFFECTS", "COMMON_SETTINGS", "get_effect", "ao_samples",
            "ao_bench", "ssr_bench", "implicit_resolve", "implicit_run", "implicit_bench"]
 
@@ -275,7 +277,7 @@ EFFECTS: dict[str, Effect] = {
         evaluate="ssbench.evaluate:run_ao", bench="ssbench.bench.effects:ao_bench",
         settings={"rays": Setting((int,), 256, lo=2, help="ground-truth rays per pixel"),
                   "blur": Setting((str, _NULL), None, choices=("box", "cross_bilateral", "joint_bilateral")),
-                  "weighting": Setting((str, _NULL), None, choices=("uniform", "cosine", "obscurance")),
+                  "weighting": Setting((str, _NULL), None, choices=AO_WEIGHTINGS),
                   "oracle": Setting((bool,), True, help="trace the screen-space oracle"),
                   "flip": Setting((bool,), True, help="compute FLIP")},
         help="ambient occlusion vs ray-traced AO (ssbench.evaluate.ao)"),

@@ -40,13 +40,14 @@ def _parser() -> _Parser:
                    help=f"comma-separated channels (default: all of {','.join(CHANNELS)})")
     q.add_argument("--no-cache", action="store_true", help="do not read or write the render cache")
     from ..passes import AO_METHODS
+    from ..reference.ao import WEIGHTINGS as AO_WEIGHTINGS
     q = sub.add_parser("ao", help="run one AO method on a scene and score it against the ray-traced GT")
     q.add_argument("scene", metavar="SCENE", help="catalog name or scene file (.yaml, .toml, .xml)")
     q.add_argument("--method", required=True, choices=list(AO_METHODS), help="AO method")
     q.add_argument("--param", type=_param, action="append", default=[], metavar="NAME=VALUE",
                    help="override a pass parameter (repeatable), e.g. --param num_steps=8")
     q.add_argument("--radius", type=_positive_float, help="radius of the pass and the GT (default: the pass's)")
-    q.add_argument("--weighting", choices=("uniform", "cosine", "obscurance"),
+    q.add_argument("--weighting", choices=AO_WEIGHTINGS,
                    help="GT flavour to score against (default: the one the pass approximates)")
     q.add_argument("--blur", choices=("box", "cross_bilateral", "joint_bilateral"),
                    help="blur the pass output before scoring (noise_raw/banding_raw keep the raw AO)")

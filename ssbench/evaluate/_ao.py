@@ -166,8 +166,8 @@ def run_ao(scene, method: str, params=None, *, width: int = 320, height: int = 2
                          f"ground-truth radius is unknown; set RADIUS_PARAM in its module")
     gt_radius = float(getattr(p, rname))
     flav = weighting if weighting is not None else flavour(fn)
-    if flav not in ("uniform", "cosine", "obscurance"):
-        raise ValueError(f"weighting: expected 'uniform', 'cosine' or 'obscurance', got {flav!r}")
+    if flav not in reference.WEIGHTINGS:
+        raise ValueError(f"weighting: expected one of {', '.join(reference.WEIGHTINGS)}, got {flav!r}")
     if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
         raise ValueError(f"repeats: must be a positive integer, got {repeats!r}")
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:

@@ -15,9 +15,12 @@ Per pixel (the article's fragment shader, vectorised over pixels *and* samples a
    ``AO = 1 − occlusion·Strength`` (clamped to [0, 1], as an 8-bit render target would).
 
 **Which AO it estimates.** Counting kernel points that lie behind the depth buffer is a *volumetric*
-estimate: the fraction of the half-ball above the surface that is inside geometry. It is closest to the
-``"uniform"`` flavour of :mod:`ssbench.reference.ao` (unweighted binary visibility within ``kernel_radius``),
-not the cosine one; the kernel's ``lerp(0.1, 1, (i/N)²)`` lengths weight near occluders more.
+estimate: as ``K`` grows and the noise turns the kernel, the count converges to the fraction of the kernel's
+point law (the half-ball of radius ``KernelRadius``, denser near the centre through ``lerp(0.1, 1, (i/N)²)``)
+that lies inside geometry. That is the ``"volume_hemisphere"`` flavour of :mod:`ssbench.reference.ao_volume`,
+which this pass is scored against — not a visibility integral over directions: a crease is darker in the
+``"uniform"`` or ``"cosine"`` flavour than in this one (a wall blocks a whole cone of directions but holds
+only a small slice of the half-ball's volume).
 
 **Edge cases, as the shader behaves.** Samples off screen read the edge texel (``CLAMP_TO_EDGE``), which
 can darken or lighten the border. Samples behind the camera (``z > 0``) flip through the perspective divide
@@ -44,7 +47,7 @@ from ..gbuffer import GBuffer
 from .common import AOResult, check_count, check_radius, check_unit_normals, fetch_uv, length, make_generator
 from .sampling import hemisphere_kernel, noise_texel, noise_texture
 
-FLAVOUR = "uniform"  # the ground-truth weighting this pass estimates (ssbench.reference.ao)
+FLAVOUR = "volume_hemisphere"  # the ground truth this pass estimates (ssbench.reference.ao_volume)
 REQUIRES = ("view_z", "normal", "mask")
 POSITION_FROM = ("depth", "view_z")
 

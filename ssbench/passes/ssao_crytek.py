@@ -15,10 +15,11 @@ Per pixel:
 **Which AO it estimates, and the grey bias.** The count is the fraction of a *ball* around the point that
 lies inside geometry: a sphere-volume estimate. On an open plane half the ball is under the surface, so
 ``AO ≈ 0.5`` everywhere — the "everything is grey" look the article shows in Fig. 2 and the reason §1 moves to
-the normal-oriented hemisphere. Crease interiors go darker than 0.5, convex edges lighter. It is not a
-visibility integral of any flavour in :mod:`ssbench.reference.ao`; ``2 · AO − 1`` clipped to [0, 1] is
-roughly comparable to the ``"uniform"`` one. Because the kernel comes in opposite pairs
-(:func:`~ssbench.passes.sampling.sphere_kernel`), a plane gives 0.5 up to depth-texel quantisation.
+the normal-oriented hemisphere. Crease interiors go darker than 0.5, convex edges lighter. It is not a visibility
+integral over directions: the count converges to the fraction of the ball *outside* geometry, the
+``"volume_sphere"`` flavour of :mod:`ssbench.reference.ao_volume` (0.5 on an open plane), which this pass is
+scored against. Because the kernel comes in opposite pairs (:func:`~ssbench.passes.sampling.sphere_kernel`),
+a plane gives 0.5 up to depth-texel quantisation.
 
 The grey level drifts up on a distant floor seen at a grazing angle: the depth gap under the floor
 exceeds ``max_distance`` and those samples stop counting (0.58 at 12–20 units on the catalog floor camera).
@@ -38,7 +39,7 @@ from .common import AOResult, make_generator
 from .sampling import noise_texel, noise_texture, sphere_kernel
 from .ssao import check_gbuffer, check_ssao_params, range_check_count, ssao_result, view_position
 
-FLAVOUR = "uniform"  # the ground-truth weighting this pass estimates (ssbench.reference.ao)
+FLAVOUR = "volume_sphere"  # the ground truth this pass estimates (ssbench.reference.ao_volume)
 REQUIRES = ("view_z", "mask")
 
 

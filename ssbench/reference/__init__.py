@@ -10,9 +10,9 @@ from .gbuffer import DEFAULT_CHANNELS, gbuffer
 
 __all__ = ["gbuffer", "color", "DEFAULT_CHANNELS"]
 
-from .ao import AOReference, ambient_occlusion, screen_space_oracle  # noqa: E402
+from .ao import WEIGHTINGS, AOReference, ambient_occlusion, screen_space_oracle  # noqa: E402
 
-__all__ += ["ambient_occlusion", "screen_space_oracle", "AOReference"]
+__all__ += ["ambient_occlusion", "screen_space_oracle", "AOReference", "WEIGHTINGS"]
 
 from .reflections import ReflectionReference, reflections  # noqa: E402
 

@@ -1,6 +1,6 @@
 """Ray-traced ambient-occlusion ground truth, and the screen-space oracle.
 
-Three flavours, each the quantity one family of screen-space passes estimates:
+Five flavours, each the quantity one family of screen-space passes estimates:
 
 ========== ===================================== ===============================================
 weighting  directions over the hemisphere        per-ray visibility
@@ -10,6 +10,10 @@ cosine     cosine-weighted (``cos θ / π``)       1 if nothing within ``radius`
 obscurance uniform in solid angle                ``1 − ρ(t)``, ``ρ(t) = 1 − (t/R)²`` for a hit at
                                                  ``t < R`` (HBAO's ``W(r) = 1 − r²``), else 1
 ========== ===================================== ===============================================
+
+plus the two **volume** flavours of :mod:`ssbench.reference.ao_volume` (``volume_hemisphere``,
+``volume_sphere``): the fraction of a sample kernel's points that lie outside geometry, what the
+point-counting SSAO passes (hemisphere, Crytek) converge to.
 
 AO is the mean over ``rays`` samples per pixel. ``stderr`` is never 0 on finite samples: for the binary flavours
 (uniform, cosine) it is the standard deviation of the Jeffreys posterior of the proportion
@@ -35,9 +39,9 @@ import torch
 
 from ..gbuffer import GBuffer
 from ..scenes import load as load_scene
-from . import backend, cache, convert
+from . import ao_volume, backend, cache, convert
 
-WEIGHTINGS = ("uniform", "cosine", "obscurance")
+WEIGHTINGS = ("uniform", "cosine", "obscurance") + ao_volume.VOLUME_WEIGHTINGS
 _KERNEL_VERSION = 2  # 2: Jeffreys standard errors (never 0)
 
 
@@ -68,25 +72,17 @@ def _check(gbuffer: GBuffer, radius: float, rays: int, weighting: str, seed: int
         raise ValueError(f"gbuffer: batch size must be 1, got {gbuffer.batch_size}")
 
 
-def _estimate(mi, dr, mscene, origin_si, n_view, R_v2s, active, radius, rays, weighting, seed, N):
+def _estimate(mi, dr, mscene, origin_si, eye, n_view, R_v2s, active, radius, rays, weighting, seed, N):
     """Accumulate per-pixel mean and variance over ``rays`` directions (one evaluated kernel per ray)."""
     frame = mi.Frame3f(n_view)
     rng = mi.PCG32(size=N, initstate=dr.opaque(mi.UInt64, seed), initseq=dr.arange(mi.UInt64, N))
     s1, s2 = dr.zeros(mi.Float, N), dr.zeros(mi.Float, N)
     R = dr.opaque(mi.Float, radius)
     for _ in range(rays):
-        u = mi.Point2f(rng.next_float32(), rng.next_float32())
-        local = (mi.warp.square_to_cosine_hemisphere(u) if weighting == "cosine"
-                 else mi.warp.square_to_uniform_hemisphere(u))
-        d = R_v2s @ frame.to_world(local)                          # view frame -> tracing space
-        ray = origin_si.spawn_ray(d)
-        ray.maxt = R
-        if weighting == "obscurance":
-            pi = mscene.ray_intersect_preliminary(ray, active=active)
-            x = dr.clip(pi.t / R, 0.0, 1.0)
-            v = dr.select(pi.is_valid(), x * x, 1.0)               # 1 − ρ(t) = (t/R)²
+        if weighting in ao_volume.VOLUME_WEIGHTINGS:
+            v = ao_volume.visibility(mi, dr, mscene, origin_si.p, eye, frame, R_v2s, R, rng, active, weighting)
         else:
-            v = dr.select(mscene.ray_test(ray, active), 0.0, 1.0)
+            v = _ray_visibility(mi, dr, mscene, origin_si, frame, R_v2s, R, rng, active, weighting)
         s1 += v
         s2 += v * v
         dr.eval(s1, s2, rng.state)
@@ -97,6 +93,20 @@ def _estimate(mi, dr, mscene, origin_si, n_view, R_v2s, active, radius, rays, we
     else:                                          # binary rays: the Jeffreys posterior Beta(k + ½, n − k + ½)
         var = jeffreys_variance(s1, n)
     return mean, dr.sqrt(var)
+
+
+def _ray_visibility(mi, dr, mscene, origin_si, frame, R_v2s, R, rng, active, weighting):
+    """Visibility of one hemisphere direction per pixel (uniform / cosine: binary; obscurance: (t/R)²)."""
+    u = mi.Point2f(rng.next_float32(), rng.next_float32())
+    local = (mi.warp.square_to_cosine_hemisphere(u) if weighting == "cosine"
+             else mi.warp.square_to_uniform_hemisphere(u))
+    ray = origin_si.spawn_ray(R_v2s @ frame.to_world(local))               # view frame -> tracing space
+    ray.maxt = R
+    if weighting == "obscurance":
+        pi = mscene.ray_intersect_preliminary(ray, active=active)
+        x = dr.clip(pi.t / R, 0.0, 1.0)
+        return dr.select(pi.is_valid(), x * x, 1.0)                        # 1 − ρ(t) = (t/R)²
+    return dr.select(mscene.ray_test(ray, active), 0.0, 1.0)
 
 
 def jeffreys_variance(k, n):
@@ -170,7 +180,7 @@ def ambient_occlusion(scene, gbuffer: GBuffer, radius: float, rays: int = 256, w
     n_view = dr.normalize(w2v @ mi.Vector3f(si.sh_frame.n))
     d_view = w2v @ mi.Vector3f(ray.d)
     n_view = dr.select(dr.dot(n_view, d_view) > 0, -n_view, n_view)            # face the camera
-    mean, err = _estimate(mi, dr, mscene, si, n_view, v2w, hit, float(radius), rays, weighting, seed, W * H)
+    mean, err = _estimate(mi, dr, mscene, si, ray.o, n_view, v2w, hit, float(radius), rays, weighting, seed, W * H)
     ao, se = _to_torch(mi, dr, mean, err, hit, H, W)
     secs = time.perf_counter() - t0
     if use_cache:
@@ -231,7 +241,7 @@ def screen_space_oracle(gbuffer: GBuffer, radius: float, rays: int = 256, weight
     n_view = mi.Vector3f(mi.Float(n[0].contiguous()), mi.Float(n[1].contiguous()), mi.Float(n[2].contiguous()))
     origin.n = mi.Normal3f(n_view)
     identity = mi.Transform4f()
-    mean, err = _estimate(mi, dr, mscene, origin, n_view, identity, hit, float(radius), rays, weighting, seed,
+    mean, err = _estimate(mi, dr, mscene, origin, mi.Point3f(0.0), n_view, identity, hit, float(radius), rays, weighting, seed,
                           W * H)
     ao, se = _to_torch(mi, dr, mean, err, hit, H, W)
     secs = time.perf_counter() - t0

@@ -30,7 +30,7 @@ from .summary import unavailable_md
 
 #: scenes of the AO section when the report names none (small, so ``make report`` stays fast)
 AO_SCENES = ("crease", "cornell_box", "sphere_on_plane", "stairs")
-FLAVOURS = ("cosine", "uniform", "obscurance")
+FLAVOURS = ("cosine", "uniform", "obscurance", "volume_hemisphere", "volume_sphere")
 #: signed-error colour range
 ERR_RANGE = 0.5
 #: (row key, column label, format) of the per-scene artifact table

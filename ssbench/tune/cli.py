@@ -15,6 +15,7 @@ import sys
 from typing import Optional, Sequence
 
 from .space import BLUR_SPACES, SPACES
+from .tuner import WEIGHTINGS
 
 __all__ = ["add_tune_parser", "cmd_tune", "format_result", "main"]
 
@@ -100,7 +101,7 @@ def add_tune_parser(subparsers) -> argparse.ArgumentParser:
     q.add_argument("--gt-radius", type=_number(float, 0, "a number > 0"), default=0.5, dest="gt_radius",
                    help="ground-truth AO radius, fixed (default 0.5); the default config uses it as its radius")
     q.add_argument("--rays", type=_number(int, 2, "an integer >= 2"), default=256, help="GT rays per pixel")
-    q.add_argument("--weighting", choices=("cosine", "uniform", "obscurance", "flavour"), default="cosine",
+    q.add_argument("--weighting", choices=WEIGHTINGS, default="cosine",
                    help="GT flavour (default cosine; 'flavour': the one the pass approximates)")
     q.add_argument("--points", type=_number(int, 2, "an integer >= 2"), default=5, help="grid nodes per axis")
     q.add_argument("--rounds", type=_number(int, 1, "a positive integer"), default=3, help="grid rounds")

@@ -22,6 +22,7 @@ from typing import Any, Callable, Mapping, Optional, Sequence
 
 import torch
 
+from ..reference.ao import WEIGHTINGS as AO_WEIGHTINGS
 from .core import Objective, Timer, prepare_cases
 from .gradient import probe, refine
 from .grid import grid_narrow
@@ -30,7 +31,7 @@ from .space import baseline, blur_defaults, check_blur, coerce_fixed, method_par
 __all__ = ["TuneResult", "tune", "WEIGHTINGS"]
 
 #: ``weighting`` choices: a ground-truth flavour, or ``"flavour"`` for the one the pass approximates
-WEIGHTINGS = ("cosine", "uniform", "obscurance", "flavour")
+WEIGHTINGS = AO_WEIGHTINGS + ("flavour",)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -37,7 +37,7 @@
 # > 4. why the report prints `floor_ratio = time / gather floor` next to the time;
 # > 5. the equal-error cost: how many ray-traced AO rays reach a method's error (σ/√n);
 # > 6. how the report's small multiples show banding vs sample count and noise tile, and halos vs the range
-# >    check and the blur — and what the `banding` column does *not* measure;
+# >    check and the blur — and what the `banding` and `tile_energy` columns each measure;
 # > 7. what tuning buys on training scenes and on held-out ones;
 # > 8. where `index.html`, `summary.md`, `rows/*.jsonl` and the images of a report run are, and how two runs
 # >    are compared.
@@ -126,9 +126,11 @@ print(f"{W}x{H}, {RAYS} ground-truth rays, files under {OUT}")
 #
 # * *what ran*: `scene, method, params` (every parameter, defaults included), `width, height, radius, rays, seed`;
 # * *error* against each target, `<metric>_<target>`: `cos` is cosine-weighted AO, the common yardstick;
-#   `flavour` the weighting the pass itself approximates (HBAO: obscurance, SSAO: uniform; lesson 3, Step 7);
+#   `flavour` the quantity the pass itself estimates (HBAO: obscurance, SSAO: the volume fraction of its kernel,
+#   `volume_hemisphere`; lesson 2 Step 4b, lesson 3 Step 7);
 # * *artifacts*: `halo_band` (mean |error| within 4 px of a depth edge, seed 002 Figs. 7–9), `flat_bias`
-#   (occlusion added on open flat ground), `banding` (energy at the noise-tile frequency, Fig. 5), `noise`;
+#   (occlusion added on open flat ground), `banding` (the error left after a 1.5-px blur: Fig. 5's bands),
+#   `tile_energy` (the share of the image at the noise-tile frequency), `noise`;
 # * `gt_stderr_cos`: the ground truth's own standard error — no method can be scored more finely than this;
 # * *time*: `seconds`, the median of `repeats` calls. A sweep adds the careful timing of Step 4.
 #
@@ -154,7 +156,8 @@ check("gt_stderr_cos is the ground truth's mean standard error",
 groups = {"what ran": ["scene", "method", "params", "width", "height", "radius", "rays", "seed"],
           "error vs cosine AO": ["rmse_cos", "mae_cos", "bias_cos", "ssim_cos", "flip_cos"],
           "error vs its flavour": ["weighting", "rmse_flavour"],
-          "artifacts": ["halo_band_cos", "halo_elsewhere_cos", "flat_bias_cos", "banding", "banding_tile", "noise"],
+          "artifacts": ["halo_band_cos", "halo_elsewhere_cos", "flat_bias_cos", "banding", "tile_energy", "tile",
+                        "noise"],
           "ground truth's noise": ["gt_stderr_cos"], "time": ["seconds", "repeats", "threads"]}
 for group, keys in groups.items():
     cells = [f"{k}={row[k]:.4g}" if isinstance(row[k], float) else f"{k}={row[k]}" for k in keys]
@@ -463,23 +466,25 @@ plt.show()
 
 ssao_rows = [r for r in rows if r["method"] == "ssao"]
 fence = {(r["blur"], r["params"]["max_distance"]): r for r in halo_rows}
-check("banding is scored at the pass's own noise tile (banding_tile = noise_size)",
-      all(r["banding_tile"] == r["params"]["noise_size"] for r in ssao_rows))
-check("so one fixed kernel (noise_size 1) reads banding 0 by definition: a 1-pixel tile has no harmonics",
-      all(r["banding"] == 0 for r in ssao_rows if r["params"]["noise_size"] == 1))
+check("tile energy is scored at the pass's own noise tile (tile = noise_size)",
+      all(r["tile"] == r["params"]["noise_size"] for r in ssao_rows))
+check("a fixed kernel (noise_size 1) has no tile pattern, but its bands still count as banding",
+      all(r["tile_energy"] == 0 and r["banding"] > 0 for r in ssao_rows if r["params"]["noise_size"] == 1))
 check("fence: without the range check (MaxDistance 1) the halo band error is larger than with 0.02",
       fence[None, 1.0]["halo_band_flavour"] > fence[None, 0.02]["halo_band_flavour"])
 check("a blur is no cure for halos: box-blurred without range check stays above the unblurred range-checked",
       fence["box", 1.0]["halo_band_flavour"] > fence[None, 0.02]["halo_band_flavour"])
-check("the 5×5 box blur removes the 4×4 tile pattern (banding / 5 or less) at every MaxDistance",
-      all(fence["box", d]["banding"] <= fence[None, d]["banding"] / 5 for d in (0.005, 0.02, 1.0)))
+check("the 5×5 box blur removes the 4×4 tile pattern (tile energy / 5 or less) at every MaxDistance",
+      all(fence["box", d]["tile_energy"] <= fence[None, d]["tile_energy"] / 5 for d in (0.005, 0.02, 1.0)))
 
 # %% [markdown]
-# Read the `banding` column with its definition in mind (`metrics.banding`): it is the share of the image's
-# detail at the frequency of the noise **tile** — the structured noise a 4×4 rotation texture leaves and a 4–5
-# pixel blur removes (lesson 2, Steps 5 and 9). A fixed kernel's bands are not periodic in a tile, and with
-# `banding_tile = noise_size = 1` the metric is 0 by construction, so the `noise_size 1` line lies on the axis:
-# it says *no tile pattern*, not *no bands*. Compare banding only between rows with the same tile.
+# Read the two columns with their definitions in mind. `banding` (`metrics.banding`) is the error against the
+# oracle (or the truth, `banding_target`) after a 1.5-pixel Gaussian, where the truth shows occlusion and away
+# from depth edges: the bands of Fig. 5, which a small blur cannot remove — independent of any noise tile, so a
+# fixed kernel (`noise_size 1`) scores its bands. `tile_energy` is the share of the image's detail at the
+# frequency of the noise **tile**: the fine pattern a 4×4 rotation texture leaves and a 4–5 pixel blur removes
+# (lesson 2, Steps 5 and 9); a fixed kernel has none. The report's calibration section shows `banding` falling
+# with the kernel size and lower with the rotation on.
 #
 # ## 7. Tuning: default vs tuned, on scenes the tuner never saw (issue 6 §4)
 #

@@ -110,7 +110,7 @@ def test_row_holds_settings_timings_and_metrics(stub):
     for t in ("cos", "flavour", "oracle"):
         for m in evaluate.TARGET_METRICS:
             assert isinstance(row[f"{m}_{t}"], float), (m, t)
-    for k in ("banding", "noise", "info_loss_rmse", "info_loss_mae", "info_loss_bias", "estimator_rmse",
+    for k in ("banding", "banding_target", "tile", "tile_energy", "noise", "info_loss_rmse", "info_loss_mae", "info_loss_bias", "estimator_rmse",
               "estimator_mae", "gt_stderr_cos", "coverage", "nonfinite", "oracle"):
         assert k in row, k
     assert row["oracle"] is True and row["nonfinite"] == 0
@@ -516,13 +516,18 @@ def test_ssr_specular_mask_counts_only_mirror_pixels():
         ssr("reflective_floor", "linear", width=64, height=48, repeats=1, reflective="shiny")
 
 
-def test_banding_is_measured_at_the_pass_noise_tile():
-    """An 8-px noise tile is scored at 8 (a tile-4 score would miss its 1/8-cycle harmonics)."""
+def test_tile_energy_is_measured_at_the_pass_noise_tile_and_banding_against_the_truth():
+    """An 8-px noise tile is scored at 8 (a tile-4 score would miss its 1/8-cycle harmonics); without an oracle,
+    banding is scored against the flavour ground truth with its standard error."""
     from ssbench import metrics
     from ssbench.evaluate import run_ao
-    ev = run_ao("sphere_on_plane", "ssao", {"noise_size": 8, "kernel_size": 8}, width=48, height=32, rays=8,
+    ev = run_ao("sphere_on_plane", "ssao", {"noise_size": 8, "kernel_size": 8}, width=64, height=48, rays=64, radius=1.5,
                 flip=False, repeats=1, oracle=False)
-    assert ev.row["banding_tile"] == 8
+    assert ev.row["tile"] == 8
     pred = ev.result.ao.float()
-    assert ev.row["banding"] == pytest.approx(float(metrics.banding(pred, ev.gbuffer.mask, tile=8)))
-    assert ev.row["banding"] > float(metrics.banding(pred, ev.gbuffer.mask, tile=4))
+    assert ev.row["tile_energy"] == pytest.approx(float(metrics.tile_energy(pred, ev.gbuffer.mask, tile=8)))
+    assert ev.row["tile_energy"] > float(metrics.tile_energy(pred, ev.gbuffer.mask, tile=4))
+    ref = ev.references["flavour"]
+    assert ev.row["banding_target"] == "flavour" and ev.row["banding"] > 0
+    assert ev.row["banding"] == pytest.approx(float(metrics.banding(pred, ref.ao, ev.gbuffer.view_z, ev.gbuffer.mask,
+                                                                    target_stderr=ref.stderr)))

@@ -21,10 +21,10 @@ def _ao_table(row: dict) -> str:
     lines = [f"{'metric':<16}" + "".join(f"{c:>12}" for c in cols)]
     for m in TARGET_METRICS:
         lines.append(f"{m:<16}" + "".join(f"{fmt(row[f'{m}_{c}']):>12}" for c in cols))
-    extra = [("banding", "{:.4f}"), ("noise", "{:.3e}"), ("info_loss_rmse", "{:.4f}"), ("estimator_rmse", "{:.4f}"),
+    extra = [("banding", "{:.4f}"), ("tile_energy", "{:.4f}"), ("noise", "{:.3e}"), ("info_loss_rmse", "{:.4f}"), ("estimator_rmse", "{:.4f}"),
              ("gt_stderr_cos", "{:.4f}")]
     if row["blur"]:
-        extra += [("banding_raw", "{:.4f}"), ("noise_raw", "{:.3e}")]
+        extra += [("banding_raw", "{:.4f}"), ("tile_energy_raw", "{:.4f}"), ("noise_raw", "{:.3e}")]
     lines += [f"{k:<16}{fmt(row[k], spec):>12}" for k, spec in extra]
     if not row["oracle"] and row.get("oracle_error"):
         lines.append(f"oracle unavailable: {row['oracle_error']}")

@@ -11,7 +11,9 @@ Metric keys are ``<metric>_<target>`` with targets
   can know), so ``rmse_oracle`` is the *estimator* error; ``info_loss_*`` score the oracle against the
   flavour ground truth (the *information loss* of screen space). They are ``nan`` when no oracle is available.
 
-The row also holds ``banding`` and ``noise`` (target-free; with a blur also ``*_raw`` before it), the reference
+The row also holds ``banding`` (the low-passed error against the oracle, or the flavour ground truth without
+one: ``banding_target``; :func:`ssbench.metrics.banding`), ``tile_energy`` (the share of the image at the noise
+tile ``tile``) and ``noise`` (with a blur also ``*_raw`` before it), the reference
 noise floor ``gt_stderr_*`` (mean per-pixel standard error), timings and settings. No files are written here
 (the reference's disk cache aside: ``use_cache=False`` turns it off).
 """
@@ -239,13 +241,18 @@ def run_ao(scene, method: str, params=None, *, width: int = 320, height: int = 2
         scored[t] = {k[:-len(same)] + t: v for k, v in scored[same].items()} if same else \
             score(pred, refs[t].ao.float(), mask, view_z, t, flip=flip)
         row.update(scored[t])
+    band_target = "oracle" if "oracle" in refs else "flavour"     # structured *estimator* error when possible
+    tref = refs[band_target]
+
+    def band(x):
+        return float(metrics.banding(x, tref.ao.float(), view_z, mask, target_stderr=tref.stderr.float()))
+
     tile = int(getattr(p, "noise_size", 4))          # the pass's own noise tile (GTAO/Crytek: the article's 4)
-    row["banding_tile"] = tile
-    row["banding"] = float(metrics.banding(pred, mask, tile=tile))
-    row["noise"] = float(metrics.noise(pred, mask))
+    row.update(banding=band(pred), banding_target=band_target, tile=tile,
+               tile_energy=float(metrics.tile_energy(pred, mask, tile=tile)), noise=float(metrics.noise(pred, mask)))
     if blur_call is not None:
-        row["banding_raw"] = float(metrics.banding(raw, mask, tile=tile))
-        row["noise_raw"] = float(metrics.noise(raw, mask))
+        row.update(banding_raw=band(raw), tile_energy_raw=float(metrics.tile_energy(raw, mask, tile=tile)),
+                   noise_raw=float(metrics.noise(raw, mask)))
     if "oracle" in refs:
         o, full = refs["oracle"].ao.float(), refs["flavour"].ao.float()
         row.update(info_loss_mae=float(metrics.mae(o, full, mask)), info_loss_rmse=float(metrics.rmse(o, full, mask)),
@@ -277,7 +284,7 @@ def ao(scene, method: str, params=None, *, width: int = 320, height: int = 240, 
         seed: seeds the pass's generator (fresh each repeat) and the ground truth.
         blur: ``None``, a name of :data:`BLUR_NAMES` (see :func:`blur_fn`) or a callable
             ``blur(ao, gbuffer) -> ao`` (it gets the full G-buffer); metrics then score the blurred AO and
-            ``noise_raw``/``banding_raw`` the pass output (``blur_seconds`` times the blur alone).
+            ``noise_raw``/``banding_raw``/``tile_energy_raw`` the pass output (``blur_seconds`` times the blur).
         repeats: timed runs after one warm-up; ``seconds`` is their median (``time.perf_counter``).
         **kwargs: see :func:`run_ao` (``warmup``, ``device``, ``gbuffer``, ``references``, ``oracle``,
             ``flip``, ``use_cache``).
@@ -286,7 +293,8 @@ def ao(scene, method: str, params=None, *, width: int = 320, height: int = 240, 
         A flat dict: ``scene, method, params`` (dict), ``width, height, radius, radius_param, weighting, blur,
         seconds, seconds_runs, blur_seconds, repeats, warmup, threads, device, rays, seed, coverage, nonfinite,
         oracle, oracle_error``, ``<metric>_<cos|flavour|oracle>`` for each metric in
-        :data:`TARGET_METRICS`, ``banding, noise`` (``*_raw`` with a blur), ``info_loss_{mae,rmse,bias}``,
+        :data:`TARGET_METRICS`, ``banding, banding_target, tile, tile_energy, noise`` (``*_raw`` with a blur),
+        ``info_loss_{mae,rmse,bias}``,
         ``estimator_{rmse,mae}``, ``gt_stderr_<target>`` and ``gt_seconds_<target>``.
     """
     return run_ao(scene, method, params, width=width, height=height, radius=radius, rays=rays,

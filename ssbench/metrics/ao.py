@@ -3,7 +3,8 @@
 * :func:`halo` — error in a band around depth discontinuities vs elsewhere (halos behind foreground objects),
   split by sign into ``dark`` (false occlusion) and ``missing`` occlusion;
 * :func:`flat_bias` — occlusion where the ground truth sees none (self-occlusion, Crytek's grey floors);
-* :func:`banding` — spectral energy at the noise-tile frequency and its harmonics (structured noise, rings);
+* :func:`tile_energy` — spectral energy at the noise-tile frequency and its harmonics (the tile pattern itself;
+  banding, the structured error, is :func:`ssbench.metrics.ao_banding.banding`);
 * :func:`noise` — variance of the high-frequency residual (before vs after a blur);
 * :func:`over_darkening` — mean method occlusion over mean ground-truth occlusion.
 
@@ -19,9 +20,9 @@ import torch
 import torch.nn.functional as F
 
 from .. import checks
-from .image import _prepare
+from .image import prepare
 
-__all__ = ["halo", "HaloResult", "depth_edges", "flat_bias", "banding", "power_spectrum", "noise", "highpass",
+__all__ = ["halo", "HaloResult", "depth_edges", "flat_bias", "tile_energy", "power_spectrum", "noise", "highpass",
            "over_darkening"]
 
 
@@ -66,7 +67,7 @@ def depth_edges(view_z: torch.Tensor, mask: Optional[torch.Tensor] = None, thres
                 [0, 1, 1, 0]], dtype=torch.int32)
     """
     checks.check_shape(view_z, ["B", "1", "H", "W"], "view_z")
-    z, _, m = _prepare(view_z, None, mask)
+    z, _, m = prepare(view_z, None, mask)
     if isinstance(threshold, bool) or not isinstance(threshold, (int, float)) or not threshold > 0:
         raise ValueError(f"threshold: must be a number > 0, got {threshold!r}")
     a = z.abs()
@@ -138,7 +139,7 @@ def halo(pred: torch.Tensor, target: torch.Tensor, view_z: torch.Tensor, mask: O
     if isinstance(band, bool) or not isinstance(band, int) or band < 0:
         raise ValueError(f"band: must be a non-negative integer, got {band!r}")
     checks.check_same_size(pred, view_z, "pred", "view_z")
-    pred, target, m = _prepare(pred, target, mask)
+    pred, target, m = prepare(pred, target, mask)
     edges = depth_edges(view_z, m, threshold, silhouettes)
     near = F.max_pool2d(edges.to(pred.dtype), 2 * band + 1, stride=1, padding=band) > 0 if band else edges
     d = near & m
@@ -175,20 +176,24 @@ def flat_bias(pred: torch.Tensor, target: torch.Tensor, mask: Optional[torch.Ten
     """
     if isinstance(eps, bool) or not isinstance(eps, (int, float)) or not 0 <= eps < 1:
         raise ValueError(f"eps: must be a number in [0, 1), got {eps!r}")
-    pred, target, m = _prepare(pred, target, mask)
+    pred, target, m = prepare(pred, target, mask)
     u = m & (target >= 1 - eps)
     return (1 - pred)[u].mean()
 
 
-def banding(pred: torch.Tensor, mask: Optional[torch.Tensor] = None, tile: int = 4) -> torch.Tensor:
+def tile_energy(pred: torch.Tensor, mask: Optional[torch.Tensor] = None, tile: int = 4) -> torch.Tensor:
     r"""Fraction of the AO map's AC spectral energy at the noise-tile frequency and its harmonics.
+
+    It tells how much of the image is the noise texture's repeating pattern (what a ``tile``-pixel blur
+    removes), not whether there are bands: one fixed kernel has no tile and reads 0 whatever its error.
+    Structured error is :func:`ssbench.metrics.ao_banding.banding`.
 
     The image is cropped to a multiple of ``tile`` (:math:`H' \times W'`, top-left) so the harmonics fall on
     FFT bins; the masked, mean-removed signal :math:`x_p = m_p(\hat a_p - \bar a)` (:math:`\bar a` the mean over
     the mask) is transformed, :math:`X = \mathrm{FFT2}(x)`, and
 
     .. math::
-        \mathrm{banding} = \frac{\sum_{(k_y, k_x) \in T} |X_{k_y k_x}|^2}{\sum_{(k_y, k_x) \ne (0,0)} |X_{k_y k_x}|^2},
+        \mathrm{tile\_energy} = \frac{\sum_{(k_y, k_x) \in T} |X_{k_y k_x}|^2}{\sum_{(k_y, k_x) \ne (0,0)} |X_{k_y k_x}|^2},
         \qquad T = \{(k_y, k_x) \ne (0, 0) : k_y \equiv 0 \bmod H'/t,\ k_x \equiv 0 \bmod W'/t\}
 
     i.e. the frequencies :math:`(j/t, i/t)` cycles/px, :math:`0 \le i, j < t` — where all the energy of a
@@ -207,7 +212,7 @@ def banding(pred: torch.Tensor, mask: Optional[torch.Tensor] = None, tile: int =
 
     Example:
         >>> pattern = torch.rand(1, 1, 4, 4, generator=torch.Generator().manual_seed(0))
-        >>> round(float(banding(pattern.repeat(1, 1, 8, 8))), 6)            # a tiled 4x4 texture
+        >>> round(float(tile_energy(pattern.repeat(1, 1, 8, 8))), 6)        # a tiled 4x4 texture
         1.0
     """
     power, harm = power_spectrum(pred, mask, tile)
@@ -216,7 +221,7 @@ def banding(pred: torch.Tensor, mask: Optional[torch.Tensor] = None, tile: int =
 
 def power_spectrum(pred: torch.Tensor, mask: Optional[torch.Tensor] = None, tile: int = 4
                    ) -> tuple[torch.Tensor, torch.Tensor]:
-    r"""The AC power spectrum :func:`banding` reads, and where the tile harmonics are.
+    r"""The AC power spectrum :func:`tile_energy` reads, and where the tile harmonics are.
 
     Args:
         pred: :math:`(B, 1, H, W)` AO map, ``H, W ≥ tile``.
@@ -239,7 +244,7 @@ def power_spectrum(pred: torch.Tensor, mask: Optional[torch.Tensor] = None, tile
     H, W = pred.shape[-2:]
     if H < tile or W < tile:
         raise ValueError(f"pred: image {H}x{W} is smaller than tile {tile}")
-    x, _, m = _prepare(pred, None, mask)
+    x, _, m = prepare(pred, None, mask)
     h, w = H // tile * tile, W // tile * tile
     x, m = x[..., :h, :w].double(), m[..., :h, :w]
     mean = x[m].mean()
@@ -282,7 +287,7 @@ def noise(pred: torch.Tensor, mask: Optional[torch.Tensor] = None, kernel: int =
         >>> round(float(noise(checker.expand(1, 1, 32, 32))), 4)            # (0.096)^2 = 0.0092 + borders
         0.0093
     """
-    v = highpass(pred, mask, kernel)[_prepare(pred, None, mask)[2]]
+    v = highpass(pred, mask, kernel)[prepare(pred, None, mask)[2]]
     return (v - v.mean()).square().mean()
 
 
@@ -305,7 +310,7 @@ def highpass(pred: torch.Tensor, mask: Optional[torch.Tensor] = None, kernel: in
     checks.check_shape(pred, ["B", "1", "H", "W"], "pred")
     if isinstance(kernel, bool) or not isinstance(kernel, int) or kernel < 1 or kernel % 2 == 0:
         raise ValueError(f"kernel: must be an odd positive integer, got {kernel!r}")
-    x, _, m = _prepare(pred, None, mask)
+    x, _, m = prepare(pred, None, mask)
     mf = m.to(x.dtype)
     num = kornia.filters.box_blur(x * mf, kernel, border_type="constant")
     den = kornia.filters.box_blur(mf, kernel, border_type="constant")
@@ -334,5 +339,5 @@ def over_darkening(pred: torch.Tensor, target: torch.Tensor, mask: Optional[torc
         >>> over_darkening(1 - 2 * (1 - target), target)
         tensor(2.)
     """
-    pred, target, m = _prepare(pred, target, mask)
+    pred, target, m = prepare(pred, target, mask)
     return (1 - pred)[m].sum() / (1 - target)[m].sum()

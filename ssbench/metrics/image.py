@@ -19,8 +19,9 @@ from .. import checks
 __all__ = ["mae", "rmse", "bias", "psnr", "ssim", "flip", "masked_mean"]
 
 
-def _prepare(pred: torch.Tensor, target: Optional[torch.Tensor], mask: Optional[torch.Tensor]):
-    """Check shapes/dtypes; return float ``pred``, ``target`` and the mask expanded to ``pred``'s shape."""
+def prepare(pred: torch.Tensor, target: Optional[torch.Tensor], mask: Optional[torch.Tensor]):
+    """Check shapes/dtypes; return float ``pred``, ``target`` and the mask expanded to ``pred``'s shape
+    (the input checks every metric of this package starts with)."""
     checks.check_shape(pred, ["B", "C", "H", "W"], "pred")
     if not pred.is_floating_point():
         raise TypeError(f"pred: expected a floating-point dtype, got {pred.dtype}")
@@ -43,6 +44,9 @@ def _prepare(pred: torch.Tensor, target: Optional[torch.Tensor], mask: Optional[
                              f"got {tuple(mask.shape)}")
         mask = mask.expand_as(pred)
     return pred, target, mask
+
+
+_prepare = prepare
 
 
 def masked_mean(x: torch.Tensor, mask: Optional[torch.Tensor] = None) -> torch.Tensor:

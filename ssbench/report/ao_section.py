@@ -10,7 +10,7 @@ with the radius set to the report's ``radius`` (so all methods and ground truths
   error ``method − GT`` against the cosine GT and (when it differs) the GT of the method's own flavour
   (``RdBu``: red = too dark, blue = too bright, saturating at ±:data:`ERR_RANGE`);
 * ``<method>_highpass.png`` (the :func:`~ssbench.metrics.highpass` residual behind *noise*) and
-  ``<method>_spectrum.png`` (log power spectrum behind *banding*, tile harmonics ringed);
+  ``<method>_spectrum.png`` (log power spectrum behind *tile energy*, tile harmonics ringed);
 * ``halo_band.png`` and ``flat_region.png`` — the pixel sets behind *halo* and *flat bias*.
 
 Nothing here may crash the report: a missing reference AO or pass, or a failing run, becomes a visible note.
@@ -42,7 +42,8 @@ TABLE = (("seconds", "time s", "{:.3f}"), ("rmse_cos", "RMSE cos", "{:.4f}"),
          ("halo_dark_flavour", "dark halo", "{:.4f}"), ("halo_missing_flavour", "missing occl. (band)", "{:.4f}"),
          ("halo_band_flavour", "halo band MAE", "{:.4f}"), ("halo_ratio_flavour", "halo ratio", "{:.2f}"),
          ("flat_bias_flavour", "flat bias", "{:.4f}"), ("over_darkening_flavour", "over-dark.", "{:.2f}"),
-         ("banding", "banding", "{:.4f}"), ("noise", "noise var", "{:.2e}"))
+         ("banding", "banding", "{:.4f}"), ("tile_energy", "tile energy", "{:.4f}"),
+         ("noise", "noise var", "{:.2e}"))
 
 
 def fmt(value, spec: str = "{:.4f}") -> str:
@@ -88,7 +89,7 @@ def highpass_rgb(ao: torch.Tensor, mask: torch.Tensor, vmax: float = 0.1) -> np.
 
 
 def spectrum_rgb(ao: torch.Tensor, mask: torch.Tensor, tile: int = 4) -> np.ndarray:
-    """Centred log power spectrum (magma) behind *banding*; tile harmonics ringed in cyan."""
+    """Centred log power spectrum (magma) behind *tile energy*; tile harmonics ringed in cyan."""
     import matplotlib
     from ..metrics import power_spectrum
     power, harm = power_spectrum(ao.float(), mask, tile)

@@ -4,7 +4,7 @@ import math
 import pytest
 import torch
 
-from ssbench.metrics import banding, depth_edges, flat_bias, halo, noise, over_darkening
+from ssbench.metrics import depth_edges, tile_energy, flat_bias, halo, noise, over_darkening
 
 
 def _gen(seed=0):
@@ -148,44 +148,44 @@ class TestFlatBias:
             flat_bias(t, t, eps=1.0)
 
 
-class TestBanding:
+class TestTileEnergy:
     def test_tiled_pattern_is_one(self):
         pattern = torch.rand(1, 1, 4, 4, generator=_gen())
         tiled = pattern.repeat(1, 1, 12, 16)                               # 48 x 64
-        assert banding(tiled).item() == pytest.approx(1.0, abs=1e-9)
+        assert tile_energy(tiled).item() == pytest.approx(1.0, abs=1e-9)
 
     def test_tiled_pattern_on_a_ragged_size_is_cropped(self):
         pattern = torch.rand(1, 1, 4, 4, generator=_gen(1))
         tiled = pattern.repeat(1, 1, 12, 16)[..., :46, :63]
-        assert banding(tiled).item() == pytest.approx(1.0, abs=1e-9)
+        assert tile_energy(tiled).item() == pytest.approx(1.0, abs=1e-9)
 
     def test_smooth_ramp_is_near_zero(self):
         ramp = torch.linspace(0, 1, 64).expand(1, 1, 48, 64)
         # a sawtooth: |X_k|^2 ~ 1/sin^2(pi k/N); the harmonics k = 16, 32, 48 hold 5 / ((N^2-1)/3) of it
-        assert banding(ramp).item() == pytest.approx(5 / ((64 ** 2 - 1) / 3), rel=1e-3)
-        assert banding(ramp).item() < 0.01
+        assert tile_energy(ramp).item() == pytest.approx(5 / ((64 ** 2 - 1) / 3), rel=1e-3)
+        assert tile_energy(ramp).item() < 0.01
 
     def test_white_noise_is_small(self):
         x = torch.rand(1, 1, 64, 64, generator=_gen(2))
-        assert banding(x).item() < 5 * 15 / 64 ** 2
+        assert tile_energy(x).item() < 5 * 15 / 64 ** 2
 
     def test_structured_noise_on_smooth_signal(self):
         ramp = torch.linspace(0.3, 1, 64).expand(1, 1, 64, 64)
         tile = 0.2 * (torch.rand(1, 1, 4, 4, generator=_gen(3)) - 0.5)
-        b0, b1 = banding(ramp), banding(ramp + tile.repeat(1, 1, 16, 16))
+        b0, b1 = tile_energy(ramp), tile_energy(ramp + tile.repeat(1, 1, 16, 16))
         assert b1 > 10 * b0
 
     def test_other_tile(self):
         stripes = (torch.arange(48) % 3 == 0).float().expand(1, 1, 48, 48)
-        assert banding(stripes, tile=3).item() == pytest.approx(1.0, abs=1e-9)
-        assert banding(stripes, tile=4).item() < 0.1
+        assert tile_energy(stripes, tile=3).item() == pytest.approx(1.0, abs=1e-9)
+        assert tile_energy(stripes, tile=4).item() < 0.1
 
     def test_constant_is_nan_and_bad_args(self):
-        assert math.isnan(banding(torch.ones(1, 1, 8, 8)).item())
+        assert math.isnan(tile_energy(torch.ones(1, 1, 8, 8)).item())
         with pytest.raises(ValueError, match="tile"):
-            banding(torch.ones(1, 1, 8, 8), tile=0)
+            tile_energy(torch.ones(1, 1, 8, 8), tile=0)
         with pytest.raises(ValueError, match="smaller than tile"):
-            banding(torch.ones(1, 1, 3, 8))
+            tile_energy(torch.ones(1, 1, 3, 8))
 
 
 class TestNoise:

@@ -1,0 +1,150 @@
+"""Metric calibration: for every artifact metric, an experiment that induces its artifact with a knob and records
+how the metric responds. A metric that does not move when its artifact grows measures something else.
+
+Each experiment returns :class:`Response` curves (knob values, the metric's mean over repetitions and its
+standard error) plus the direction the metric must move; :func:`verdict` checks it. The report's "How each
+metric was calibrated" section draws these curves next to the tables that use the metrics, and the slow tests
+(``tests/analysis/test_calibration.py``) pin the same responses.
+
+AO experiments (seed 002, mebiusbox, 「スクリーンスペース・アンビエント・オクルージョン (SSAO)」, 2022,
+https://github.com/mebiusbox/ssao):
+
+* :func:`banding_response` — the kernel size ``K`` of hemisphere SSAO with the rotation noise off
+  (``noise_size = 1``, one kernel for every pixel: Fig. 5's bands) and on (4×4): banding must fall with ``K``
+  and be lower with the rotation on;
+* :func:`halo_response` — the range check ``max_distance``: the dark halo must rise with it (Figs. 7–9).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import statistics
+from typing import Iterable, Optional, Sequence
+
+import torch
+
+__all__ = ["Response", "verdict", "banding_response", "halo_response"]
+
+
+@dataclasses.dataclass(frozen=True)
+class Response:
+    """One calibration curve: ``metric`` (a row key) against ``knob`` on ``scene``.
+
+    Attributes:
+        metric, knob, scene: what was measured, what was turned, where.
+        series: the curve's label within its experiment (e.g. ``"rotation off"``).
+        x: knob values.
+        y: the metric at each knob value (mean over the repetitions).
+        err: standard error of each ``y`` over the repetitions (0 with one repetition).
+        expect: ``"falls"`` or ``"rises"`` as the knob grows (more samples: less artifact).
+        reps: repetitions per point (kernel seeds, noise frames, …).
+        note: settings and what the experiment holds fixed.
+    """
+
+    metric: str
+    knob: str
+    scene: str
+    series: str
+    x: tuple
+    y: tuple
+    err: tuple
+    expect: str
+    reps: int
+    note: str = ""
+
+    def as_row(self) -> dict:
+        """A JSON-able dict (tuples as lists)."""
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(self).items()}
+
+
+def verdict(r: Response, tol: float = 0.0) -> dict:
+    """Does ``r`` move the way it must? ``{"monotone": bool, "ratio": first/last (falls) or last/first
+    (rises)}``; ``tol`` is the step in the wrong direction tolerated (absolute)."""
+    y = [v for v in r.y if not math.isnan(v)]
+    steps = list(zip(y, y[1:]))
+    if r.expect == "falls":
+        mono = all(b <= a + tol for a, b in steps)
+        ratio = y[0] / y[-1] if y and y[-1] > 0 else math.inf
+    else:
+        mono = all(b >= a - tol for a, b in steps)
+        ratio = y[-1] / y[0] if y and y[0] > 0 else math.inf
+    return {"monotone": bool(mono and len(y) == len(r.y)), "ratio": float(ratio)}
+
+
+def _mean_err(vals: Sequence[float]) -> tuple[float, float]:
+    vals = [v for v in vals if not math.isnan(v)]
+    if not vals:
+        return math.nan, math.nan
+    if len(vals) == 1:
+        return float(vals[0]), 0.0
+    return float(statistics.fmean(vals)), float(statistics.stdev(vals) / math.sqrt(len(vals)))
+
+
+def banding_response(scene: str = "sphere_on_plane", kernel_sizes: Sequence[int] = (4, 8, 16, 32, 64),
+                     noise_sizes: Sequence[int] = (1, 4), seeds: Iterable[int] = range(8), *, width: int = 160,
+                     height: int = 120, radius: float = 1.5, max_distance: float = 0.05, rays: int = 256,
+                     method: str = "ssao", use_cache: bool = True) -> list[Response]:
+    """``banding`` of hemisphere SSAO against the oracle of its flavour, over the kernel size, one curve per
+    noise size; each point is the mean over ``seeds`` (kernel and noise draws: one draw is one kernel, whose
+    banding depends on where its few points happen to fall).
+
+    The ground truth and the oracle are traced once (seed 0), so only the pass changes along a curve.
+    """
+    from .. import metrics, reference
+    from ..evaluate import flavour
+    from ..passes import ao_method
+    fn, params_cls, _ = ao_method(method)
+    seeds = list(seeds)
+    flav = flavour(fn)
+    g = reference.gbuffer(scene, width, height, use_cache=use_cache)
+    orc = reference.screen_space_oracle(g, radius, rays, flav, 0, use_cache=use_cache)
+    target, se = orc.ao.double(), orc.stderr.double()
+    out = []
+    for ns in noise_sizes:
+        ys, es = [], []
+        for k in kernel_sizes:
+            p = params_cls(kernel_size=k, noise_size=ns, kernel_radius=radius, max_distance=max_distance)
+            vals = []
+            for s in seeds:
+                ao = fn(g, p, generator=torch.Generator().manual_seed(s)).ao.double()
+                vals.append(float(metrics.banding(ao, target, g.view_z, g.mask, target_stderr=se)))
+            m, e = _mean_err(vals)
+            ys.append(m)
+            es.append(e)
+        label = "rotation off (one kernel)" if ns == 1 else f"rotation on ({ns}×{ns} noise)"
+        out.append(Response("banding", "kernel_size", scene, label, tuple(kernel_sizes), tuple(ys), tuple(es),
+                            "falls", len(seeds), f"{method}, radius {radius}, max_distance {max_distance}, "
+                            f"{width}×{height}, vs the {flav} oracle ({rays} rays)"))
+    return out
+
+
+def halo_response(scenes: Sequence[str] = ("fence", "sphere_on_plane", "cornell_box"),
+                  max_distances: Sequence[float] = (0.001, 0.002, 0.005, 0.01, 0.02, 0.05), *, width: int = 96,
+                  height: int = 72, rays: int = 64, method: str = "ssao",
+                  use_cache: bool = True) -> list[Response]:
+    """``halo_dark_flavour`` (false occlusion next to depth edges) and ``halo_missing_flavour`` over SSAO's range
+    check ``max_distance``: the dark halo must rise as occluders ever farther in front are counted."""
+    from ..evaluate import run_ao
+    out = []
+    for scene in scenes:
+        refs: dict = {}
+        g = None
+        dark, missing = [], []
+        for md in max_distances:
+            ev = run_ao(scene, method, {"max_distance": md}, width=width, height=height, rays=rays, repeats=1,
+                        warmup=False, references=refs, gbuffer=g, flip=False, oracle=False, use_cache=use_cache)
+            g = ev.gbuffer
+            dark.append(ev.row["halo_dark_flavour"])
+            missing.append(ev.row["halo_missing_flavour"])
+        note = f"{method} defaults otherwise, {width}×{height}, vs its flavour ground truth ({rays} rays)"
+        zeros = tuple(0.0 for _ in max_distances)
+        out.append(Response("halo_dark_flavour", "max_distance", scene, "dark halo", tuple(max_distances),
+                            tuple(dark), zeros, "rises", 1, note))
+        out.append(Response("halo_missing_flavour", "max_distance", scene, "missing occlusion",
+                            tuple(max_distances), tuple(missing), zeros, "falls", 1, note))
+    return out
+
+
+def summarize(responses: Sequence[Response], tol: Optional[float] = None) -> list[dict]:
+    """One dict per response: its row plus :func:`verdict` (``tol`` default: 1e-9)."""
+    return [{**r.as_row(), **verdict(r, 1e-9 if tol is None else tol)} for r in responses]

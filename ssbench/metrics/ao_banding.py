@@ -1,0 +1,128 @@
+"""Banding: the structured (low-frequency) part of an AO method's error, independent of any noise tile.
+
+Too few samples make SSAO show *bands* (seed 002 §1 Fig. 5: mebiusbox, 「スクリーンスペース・アンビエント・
+オクルージョン (SSAO)」, 2022, https://github.com/mebiusbox/ssao): with one fixed kernel every pixel makes the
+same mistakes, so neighbouring pixels' errors line up into contours; rotating the kernel per pixel (the noise
+texture) turns the same error into fine noise, and a blur removes it (Fig. 6). The two differ only in the
+*spatial frequency* of the error. This metric keeps the part of the error a small blur does not remove:
+
+.. math::
+    \\tilde e = \\frac{G_\\sigma * (m\\,(\\hat a - a))}{G_\\sigma * m}, \\qquad
+    \\mathrm{banding} = \\sqrt{\\max\\Big(\\frac{1}{|D|}\\sum_{p \\in D} \\tilde e_p^2
+                         - \\frac{1}{|D|}\\sum_{p \\in D} \\big(G_\\sigma^2 * s^2\\big)_p,\\ 0\\Big)}
+
+with :math:`G_\\sigma` a Gaussian of ``sigma`` pixels (1.5 by default: it removes a 4×4 tile's pattern to
+≈ 6 % of its amplitude while keeping bands a few pixels wide), :math:`m` the valid mask (a normalised
+convolution: background never bleeds in), and the region :math:`D` the valid pixels **away from depth edges**
+(halos are :func:`ssbench.metrics.halo`'s business) **where the target is occluded** (smoothed target
+``< occluded``): bands follow occlusion gradients, while occlusion added on open ground is
+:func:`ssbench.metrics.flat_bias`'s. The second sum removes the target's own Monte-Carlo noise
+(:math:`s` its per-pixel standard error, ``target_stderr``) that survives the blur, so a noisier ground truth
+does not read as banding. Units are AO (an rms), so ``banding = 0.05`` is a 5 % structured error.
+
+What it does not separate: a *smooth* bias of the estimator (a range check that cuts real occlusion, depth
+quantisation) passes the low-pass too. Score against the screen-space oracle (what the depth buffer holds)
+to leave information loss out, as :func:`ssbench.evaluate.ao` does.
+"""
+from __future__ import annotations
+
+import math
+from typing import Optional
+
+import torch
+import torch.nn.functional as F
+
+from .. import checks
+from .ao import depth_edges
+from .image import prepare
+
+__all__ = ["banding", "lowpass"]
+
+
+def _gaussian(sigma: float, dtype: torch.dtype, device) -> torch.Tensor:
+    r = max(1, int(math.ceil(3 * sigma)))
+    x = torch.arange(-r, r + 1, dtype=dtype, device=device)
+    g = torch.exp(-0.5 * (x / sigma) ** 2)
+    g = g / g.sum()
+    return g[:, None] * g[None, :]                                          # (2r+1, 2r+1), sums to 1
+
+
+def _conv(x: torch.Tensor, k: torch.Tensor) -> torch.Tensor:
+    r = k.shape[-1] // 2
+    return F.conv2d(F.pad(x, (r, r, r, r)), k[None, None])                  # zero border
+
+
+def lowpass(x: torch.Tensor, mask: torch.Tensor, sigma: float = 1.5) -> torch.Tensor:
+    r"""Masked (normalised) Gaussian low-pass :math:`G_\sigma * (m x) / G_\sigma * m` of a :math:`(B, 1, H, W)`
+    map; 0 off the mask.
+
+    Example:
+        >>> m = torch.ones(1, 1, 8, 8, dtype=torch.bool)
+        >>> float(lowpass(torch.full((1, 1, 8, 8), 0.25), m).max())
+        0.25
+    """
+    k = _gaussian(sigma, x.dtype, x.device)
+    mf = mask.to(x.dtype)
+    out = _conv(x * mf, k) / _conv(mf, k).clamp_min(torch.finfo(x.dtype).tiny)
+    return torch.where(mask, out, torch.zeros_like(out))
+
+
+def banding(pred: torch.Tensor, target: torch.Tensor, view_z: torch.Tensor, mask: Optional[torch.Tensor] = None,
+            *, target_stderr: Optional[torch.Tensor] = None, sigma: float = 1.5, occluded: float = 0.99,
+            band: int = 4) -> torch.Tensor:
+    r"""Structured error of ``pred`` against ``target`` (see the module docstring for the formula).
+
+    Args:
+        pred: :math:`(B, 1, H, W)` method AO :math:`\hat a`.
+        target: :math:`(B, 1, H, W)` reference AO :math:`a` (ground truth or the screen-space oracle).
+        view_z: :math:`(B, 1, H, W)` view z, for the depth edges left out (:func:`~ssbench.metrics.depth_edges`).
+        mask: :math:`(B, 1, H, W)` bool valid pixels (``None``: all).
+        target_stderr: :math:`(B, 1, H, W)` per-pixel standard error of ``target`` (``None``: exact target).
+        sigma: low-pass scale in pixels (> 0).
+        occluded: the region is where the smoothed target is below this (in (0, 1]).
+        band: half-width in pixels of the depth-edge band left out.
+
+    Returns:
+        0-d tensor, ``nan`` when the region is empty.
+
+    Example:
+        >>> y = torch.linspace(0, 1, 32).reshape(1, 1, 32, 1).expand(1, 1, 32, 32)
+        >>> truth, z = 0.5 + 0.4 * y, torch.full((1, 1, 32, 32), -1.0)
+        >>> stairs = torch.floor(truth * 4) / 4                    # one fixed kernel of 4: bands
+        >>> u = torch.rand(1, 1, 32, 32, generator=torch.Generator().manual_seed(0))
+        >>> dithered = stairs + 0.25 * (u < (truth - stairs) * 4).double()   # rotated kernels: noise
+        >>> bool(banding(stairs, truth, z) > 3 * banding(dithered, truth, z))
+        True
+    """
+    checks.check_shape(pred, ["B", "1", "H", "W"], "pred")
+    checks.check_shape(view_z, ["B", "1", "H", "W"], "view_z")
+    if isinstance(sigma, bool) or not isinstance(sigma, (int, float)) or not 0 < sigma < float("inf"):
+        raise ValueError(f"sigma: must be a finite number > 0, got {sigma!r}")
+    if isinstance(occluded, bool) or not isinstance(occluded, (int, float)) or not 0 < occluded <= 1:
+        raise ValueError(f"occluded: must be a number in (0, 1], got {occluded!r}")
+    pred, target, m = prepare(pred, target, mask)
+    if view_z.shape != pred.shape:
+        raise ValueError(f"view_z: shape must match pred {tuple(pred.shape)}, got {tuple(view_z.shape)}")
+    x, t = pred.double(), target.double()
+    region = m & ~_near_edges(view_z, m, band) & (lowpass(t, m, sigma) < occluded)
+    if not bool(region.any()):
+        return torch.tensor(float("nan"), dtype=pred.dtype)
+    e = lowpass(x - t, m, sigma)
+    energy = e[region].square().mean()
+    if target_stderr is not None:
+        if target_stderr.shape != pred.shape:
+            raise ValueError(f"target_stderr: shape must match pred {tuple(pred.shape)}, "
+                             f"got {tuple(target_stderr.shape)}")
+        k = _gaussian(sigma, torch.float64, x.device)
+        mf = m.double()
+        var = torch.where(m, target_stderr.double(), torch.zeros_like(x)).square()
+        floor = _conv(var, k * k) / _conv(mf, k).clamp_min(1e-300).square()   # variance of the blurred noise
+        energy = energy - floor[region].mean()
+    return energy.clamp_min(0).sqrt().to(pred.dtype)
+
+
+def _near_edges(view_z: torch.Tensor, m: torch.Tensor, band: int) -> torch.Tensor:
+    if isinstance(band, bool) or not isinstance(band, int) or band < 0:
+        raise ValueError(f"band: must be an integer >= 0, got {band!r}")
+    e = depth_edges(view_z, m[:, :1]).to(torch.float32)
+    return F.max_pool2d(e, 2 * band + 1, stride=1, padding=band).bool() if band else e.bool()

@@ -1,0 +1,26 @@
+"""Every artifact metric responds to its artifact: the calibration experiments of ssbench.analysis.calibration,
+run on real scenes against Mitsuba ground truth, pinned."""
+import pytest
+
+from ssbench.analysis.calibration import banding_response, halo_response, verdict
+
+pytestmark = [pytest.mark.slow, pytest.mark.mitsuba]
+
+
+def test_banding_falls_with_the_kernel_size_and_the_rotation_breaks_it_up():
+    off, on = banding_response("sphere_on_plane", seeds=range(16))       # 160x120, radius 1.5, vs the oracle
+    assert off.x == on.x == (4, 8, 16, 32, 64)
+    for r in (off, on):
+        tol = max(r.err)                                                  # one standard error of a point
+        v = verdict(r, tol)
+        assert v["monotone"], (r.series, r.y)
+    assert verdict(off)["ratio"] >= 2.4 and verdict(on)["ratio"] >= 2.8, (off.y, on.y)
+    assert all(b < a for a, b in zip(off.y, on.y)), (off.y, on.y)         # rotation on: lower at every K
+
+
+@pytest.mark.parametrize("scene", ["fence", "sphere_on_plane", "cornell_box"])
+def test_dark_halo_rises_with_the_range_check(scene):
+    dark, missing = halo_response((scene,))
+    assert verdict(dark, 1e-9)["monotone"], dark.y
+    assert dark.y[-1] >= 3 * max(dark.y[0], 1e-4), dark.y
+    assert missing.y[-1] < missing.y[0]                                   # the range check trades one for the other

@@ -67,9 +67,12 @@ def check(name, ok):
     assert ok, name
 
 
+perfect = ssr_metrics.truth_classes(truth, g, reflective=mirror)       # what a perfect pass would get
+
+
 def classes_of(result):
     classes, _ = ssr_metrics.classify(result, truth, g, reflective=mirror)
-    return classes, ssr_metrics.class_fractions(classes, result.hit)
+    return classes, ssr_metrics.class_fractions(classes, perfect)
 
 
 def srgb(x):
@@ -336,17 +339,19 @@ refined = {}
 for r in ("none", "binary", "remarch"):
     result = ssr_dda(g, DDASSRParams(pixel_stride=8, refinement=r, z_thickness=Z_THICKNESS))
     classes, frac = classes_of(result)
-    err = ssr_metrics.hit_error(result, truth, (classes == ssr_metrics.CORRECT) | (classes == ssr_metrics.FALSE_HIT))
+    pairs = torch.isin(classes, torch.tensor([ssr_metrics.CORRECT, ssr_metrics.FALSE_HIT, ssr_metrics.MISPLACED_HIT],
+                                             dtype=classes.dtype))
+    err = ssr_metrics.hit_error(result, truth, pairs)
     refined[r] = (result, classes, frac, err, float(result.steps[mirror].float().mean()))
 
 fig, ax = plt.subplots(1, 3, figsize=(14, 3.6), layout="constrained")
 for a, r in zip(ax, refined):
     result, classes, frac, err, reads = refined[r]
-    a.imshow(ssr_metrics.class_rgb(classes, result.hit)[crop], interpolation="nearest")
-    a.set_title(f"stride 8, refinement '{r}'\ncorrect {frac['correct']:.0%}, false {frac['false_hit']:.0%}, "
+    a.imshow(ssr_metrics.class_rgb(classes)[crop], interpolation="nearest")
+    a.set_title(f"stride 8, refinement '{r}'\ncorrect {frac['correct']:.0%}, misplaced {frac['misplaced_hit']:.0%}, "
                 f"median error {err['px_median']:.2f} px, {reads:.0f} reads", fontsize=9)
     a.set_xticks([]), a.set_yticks([])
-ax[0].legend(handles=ssr_metrics.legend_handles([1, 2, 3, 4]), fontsize=7, loc="upper left")
+ax[0].legend(handles=ssr_metrics.legend_handles([1, 2, 3, 9, 4]), fontsize=7, loc="upper left")
 fig.suptitle("Step 5 — refinement turns coarse hits back into correct ones for a few reads more")
 plt.show()
 check("binary refinement cuts the hit error of stride 8",
@@ -367,41 +372,46 @@ check("both refinements find more correct hits than none",
 #
 # `ssbench.metrics.ssr.classify` labels them from the exact mirror ray (`on_screen`, `back_face`, `visible`),
 # *before* looking at what the pass did — they stay failures however good the march. Where the pass still
-# reported a hit there, it is a wrong one (stippled).
+# reported a hit there, the colour it shows is necessarily wrong: that is an error class of its own, *hit on
+# an unfixable target* (dark magenta).
 
 # %%
 best = runs[1, 0.0]
 result, (classes, frac) = best
-perfect = ssr_metrics.truth_classes(truth, g, reflective=mirror)
-class_img = ssr_metrics.class_rgb(classes, result.hit)
+class_img = ssr_metrics.class_rgb(classes)
 names = ["off_screen_target", "back_face_target", "occluded_target"]
 fig = plt.figure(figsize=(16, 4.4), layout="constrained")
 sub = fig.subfigures(1, 3, width_ratios=[1.3, 1.5, 1.1])
 a = sub[0].subplots()
 a.imshow(class_img, interpolation="nearest"), a.set_xticks([]), a.set_yticks([])
 a.set_title("DDA (stride 1) against the exact mirror ray")
-sub[0].legend(handles=ssr_metrics.legend_handles([1, 2, 3, 4, 5, 6, 7]), fontsize=7, loc="lower center", ncol=4)
+sub[0].legend(handles=ssr_metrics.legend_handles([1, 2, 3, 9, 4, 5, 6, 7, 10]), fontsize=7, loc="lower center",
+              ncol=4)
 zoom = sub[1].subplots(1, 3)
 for z_, code, title in zip(zoom, ssr_metrics.UNFIXABLE, ["Fig. 14: off screen", "Fig. 16: hidden", "Fig. 15: back face"]):
-    ys, xs = (classes[0, 0] == code).nonzero(as_tuple=True)
+    ys, xs = (perfect[0, 0] == code).nonzero(as_tuple=True)
     cy, cx = int(ys.float().median()), int(xs.float().median())
     r_ = max(6, H // 10)
     z_.imshow(class_img[max(0, cy - r_):cy + r_, max(0, cx - r_):cx + r_], interpolation="nearest")
     z_.set_title(title, fontsize=9), z_.set_xticks([]), z_.set_yticks([])
 a = sub[2].subplots()
 x_ = np.arange(len(names))
-a.bar(x_ - 0.2, [frac[n] for n in names], 0.4, label="share of mirror pixels")
-a.bar(x_ + 0.2, [frac[n + "_pass_hit"] for n in names], 0.4, label="… where the pass still 'hit'")
+a.bar(x_ - 0.2, [frac[n] for n in names], 0.4, label="the pass rightly returned nothing")
+a.bar(x_ + 0.2, [frac[n + "_pass_hit"] for n in names], 0.4, label="the pass still 'hit' (an error)")
 a.set_xticks(x_, ["Fig. 14\noff screen", "Fig. 15\nback face", "Fig. 16\nhidden"]), a.legend(fontsize=8)
 a.set_title(f"unfixable {frac['unfixable']:.1%}, correct {frac['correct']:.1%}", fontsize=10)
-fig.suptitle("Step 6 — the three failures of §4 as a classified map (stippled: the pass reported a hit anyway)")
+fig.suptitle("Step 6 — the three failures of §4 as a classified map (dark magenta: the pass reported a hit anyway)")
 plt.show()
 perfect_frac = ssr_metrics.class_fractions(perfect)
-print({n: f"{frac[n]:.3f}" for n in names}, "  perfect pass:", {n: f"{perfect_frac[n]:.3f}" for n in names})
-check("all three failure cases occur in this scene", all(frac[n] > 0 for n in names))
-check("they are the same pixels for the pass and for a perfect pass",
-      torch.equal(torch.isin(classes, torch.tensor(ssr_metrics.UNFIXABLE, dtype=classes.dtype)),
+print({n: f"{frac[n] + frac[n + '_pass_hit']:.3f}" for n in names}, "  perfect pass:",
+      {n: f"{perfect_frac[n]:.3f}" for n in names})
+check("all three failure cases occur in this scene", all(perfect_frac[n] > 0 for n in names))
+unfixable_or_hit = torch.tensor(ssr_metrics.UNFIXABLE + (ssr_metrics.UNFIXABLE_HIT,), dtype=classes.dtype)
+check("they are the same pixels for the pass (returning nothing or a wrong hit) and for a perfect pass",
+      torch.equal(torch.isin(classes, unfixable_or_hit),
                   torch.isin(perfect, torch.tensor(ssr_metrics.UNFIXABLE, dtype=perfect.dtype))))
+check("the split adds up: per target, nothing + hit = the perfect pass's share",
+      all(abs(frac[n] + frac[n + "_pass_hit"] - perfect_frac[n]) < 1e-12 for n in names))
 
 # %% [markdown]
 # Off screen (Fig. 14): mirror rays from the near floor climb to the wall above the top of the frame, and the

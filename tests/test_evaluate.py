@@ -412,6 +412,7 @@ def test_ssr_row_settings_classes_and_metrics(stub_ssr):
     assert row["frac_correct"] == pytest.approx(6 * 8 / n) and row["frac_missed"] == pytest.approx(2 * 8 / n)
     assert row["frac_true_miss"] == pytest.approx(0.5) and row["frac_false_hit"] == 0.0
     assert row["frac_unfixable"] == 0.0 and row["frac_off_screen_target_pass_hit"] == 0.0
+    assert row["frac_misplaced_hit"] == 0.0 and row["frac_unfixable_hit"] == 0.0 and row["frac_wrong_output"] == 0.0
     assert row["hit_rate"] == pytest.approx(48 / n) and row["truth_hit_rate"] == pytest.approx(0.5)
     assert row["hit_err_n"] == 48 and row["hit_err_px_max"] == 0.0 and row["hit_err_correct_view_mean"] == 0.0
     # colour: raw 0.4 where hit (radiance 0.4 on every reflective pixel, 0 for misses), faded × 0.5

@@ -136,7 +136,7 @@ def _cmd_ssr(args) -> int:
         images = {"color.png": color_rgb(res.color, valid), "raw_color.png": color_rgb(res.raw_color, valid),
                   "truth.png": color_rgb(truth.radiance, valid),
                   "truth_classes.png": M.class_rgb(M.truth_classes(truth, ev.gbuffer)),
-                  "classes.png": M.class_rgb(ev.classes, res.hit.bool()),
+                  "classes.png": M.class_rgb(ev.classes),
                   "error.png": magma_rgb(M.color_error_map(res.raw_color, truth.radiance), valid, ERR_RANGE)}
         visits = ev.debug.get("visits")
         if hasattr(visits, "dim") and visits.dim() == 4:

@@ -11,9 +11,11 @@ positions and colours. Row keys:
 * ``coverage`` (reflective share of the image), ``reflective_pixels``, ``nonfinite`` (NaN/Inf in the pass's
   colours and hit buffer), ``hit_rate`` / ``truth_hit_rate`` (raw hits over reflective pixels);
 * ``frac_<class>`` for every class of :data:`ssbench.metrics.ssr.CLASS_NAMES` but ``not_reflective``,
-  ``frac_unfixable`` and ``frac_<target class>_pass_hit`` (see :func:`~ssbench.metrics.ssr.class_fractions`);
+  ``frac_unfixable``, ``frac_wrong_output`` (false, misplaced, punch-through and unfixable hits: a wrong colour
+  shown) and ``frac_<target class>_pass_hit`` (the unfixable hits by target; see
+  :func:`~ssbench.metrics.ssr.class_fractions`);
 * ``hit_err_n``, ``hit_err_{px,view}_{mean,median,p95,max}`` over the pixels where both hit and the class is
-  correct, false hit or punch-through; ``hit_err_correct_{px,view}_mean`` over the correct hits only;
+  correct, false, misplaced hit or punch-through; ``hit_err_correct_{px,view}_mean`` over the correct hits only;
 * ``{mae,rmse,psnr,flip}_{faded,raw}``: reflection colour vs path-traced radiance along the mirror ray on the
   reflective pixels (:func:`~ssbench.metrics.ssr.color_error`; a miss costs the full radiance, sky included);
   ``mae_{raw,faded}_truth_hit``: MAE on the reflective pixels whose mirror ray hits geometry (no sky);
@@ -188,8 +190,9 @@ def run_ssr(scene, method: str, params=None, *, width: int = 320, height: int = 
         refl = result.termination != NO_RAY if isinstance(reflective, str) else reflective
     classes, _ = M.classify(result, truth, g_cpu, k_px, reflective=refl)
     valid = classes != M.NOT_REFLECTIVE
-    frac = M.class_fractions(classes, result.hit.bool())
-    pairs = (classes == M.CORRECT) | (classes == M.FALSE_HIT) | (classes == M.PUNCH_THROUGH)
+    frac = M.class_fractions(classes, M.truth_classes(truth, g_cpu, reflective=refl))
+    pairs = torch.isin(classes, torch.tensor((M.CORRECT, M.FALSE_HIT, M.MISPLACED_HIT, M.PUNCH_THROUGH),
+                                             dtype=classes.dtype))
     err = M.hit_error(result, truth, pairs)
     err_ok = M.hit_error(result, truth, classes == M.CORRECT)
     n = int(valid.sum())

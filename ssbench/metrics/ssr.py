@@ -6,7 +6,7 @@ summary metrics and pictures. This module is the public import path; the code li
   Its module docstring holds the table defining each class and the precedence of the three target labels;
 * :mod:`ssbench.metrics.ssr_classes` — the class codes (:data:`NOT_REFLECTIVE`, :data:`CORRECT`,
   :data:`MISSED`, :data:`FALSE_HIT`, :data:`PUNCH_THROUGH`, :data:`OFF_SCREEN_TARGET`, :data:`OCCLUDED_TARGET`,
-  :data:`BACK_FACE_TARGET`, :data:`TRUE_MISS`), :data:`CLASS_NAMES`, :data:`CLASS_LABELS`,
+  :data:`BACK_FACE_TARGET`, :data:`TRUE_MISS`, :data:`MISPLACED_HIT`, :data:`UNFIXABLE_HIT`), :data:`CLASS_NAMES`, :data:`CLASS_LABELS`,
   :data:`CLASS_DESCRIPTIONS`, :data:`CLASS_COLORS`, :data:`UNFIXABLE`, and the pictures: :func:`class_rgb`,
   :func:`legend_entries`, :func:`legend_handles`;
 * :mod:`ssbench.metrics.ssr_scores` — metrics: :func:`class_counts`, :func:`class_fractions`,
@@ -26,7 +26,8 @@ from ._ssr_checks import (_RESULT_FIELDS, _TRUTH_FIELDS, _check_classes, _check_
                           _mask_arg)
 from .ssr_classes import (BACK_FACE_TARGET, CLASS_COLORS, CLASS_DESCRIPTIONS, CLASS_LABELS, CLASS_NAMES, CORRECT,
                           FALSE_HIT, MISSED, NOT_REFLECTIVE, OCCLUDED_TARGET, OFF_SCREEN_TARGET, PUNCH_THROUGH,
-                          TRUE_MISS, UNFIXABLE, _hex, class_rgb, legend_entries, legend_handles)  # noqa: F401
+                          TRUE_MISS, UNFIXABLE, MISPLACED_HIT, UNFIXABLE_HIT, WRONG_OUTPUT, _hex, class_rgb,  # noqa: F401
+                          legend_entries, legend_handles)
 from .ssr_classify import _behind, _origin, _shape_at, _target_masks, _valid, classify, truth_classes  # noqa: F401
 from .ssr_scores import (_stats, class_counts, class_fractions, color_error, color_error_map,  # noqa: F401
                          hit_error, hit_error_maps, termination_fractions)
@@ -35,4 +36,5 @@ __all__ = ["classify", "truth_classes", "class_fractions", "class_counts", "hit_
            "color_error", "color_error_map", "termination_fractions", "class_rgb", "legend_entries",
            "legend_handles", "NOT_REFLECTIVE", "CORRECT", "MISSED", "FALSE_HIT", "PUNCH_THROUGH",
            "OFF_SCREEN_TARGET", "OCCLUDED_TARGET", "BACK_FACE_TARGET", "TRUE_MISS", "CLASS_NAMES",
-           "CLASS_LABELS", "CLASS_DESCRIPTIONS", "CLASS_COLORS", "UNFIXABLE"]
+           "CLASS_LABELS", "CLASS_DESCRIPTIONS", "CLASS_COLORS", "UNFIXABLE", "MISPLACED_HIT", "UNFIXABLE_HIT",
+           "WRONG_OUTPUT"]

@@ -16,8 +16,13 @@ class                        code definition (``k`` = ``k_px``; the pass hit is 
                                   pixel: :math:`\lVert \hat p - p \rVert_2 \le k`.
 :data:`MISSED`               2    visible target and the pass found nothing (no hit, whatever the
                                   termination: off screen, max distance, out of steps, behind camera).
-:data:`FALSE_HIT`            3    the pass hit but the truth misses everything, or the truth has a visible
-                                  target and the pass hit more than ``k`` px away (and it is no punch-through).
+:data:`FALSE_HIT`            3    *wrong surface*: the pass hit but the truth misses everything, or the truth
+                                  has a visible target and the pass hit more than ``k`` px away on another shape
+                                  (no punch-through; without ``gbuffer.shape_id`` every far hit counts here).
+:data:`MISPLACED_HIT`        9    *right surface, off by more than k px*: visible target, the pass hit the
+                                  shape the truth hit (``gbuffer.shape_id`` at the pass's hit pixel equals
+                                  ``truth.hit_shape``) more than ``k`` px away: a coarse stride or a missing
+                                  refinement, not a wrong occluder.
 :data:`PUNCH_THROUGH`        4    visible target, the pass hit more than ``k`` px away *behind* the true hit
                                   along the ray (:math:`\hat t > t`, projected on the true ray direction)
                                   and, when ``gbuffer.shape_id`` is available, on another shape than the one
@@ -29,13 +34,15 @@ class                        code definition (``k`` = ``k_px``; the pass hit is 
 :data:`BACK_FACE_TARGET`     7    the truth hits an on-screen point of a surface facing away from the camera
                                   (``back_face``; Fig. 15): a depth buffer never holds it, even when visible.
 :data:`TRUE_MISS`            8    the truth misses all geometry and so does the pass.
+:data:`UNFIXABLE_HIT`        10   an off-screen, back-face or occluded target (below) where the pass still
+                                  returned a hit: the colour it shows is necessarily wrong.
 ============================ ==== ==========================================================================
 
 A *visible target* is ``truth.hit & on_screen & ~back_face & visible``. The three **target** labels
-(off-screen, back-face, occluded; checked in that order) take precedence over the pass's outcome: no
-screen-space method can fix them (seed 000 §4). Whether the pass still produced a hit there (which can only
-be a wrong one) is kept apart: :func:`~ssbench.metrics.ssr_scores.class_fractions` reports ``<class>_pass_hit``
-and :func:`~ssbench.metrics.ssr_classes.class_rgb` stipples those pixels.
+(off-screen, back-face, occluded; checked in that order) are what no screen-space method can fix (seed 000 §4):
+where the pass rightly returns nothing they keep their label; where it still returns a hit — which can only be
+a wrong colour — the pixel is :data:`UNFIXABLE_HIT`, an error class.
+:func:`~ssbench.metrics.ssr_scores.class_fractions` splits it by target with ``targets=truth_classes(...)``.
 
 The ground truth is used duck-typed: any object with the ``ReflectionReference`` fields works (tests use
 stubs). Bad input raises ``ValueError``/``TypeError`` naming the argument.
@@ -49,8 +56,8 @@ import torch
 
 from ..passes.common import length
 from ._ssr_checks import _check_pair, _field, _k, _mask_arg
-from .ssr_classes import (BACK_FACE_TARGET, CLASS_NAMES, CORRECT, FALSE_HIT, MISSED, OCCLUDED_TARGET,
-                          OFF_SCREEN_TARGET, PUNCH_THROUGH, TRUE_MISS)
+from .ssr_classes import (BACK_FACE_TARGET, CLASS_NAMES, CORRECT, FALSE_HIT, MISPLACED_HIT, MISSED,
+                          OCCLUDED_TARGET, OFF_SCREEN_TARGET, PUNCH_THROUGH, TRUE_MISS, UNFIXABLE_HIT)
 
 __all__ = ["classify", "truth_classes"]
 
@@ -144,12 +151,15 @@ def classify(result: Any, truth: Any, gbuffer=None, k_px: float = 1.5, *,
     near = torch.nan_to_num(d_px, nan=math.inf) <= k                       # NaN never counts as close
     wrong = target & ph & ~near
     punch = wrong & _behind(result, truth, gbuffer, hit, wrong)
+    misplaced = wrong & ~punch & _same_shape(result, truth, gbuffer, wrong & ~punch)
+    unfixable = t[OFF_SCREEN_TARGET] | t[OCCLUDED_TARGET] | t[BACK_FACE_TARGET]
 
     classes = torch.zeros_like(hit, dtype=torch.int8)                      # NOT_REFLECTIVE
-    for code, m in ((TRUE_MISS, truth_miss & ~ph), (FALSE_HIT, truth_miss & ph), (FALSE_HIT, wrong & ~punch),
-                    (PUNCH_THROUGH, punch), (MISSED, target & ~ph), (CORRECT, target & ph & near),
+    for code, m in ((TRUE_MISS, truth_miss & ~ph), (FALSE_HIT, truth_miss & ph),
+                    (FALSE_HIT, wrong & ~punch & ~misplaced), (MISPLACED_HIT, misplaced), (PUNCH_THROUGH, punch),
+                    (MISSED, target & ~ph), (CORRECT, target & ph & near),
                     (OFF_SCREEN_TARGET, t[OFF_SCREEN_TARGET]), (OCCLUDED_TARGET, t[OCCLUDED_TARGET]),
-                    (BACK_FACE_TARGET, t[BACK_FACE_TARGET])):
+                    (BACK_FACE_TARGET, t[BACK_FACE_TARGET]), (UNFIXABLE_HIT, unfixable & ph)):
         classes[m] = code
     return classes, dict(CLASS_NAMES)
 
@@ -173,6 +183,16 @@ def _behind(result: Any, truth: Any, gbuffer, like: torch.Tensor, where: torch.T
     if sid is not None and isinstance(tshape, torch.Tensor):
         behind = behind & (_shape_at(sid, result.hit_pixel) != tshape.long())
     return behind
+
+
+def _same_shape(result: Any, truth: Any, gbuffer, where: torch.Tensor) -> torch.Tensor:
+    """The pass's hit pixel shows the shape the truth hit (False everywhere when shape ids are unknown)."""
+    sid = getattr(gbuffer, "shape_id", None) if gbuffer is not None else None
+    tshape = getattr(truth, "hit_shape", None)
+    if sid is None or not isinstance(tshape, torch.Tensor) or not bool(where.any()):
+        return torch.zeros_like(where)
+    finite = torch.isfinite(result.hit_pixel.double()).all(1, keepdim=True)
+    return where & finite & (_shape_at(sid, result.hit_pixel) == tshape.long())
 
 
 def truth_classes(truth: Any, gbuffer=None, *, reflective: Optional[torch.Tensor] = None) -> torch.Tensor:

@@ -1,7 +1,7 @@
 r"""Summary metrics of an SSR pass against the exact mirror reflection, from the per-pixel classes
 (:func:`~ssbench.metrics.ssr_classify.classify`) and the pass's hits and colours.
 
-* class shares: :func:`class_counts`, :func:`class_fractions` (``<class>_pass_hit`` included),
+* class shares: :func:`class_counts`, :func:`class_fractions` (``unfixable_hit`` split by target included),
   :func:`termination_fractions`;
 * hit-position error: :func:`hit_error_maps`, :func:`hit_error` (pixels and view units over the pixels where
   both hit);
@@ -21,8 +21,7 @@ import torch
 from .. import checks
 from ..passes.common import length
 from ._ssr_checks import _check_classes, _check_pair, _mask_arg
-from .ssr_classes import (BACK_FACE_TARGET, CLASS_NAMES, NOT_REFLECTIVE, OCCLUDED_TARGET, OFF_SCREEN_TARGET,
-                          UNFIXABLE)
+from .ssr_classes import CLASS_NAMES, NOT_REFLECTIVE, UNFIXABLE, UNFIXABLE_HIT, WRONG_OUTPUT
 
 __all__ = ["class_counts", "class_fractions", "termination_fractions", "hit_error_maps", "hit_error",
            "color_error", "color_error_map"]
@@ -35,34 +34,40 @@ def class_counts(classes: torch.Tensor) -> dict[str, int]:
     return {key: int((classes == code).sum()) for code, key in CLASS_NAMES.items()}
 
 
-def class_fractions(classes: torch.Tensor, hit: Optional[torch.Tensor] = None) -> dict[str, float]:
+def class_fractions(classes: torch.Tensor, targets: Optional[torch.Tensor] = None) -> dict[str, float]:
     r"""Share of each class among the *reflective* pixels (all codes but :data:`NOT_REFLECTIVE`).
 
     Keys: every :data:`CLASS_NAMES` key but ``not_reflective`` (fractions of the reflective pixels, summing to
     1), ``reflective`` (share of the image that is reflective), ``reflective_pixels`` (their count, as a
-    float), ``unfixable`` (the three target classes together) and, when the pass's raw ``hit`` is given,
-    ``<target class>_pass_hit``: reflective share where the target is unfixable *and* the pass still
-    reported a hit. Fractions are ``nan`` when no pixel is reflective.
+    float), ``unfixable`` (targets no screen-space pass can reach: the three target classes and
+    :data:`UNFIXABLE_HIT` together), ``wrong_output`` (the pass returned a wrong colour: false, misplaced,
+    punch-through and unfixable hits, :data:`WRONG_OUTPUT`) and, when the truth's own classes ``targets``
+    (:func:`~ssbench.metrics.ssr_classify.truth_classes`) are given, ``<target class>_pass_hit``: the
+    unfixable hits split by target. Fractions are ``nan`` when no pixel is reflective.
 
     Example:
-        >>> c = torch.tensor([0, 1, 1, 2, 5, 8], dtype=torch.int8).view(1, 1, 1, 6)
-        >>> f = class_fractions(c, hit=torch.tensor([0, 1, 1, 0, 1, 0], dtype=torch.bool).view(1, 1, 1, 6))
-        >>> f["correct"], f["missed"], f["unfixable"], f["off_screen_target_pass_hit"], f["reflective"]
+        >>> c = torch.tensor([0, 1, 1, 2, 10, 8], dtype=torch.int8).view(1, 1, 1, 6)
+        >>> t = torch.tensor([0, 1, 1, 1, 5, 8], dtype=torch.int8).view(1, 1, 1, 6)
+        >>> f = class_fractions(c, t)
+        >>> f["correct"], f["unfixable_hit"], f["unfixable"], f["off_screen_target_pass_hit"], f["reflective"]
         (0.4, 0.2, 0.2, 0.2, 0.8333333333333334)
     """
     _check_classes(classes)
-    if hit is not None:
-        _mask_arg(hit, classes, "hit")
+    if targets is not None:
+        _check_classes(targets)
+        if targets.shape != classes.shape:
+            raise ValueError(f"targets: shape must match classes {tuple(classes.shape)}, got {tuple(targets.shape)}")
     refl = classes != NOT_REFLECTIVE
     n = int(refl.sum())
     frac = (lambda m: int(m.sum()) / n) if n else (lambda m: math.nan)
     out: dict[str, float] = {key: frac(classes == code) for code, key in CLASS_NAMES.items()
                              if code != NOT_REFLECTIVE}
-    out["unfixable"] = frac(refl & ((classes == OFF_SCREEN_TARGET) | (classes == OCCLUDED_TARGET)
-                                    | (classes == BACK_FACE_TARGET)))
-    if hit is not None:
+    out["unfixable"] = frac(refl & torch.isin(classes, torch.tensor(UNFIXABLE + (UNFIXABLE_HIT,),
+                                                                      dtype=classes.dtype)))
+    out["wrong_output"] = frac(refl & torch.isin(classes, torch.tensor(WRONG_OUTPUT, dtype=classes.dtype)))
+    if targets is not None:
         for code in UNFIXABLE:
-            out[f"{CLASS_NAMES[code]}_pass_hit"] = frac((classes == code) & hit)
+            out[f"{CLASS_NAMES[code]}_pass_hit"] = frac((classes == UNFIXABLE_HIT) & (targets == code))
     out["reflective"] = n / classes.numel() if classes.numel() else math.nan
     out["reflective_pixels"] = float(n)
     return out
@@ -104,8 +109,8 @@ def _stats(x: torch.Tensor, prefix: str) -> dict[str, float]:
 def hit_error(result: Any, truth: Any, mask: Optional[torch.Tensor] = None) -> dict[str, float]:
     """Hit-position error statistics over the pixels of ``mask`` where both the pass and the truth hit.
 
-    Use ``mask = (classes == CORRECT) | (classes == FALSE_HIT) | (classes == PUNCH_THROUGH)`` for the
-    correct-and-false-hit pairs, or ``classes == CORRECT`` for the precision of the correct hits.
+    Use ``mask = torch.isin(classes, (CORRECT, FALSE_HIT, MISPLACED_HIT, PUNCH_THROUGH))`` for the
+    correct-and-wrong-hit pairs, or ``classes == CORRECT`` for the precision of the correct hits.
 
     Returns:
         ``n`` (pixel count, float) and ``px_{mean,median,p95,max}`` (pixels), ``view_{mean,median,p95,max}``

@@ -32,7 +32,7 @@ from .speed_sweeps import _as_sweeps, _run, _write_rows, load_embedded
 SIZE = (96, 72)
 SWEEP_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "sweeps")
 EFFECT_TITLES = {"ao": "Ambient occlusion", "ssr": "Screen-space reflections", "implicit": "Implicit surfaces"}
-_SSR_WRONG = ("frac_missed", "frac_false_hit", "frac_punch_through")
+_SSR_WRONG = ("frac_missed", "frac_false_hit", "frac_misplaced_hit", "frac_punch_through", "frac_unfixable_hit")
 _NB = (("blur", None),)
 _SSAO_16 = (("kernel_size", 16), ("noise_size", 4))
 
@@ -62,7 +62,8 @@ _IMP_PUNCH = [Panel("fixed", "steps", "punch_through_rate"), Panel("sphere", "ma
 
 
 def _ssr_derived(row: dict) -> None:
-    """``hit_error_share``: missed + false hits + punch-through (shares of the reflective pixels)."""
+    """``hit_error_share``: missed + false + misplaced hits + punch-through + hits on unfixable targets (shares of
+    the reflective pixels)."""
     vals = [row.get(k) for k in _SSR_WRONG]
     row["hit_error_share"] = sum(vals) if all(isinstance(v, (int, float)) for v in vals) else None
 
@@ -76,7 +77,7 @@ SPECS: dict[str, dict] = {
                        ("banding", "banding")], "eq": "rmse_cos",
            "derive": None, "figures": {"banding": ("Banding vs sample count and noise tile", _AO_BANDING),
                                        "halos": ("Halos vs range check and blur", _AO_HALOS)}},
-    "ssr": {"metrics": [("hit_error_share", "missed + false + punch-through"), ("rmse_faded", "colour RMSE"),
+    "ssr": {"metrics": [("hit_error_share", "missed + wrong hits (false, misplaced, punch-through, unfixable)"), ("rmse_faded", "colour RMSE"),
                         ("flip_faded", "colour ꟻLIP")], "eq": "rmse_faded", "derive": _ssr_derived,
             "figures": {"hits": ("Missed / false hits and punch-through vs steps, stride, thickness, jitter",
                                  _SSR_HITS)}},

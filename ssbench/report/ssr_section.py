@@ -9,7 +9,7 @@ G-buffer (the report's own render when it has one, else a fresh one), traces the
 * ``truth_classes.png`` — what a perfect screen-space pass would get: visible target (green), off-screen /
   occluded / back-face target, sky (the class colours of :mod:`ssbench.metrics.ssr`);
 * ``<method>.png`` — the pass's reflection colour with its fades; ``<method>_classes.png`` — its per-pixel
-  classes (stippled: an unfixable target where the pass still reported a hit); ``<method>_visits.png`` —
+  classes (an unfixable target where the pass still reported a hit is its own error class); ``<method>_visits.png`` —
   ``debug["visits"]`` (depth fetches per texel, log scale, seed Fig. 11); ``<method>_error.png`` — mean
   absolute RGB error of the raw (fade-free) colour against the truth radiance (magma, saturating at
   :data:`ERR_RANGE`);
@@ -41,8 +41,9 @@ ERR_RANGE = 0.5
 THICKNESS, THICKNESS_DEPTHS = 0.1, (1.0, 3.0, 10.0, 30.0)
 #: (row key, column label, format) of the per-scene table
 TABLE = (("seconds", "time s", "{:.3f}"), ("frac_correct", "correct", "{:.1%}"),
-         ("frac_missed", "missed", "{:.1%}"), ("frac_false_hit", "false hit", "{:.1%}"),
-         ("frac_punch_through", "punch-through", "{:.1%}"), ("frac_off_screen_target", "off-screen", "{:.1%}"),
+         ("frac_missed", "missed", "{:.1%}"), ("frac_false_hit", "false hit (wrong surface)", "{:.1%}"),
+         ("frac_misplaced_hit", "misplaced hit (> k px)", "{:.1%}"),
+         ("frac_punch_through", "punch-through", "{:.1%}"), ("frac_unfixable_hit", "hit on unfixable", "{:.1%}"), ("frac_off_screen_target", "off-screen", "{:.1%}"),
          ("frac_occluded_target", "occluded", "{:.1%}"), ("frac_back_face_target", "back-face", "{:.1%}"),
          ("frac_true_miss", "true miss", "{:.1%}"), ("hit_err_px_median", "hit err px (median)", "{:.2f}"),
          ("hit_err_view_median", "hit err view (median)", "{:.3f}"), ("mae_raw", "MAE raw", "{:.4f}"),
@@ -200,7 +201,7 @@ def _scene(run_dir, name, methods, channels, width, height, spp, seed, k_px, use
             continue
         row, res = ev.row, ev.result
         results[m] = res
-        files = {"color": color_rgb(res.color, valid), "classes": M.class_rgb(ev.classes, res.hit.bool()),
+        files = {"color": color_rgb(res.color, valid), "classes": M.class_rgb(ev.classes),
                  "error": magma_rgb(M.color_error_map(res.raw_color, truth.radiance), valid, ERR_RANGE)}
         visits = ev.debug.get("visits")
         vmax = None
@@ -257,4 +258,20 @@ def summary_md(ssr: dict) -> str:
     for o in ssr["overview"]:
         lines.append(f"| {o['method']} | " + " | ".join(f"{c} / {mi} ({t})" for c, mi, t in
                                                        zip(o["cells"], o["missed"], o["seconds"])) + " |")
-    return "\n".join(lines + [f"- {n}" for n in ssr["notes"]]) + "\n"
+    return "\n".join(lines + _class_md(ssr.get("rows") or []) + [f"- {n}" for n in ssr["notes"]]) + "\n"
+
+
+def _class_md(rows: list[dict]) -> list[str]:
+    """Every pixel class per scene and method (share of reflective pixels), with the definitions."""
+    from ..metrics import ssr as M
+    codes = [c for c in M.CLASS_NAMES if c != M.NOT_REFLECTIVE]
+    out = ["", "Pixel classes, share of reflective pixels (wrong output: false + misplaced + punch-through + "
+           "hit on unfixable target):", "",
+           "| scene | method | " + " | ".join(M.CLASS_LABELS[c] for c in codes) + " | wrong output |",
+           "|---|---|" + "---:|" * (len(codes) + 1)]
+    for r in rows:
+        cells = [fmt(r.get(f"frac_{M.CLASS_NAMES[c]}"), "{:.1%}") for c in codes]
+        out.append(f"| {r.get('scene')} | {r.get('method')} | " + " | ".join(cells)
+                   + f" | {fmt(r.get('frac_wrong_output'), '{:.1%}')} |")
+    out += [""] + [f"- *{M.CLASS_LABELS[c]}*: {M.CLASS_DESCRIPTIONS[c]}" for c in codes] + [""]
+    return out

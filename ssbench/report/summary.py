@@ -48,7 +48,8 @@ def _ssr_lines(ssr: dict) -> list[dict]:
     for m, rs in _by_method(ssr.get("rows") or []).items():
         parts = [f"{label} {fmt(_mean(r.get(k) for r in rs), '{:.1%}')}" for k, label in
                  (("frac_correct", "correct"), ("frac_missed", "missed"), ("frac_false_hit", "false hit"),
-                  ("frac_punch_through", "punch-through"))]
+                  ("frac_misplaced_hit", "misplaced hit"), ("frac_punch_through", "punch-through"),
+                  ("frac_unfixable_hit", "hit on unfixable target"))]
         lines.append({"method": m, "headline": " · ".join(parts), "seconds": fmt(_mean(r.get("seconds") for r in rs)),
                       "scenes": len({r.get("scene") for r in rs})})
     return lines

@@ -11,7 +11,7 @@ from ssbench.gbuffer import GBuffer
 from ssbench.metrics import ssr as M
 from ssbench.passes.ssr_common import HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult, empty_result
 
-H, W = 2, 12          # row 0: one test pixel per column; row 1: not reflective, its shape ids are lookup targets
+H, W = 2, 14          # row 0: one test pixel per column; row 1: not reflective, its shape ids are lookup targets
 ORIGIN = (0.0, 0.0, -1.0)
 TRUE_HIT = (0.0, 0.0, -3.0)             # t = 2 along the ray (−z)
 TRUE_PX = (5.5, 0.5)
@@ -50,12 +50,14 @@ CASES = [
     (1, 0, 0, 0, 0, 1, (3.5, 0.5), (0, 0, -4), M.FALSE_HIT),                    # 3 truth misses
     (1, 1, 1, 1, 0, 1, (0.5, 0.5), (0, 0, -2), M.FALSE_HIT),                    # 4 lands elsewhere, in front
     (1, 1, 1, 1, 0, 1, (0.5, 1.5), (0, 0, -5), M.PUNCH_THROUGH),                # 5 behind, on the wall
-    (1, 1, 0, 1, 0, 1, (5.5, 0.5), (0, 0, -3), M.OFF_SCREEN_TARGET),            # 6 off-screen (pass hit anyway)
+    (1, 1, 0, 1, 0, 1, (5.5, 0.5), (0, 0, -3), M.UNFIXABLE_HIT),                # 6 off-screen, pass hit anyway
     (1, 1, 1, 0, 0, 0, (-1, -1), (0, 0, 0), M.OCCLUDED_TARGET),                 # 7 hidden from the camera
-    (1, 1, 1, 0, 1, 1, (2.5, 0.5), (0, 0, -6), M.BACK_FACE_TARGET),             # 8 back face (and so hidden)
+    (1, 1, 1, 0, 1, 1, (2.5, 0.5), (0, 0, -6), M.UNFIXABLE_HIT),                # 8 back face, pass hit anyway
     (1, 0, 0, 0, 0, 0, (-1, -1), (0, 0, 0), M.TRUE_MISS),                      # 9 sky
-    (1, 1, 1, 1, 0, 1, (1.5, 1.5), (0, 0, -5), M.FALSE_HIT),                    # 10 behind, same shape: overshoot
+    (1, 1, 1, 1, 0, 1, (1.5, 1.5), (0, 0, -5), M.MISPLACED_HIT),                # 10 behind, same shape: overshoot
     (1, 1, 1, 1, 0, 1, (math.nan, 0.5), (0, 0, -2), M.FALSE_HIT),               # 11 NaN hit pixel: far, not close
+    (1, 1, 0, 1, 0, 0, (-1, -1), (0, 0, 0), M.OFF_SCREEN_TARGET),               # 12 off-screen, pass: nothing
+    (1, 1, 1, 0, 1, 0, (-1, -1), (0, 0, 0), M.BACK_FACE_TARGET),                # 13 back face (and so hidden)
 ]
 
 
@@ -105,7 +107,7 @@ def test_every_class_on_a_hand_built_row():
     classes, names = M.classify(result, truth, g)
     assert classes.dtype == torch.int8 and classes.shape == (1, 1, H, W)
     assert torch.equal(classes, _expected()), classes[0, 0, 0].tolist()
-    assert names == M.CLASS_NAMES and len(set(names.values())) == 9
+    assert names == M.CLASS_NAMES and len(set(names.values())) == 11
     assert {int(c) for c in classes.flatten()} == set(M.CLASS_NAMES)        # every class occurs
 
 
@@ -142,16 +144,26 @@ def test_k_px_boundary_and_validation():
             M.classify(result, truth, g, k_px=bad)
 
 
-def test_target_labels_take_precedence_over_a_matching_hit():
+def test_a_hit_on_an_unfixable_target_is_an_error_even_when_it_matches():
     result, truth, g = _scene()
-    # column 6: the pass hit exactly the (off-screen) truth pixel, still OFF_SCREEN_TARGET
+    # column 6: the pass hit exactly the (off-screen) truth pixel: a screen-space pass cannot have seen it there
     assert torch.equal(result.hit_pixel[0, :, 0, 6], torch.tensor(TRUE_PX))
-    assert M.classify(result, truth, g)[0][0, 0, 0, 6] == M.OFF_SCREEN_TARGET
-    # back face wins over occluded; occluded wins over the pass's outcome
+    assert M.classify(result, truth, g)[0][0, 0, 0, 6] == M.UNFIXABLE_HIT
+    # back face wins over occluded
     vis = truth.visible.clone()
-    vis[0, 0, 0, 8] = True
+    vis[0, 0, 0, 13] = True
     classes, _ = M.classify(result, dataclasses.replace(truth, visible=vis), g)
-    assert classes[0, 0, 0, 8] == M.BACK_FACE_TARGET
+    assert classes[0, 0, 0, 13] == M.BACK_FACE_TARGET
+
+
+def test_false_hit_is_the_wrong_surface_and_misplaced_the_right_one():
+    result, truth, g = _scene()
+    classes, _ = M.classify(result, truth, g)
+    assert classes[0, 0, 0, 4] == M.FALSE_HIT                               # lands on shape 1, truth on the slat
+    assert classes[0, 0, 0, 10] == M.MISPLACED_HIT                          # the slat, 4 px off
+    assert classes[0, 0, 0, 11] == M.FALSE_HIT                              # a NaN pixel shows no shape
+    no_ids = M.classify(result, truth, dataclasses.replace(g, shape_id=None))[0]
+    assert not bool((no_ids == M.MISPLACED_HIT).any())                     # unknown shapes: no right-surface claim
 
 
 def test_reflective_mask_and_gbuffer_mask_limit_the_pixels():
@@ -185,8 +197,9 @@ def test_fp64_inputs_and_an_all_miss_result():
     empty = empty_result(torch.zeros(1, 3, H, W))
     classes, _ = M.classify(empty, truth, g)
     exp = _expected()
-    exp[(exp == M.CORRECT) | (exp == M.FALSE_HIT) | (exp == M.PUNCH_THROUGH)] = M.MISSED
+    exp[(exp == M.CORRECT) | (exp == M.FALSE_HIT) | (exp == M.PUNCH_THROUGH) | (exp == M.MISPLACED_HIT)] = M.MISSED
     exp[0, 0, 0, 3] = M.TRUE_MISS                                          # truth misses, pass misses
+    exp[0, 0, 0, 6], exp[0, 0, 0, 8] = M.OFF_SCREEN_TARGET, M.BACK_FACE_TARGET   # no hit: no error there
     assert torch.equal(classes, exp)
 
 
@@ -194,21 +207,24 @@ def test_truth_classes_is_a_perfect_pass():
     _, truth, _ = _scene()
     tc = M.truth_classes(truth)
     exp = _expected()
-    exp[(exp == M.MISSED) | (exp == M.FALSE_HIT) | (exp == M.PUNCH_THROUGH)] = M.CORRECT
+    exp[(exp == M.MISSED) | (exp == M.FALSE_HIT) | (exp == M.PUNCH_THROUGH) | (exp == M.MISPLACED_HIT)] = M.CORRECT
     exp[0, 0, 0, 3] = M.TRUE_MISS
+    exp[0, 0, 0, 6], exp[0, 0, 0, 8] = M.OFF_SCREEN_TARGET, M.BACK_FACE_TARGET
     assert torch.equal(tc, exp)
 
 
 def test_class_fractions_and_counts():
     result, truth, g = _scene()
     classes, _ = M.classify(result, truth, g)
-    f = M.class_fractions(classes, result.hit)
-    n = 11                                                                  # reflective pixels
+    f = M.class_fractions(classes, M.truth_classes(truth))
+    n = 13                                                                  # reflective pixels
     assert f["reflective_pixels"] == n and f["reflective"] == pytest.approx(n / (H * W))
-    assert f["correct"] == pytest.approx(1 / n) and f["false_hit"] == pytest.approx(4 / n)
+    assert f["correct"] == pytest.approx(1 / n) and f["false_hit"] == pytest.approx(3 / n)
+    assert f["misplaced_hit"] == pytest.approx(1 / n) and f["unfixable_hit"] == pytest.approx(2 / n)
     assert f["punch_through"] == pytest.approx(1 / n) and f["true_miss"] == pytest.approx(1 / n)
     assert sum(f[k] for k in M.CLASS_NAMES.values() if k != "not_reflective") == pytest.approx(1.0)
-    assert f["unfixable"] == pytest.approx(3 / n)
+    assert f["unfixable"] == pytest.approx(5 / n)                           # 6, 7, 8, 12, 13
+    assert f["wrong_output"] == pytest.approx(7 / n)                        # 3 false + misplaced + punch + 2
     assert f["off_screen_target_pass_hit"] == pytest.approx(1 / n)          # the pass still hit there
     assert f["back_face_target_pass_hit"] == pytest.approx(1 / n) and f["occluded_target_pass_hit"] == 0.0
     assert "off_screen_target_pass_hit" not in M.class_fractions(classes)
@@ -224,13 +240,13 @@ def test_termination_fractions():
     result, truth, g = _scene()
     valid = truth.valid
     t = M.termination_fractions(result.termination, valid)
-    assert t["hit"] == pytest.approx(8 / 11) and t["max_distance"] == pytest.approx(3 / 11)
+    assert t["hit"] == pytest.approx(8 / 13) and t["max_distance"] == pytest.approx(5 / 13)
     assert t["no_ray"] == 0.0 and t["out_of_steps"] == 0.0
     term = result.termination.clone()
     term[0, 0, 0, 2] = OUT_OF_STEPS
     term[0, 0, 0, 7] = OFF_SCREEN
     t = M.termination_fractions(term, valid)
-    assert t["out_of_steps"] == pytest.approx(1 / 11) and t["off_screen"] == pytest.approx(1 / 11)
+    assert t["out_of_steps"] == pytest.approx(1 / 13) and t["off_screen"] == pytest.approx(1 / 13)
 
 
 def test_hit_error_over_pairs():
@@ -238,7 +254,8 @@ def test_hit_error_over_pairs():
     classes, _ = M.classify(result, truth, g)
     e = M.hit_error(result, truth, classes == M.CORRECT)
     assert e["n"] == 1 and e["px_mean"] == pytest.approx(1.0) and e["view_mean"] == pytest.approx(0.1, abs=1e-6)
-    pairs = (classes == M.CORRECT) | (classes == M.FALSE_HIT) | (classes == M.PUNCH_THROUGH)
+    pairs = torch.isin(classes, torch.tensor((M.CORRECT, M.FALSE_HIT, M.MISPLACED_HIT, M.PUNCH_THROUGH),
+                                             dtype=classes.dtype))
     e = M.hit_error(result, truth, pairs)
     assert e["n"] == 4                                   # columns 1, 4, 5, 10 (3: truth misses; 11: NaN pixel)
     px = [1.0, 5.0, math.hypot(5, 1), math.hypot(4, 1)]
@@ -253,9 +270,9 @@ def test_hit_error_over_pairs():
 def test_color_error_faded_vs_raw():
     result, truth, g = _scene()
     c = M.color_error(result, truth)
-    # raw colour 0.5 on the 8 hit pixels (radiance 0.5), 0 on the 3 misses; faded colour halves it
-    assert c["mae_raw"] == pytest.approx(3 * 0.5 / 11, rel=1e-5)
-    assert c["mae_faded"] == pytest.approx((3 * 0.5 + 8 * 0.25) / 11, rel=1e-5)
+    # raw colour 0.5 on the 8 hit pixels (radiance 0.5), 0 on the 5 misses; faded colour halves it
+    assert c["mae_raw"] == pytest.approx(5 * 0.5 / 13, rel=1e-5)
+    assert c["mae_faded"] == pytest.approx((5 * 0.5 + 8 * 0.25) / 13, rel=1e-5)
     assert c["psnr_raw"] > c["psnr_faded"] and 0 <= c["flip_raw"] <= c["flip_faded"] <= 1
     assert math.isnan(M.color_error(result, truth, flip=False)["flip_raw"])
     with pytest.raises(TypeError, match="truth.radiance"):
@@ -271,9 +288,6 @@ def test_class_rgb_and_legend():
     assert rgb.shape == (H, W, 3) and rgb.dtype == np.uint8
     for j, c in enumerate(CASES):
         assert tuple(rgb[0, j]) == tuple(int(v * 255 + 0.5) for v in M.CLASS_COLORS[c[8]]), j
-    stip = M.class_rgb(classes, result.hit)
-    assert (stip[0, 6] > rgb[0, 6]).any() or (stip[0, 8] > rgb[0, 8]).any()   # checkerboard: one of the two
-    assert (stip[0, :6] == rgb[0, :6]).all()
     assert len({tuple(v) for v in M.CLASS_COLORS.values()}) == len(M.CLASS_COLORS)
     entries = M.legend_entries()
     assert [e["key"] for e in entries] == list(M.CLASS_NAMES.values())
@@ -289,6 +303,6 @@ def test_hard_cases_give_finite_outputs():
     bad = dataclasses.replace(result, hit_view=torch.full_like(result.hit_view, math.inf),
                               hit_pixel=torch.full_like(result.hit_pixel, math.nan))
     classes, _ = M.classify(bad, truth, g)
-    assert ((classes >= 0) & (classes <= 8)).all()
+    assert ((classes >= 0) & (classes <= max(M.CLASS_NAMES))).all()
     assert (classes[result.hit & truth.hit & truth.on_screen & truth.visible & ~truth.back_face]
             == M.FALSE_HIT).all()

@@ -367,8 +367,9 @@ def test_ssr_section_with_stubs(tmp_path, monkeypatch):
     row = ssr["rows"][0]
     n = 16 * 12
     assert row["frac_correct"] == pytest.approx(4 * 16 / n) and row["frac_missed"] == pytest.approx(2 * 16 / n)
-    assert row["frac_off_screen_target"] == pytest.approx(0.5)
-    assert row["frac_off_screen_target_pass_hit"] == pytest.approx(6 * 4 / n)
+    assert row["frac_off_screen_target"] + row["frac_unfixable_hit"] == pytest.approx(0.5)   # half off screen
+    assert row["frac_off_screen_target_pass_hit"] == row["frac_unfixable_hit"] == pytest.approx(6 * 4 / n)
+    assert row["frac_unfixable"] == pytest.approx(0.5)
     s = ssr["scenes"][0]
     assert s["truth_cells"]["correct"] == "50.0%" and s["methods"][0]["visits_max"] == 2
     html = _render_ssr_section(ssr)

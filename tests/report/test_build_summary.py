@@ -40,7 +40,7 @@ AO = {"available": True, "note": "", "rows": [
     {"scene": "a", "method": "gtao", "rmse_cos": float("nan"), "seconds": 2.0}]}
 SSR = {"available": True, "note": "", "rows": [
     {"scene": "f", "method": "dda", "frac_correct": 0.5, "frac_missed": 0.25, "frac_false_hit": 0.0,
-     "frac_punch_through": 0.125, "seconds": 0.5}]}
+     "frac_punch_through": 0.125, "frac_misplaced_hit": 0.0625, "frac_unfixable_hit": 0.03125, "seconds": 0.5}]}
 IMPLICIT = {"available": True, "note": "", "frames": 40, "comparisons": [{"name": "thin_shell"}], "rows": [
     {"scene": "thin_shell", "method": "progressive", "punch_through_per_frame": [0.5, 0.01],
      "evaluations_mean": 32.0, "seconds_per_frame": 0.02},
@@ -53,7 +53,8 @@ def test_glance_reads_each_section_and_notes_the_missing_ones():
     assert ao["ssao"] == {"method": "ssao", "headline": "RMSE 0.2000 vs cosine GT", "seconds": "2.000", "scenes": 2}
     assert ao["gtao"]["headline"] == "RMSE – vs cosine GT"                        # NaN is not a number to show
     assert blocks["ssr"]["lines"][0]["headline"] == ("correct 50.0% · missed 25.0% · false hit 0.0% · "
-                                                     "punch-through 12.5%")
+                                                     "misplaced hit 6.2% · punch-through 12.5% · "
+                                                     "hit on unfixable target 3.1%")
     imp = blocks["implicit"]["lines"]
     assert [d["method"] for d in imp] == ["progressive"]                         # the comparison scenes only
     assert imp[0]["headline"].startswith("punch-through 1.00% at frame 40 · 32.0 evaluations/px")

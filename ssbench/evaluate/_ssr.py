@@ -62,6 +62,49 @@ class SSREvaluation:
     debug: dict
 
 
+#: the equal-settings convention: ray length and thickness as fractions of the scene's viewing distance
+EQUAL_RAY_LENGTH, EQUAL_THICKNESS = 1.0, 0.02
+
+
+def scene_scale(gbuffer: GBuffer) -> float:
+    """The scene's size as the camera sees it: the median distance from the eye to the visible geometry."""
+    gbuffer.require("position", "mask")
+    d = gbuffer.position.double().norm(dim=1, keepdim=True)[gbuffer.mask]
+    if d.numel() == 0:
+        raise ValueError("gbuffer: no valid pixel, so the scene has no size to scale the settings by")
+    return float(d.median())
+
+
+def equal_roles(method: str) -> dict:
+    """``{"thickness": name, "ray_length": name}``: the module's ``EQUAL_SETTINGS`` of SSR ``method``."""
+    from ..passes import ssr_method
+    fn = ssr_method(method)[0]
+    roles = getattr(importlib.import_module(fn.__module__), "EQUAL_SETTINGS", None)
+    if not roles or set(roles) != {"thickness", "ray_length"}:
+        raise ValueError(f"method: {method!r} declares no EQUAL_SETTINGS (thickness, ray_length) in its module")
+    return dict(roles)
+
+
+def equal_settings(method: str, gbuffer: GBuffer, *, ray_length: float = EQUAL_RAY_LENGTH,
+                   thickness: float = EQUAL_THICKNESS) -> dict:
+    """Parameter overrides that put SSR ``method`` at the settings every marcher shares in an equal comparison:
+    ray length ``ray_length·S`` and depth thickness ``thickness·S``, ``S`` = :func:`scene_scale`. Each pass
+    module names its own parameters for the two roles in ``EQUAL_SETTINGS``.
+
+    Example:
+        >>> import torch
+        >>> from ssbench.camera import Camera
+        >>> cam = Camera.from_look_at((0, 0, 0), (0, 0, -1), (0, 1, 0), 60.0, 4, 3, 0.1, 100.0)
+        >>> pos = torch.zeros(1, 3, 3, 4); pos[:, 2] = -5.0
+        >>> g = GBuffer(cam, position=pos, mask=torch.ones(1, 1, 3, 4, dtype=torch.bool))
+        >>> equal_settings("dda", g)
+        {'z_thickness': 0.1, 'max_ray_distance': 5.0}
+    """
+    roles = equal_roles(method)
+    s = scene_scale(gbuffer)
+    return {roles["thickness"]: thickness * s, roles["ray_length"]: ray_length * s}
+
+
 def _back_face_on(params) -> bool:
     """Whether ``params`` turn on back-face depth: any True bool field whose name mentions ``back``."""
     return any(isinstance(getattr(params, f.name), bool) and getattr(params, f.name) and "back" in f.name

@@ -56,7 +56,9 @@ def _number(value, name: str, low: float, low_open: bool, high: float) -> None:
 
 @dataclass(frozen=True)
 class GTAOParams:
-    """Parameters of :func:`gtao`, XeGTAO's ``GTAOSettings`` snake-cased (defaults: XeGTAO's auto-tuned ones).
+    """Parameters of :func:`gtao`, XeGTAO's ``GTAOSettings`` snake-cased. Defaults are what XeGTAO ships
+    (Intel, XeGTAO, 2021, https://github.com/GameTechDev/XeGTAO, ``XeGTAO.h``): quality High, the auto-tuned
+    constants, Hilbert-curve R2 noise and one denoise pass.
 
     Attributes:
         quality: ``"low"`` 1×2, ``"medium"`` 2×2, ``"high"`` 3×3, ``"ultra"`` 9×3 (slices × steps per side).
@@ -67,12 +69,13 @@ class GTAOParams:
         thin_occluder_compensation: scales sample Δz by ``1 + c`` in the falloff distance (0 = off).
         final_value_power: ``vis^p`` after averaging the slices.
         min_offset_pixels: ``pixelTooCloseThreshold``, added to every step as ``1.3/r_px``.
-        noise: ``"hash"`` (per-pixel uniform pairs from ``seed``/the generator), ``"hilbert"`` (XeGTAO's R2
-            sequence along a 64² Hilbert curve, frame 0), ``"none"`` (0.5, the R2 value at index 0), or a tile
+        noise: ``"hilbert"`` (XeGTAO's R2 sequence along a 64² Hilbert curve, frame 0; the default),
+            ``"hash"`` (per-pixel uniform pairs from ``seed``/the generator), ``"none"`` (0.5, the R2 value at index 0), or a tile
             ``(2, 4, 4)`` (slice, step noise) or ``(4, 4)`` (both) in [0, 1) read at ``[row % 4, col % 4]``.
         seed: seeds ``"hash"`` noise when no generator is passed.
         denoise_passes: XeGTAO's 3×3 edge-aware denoise passes (``gtao_denoise``) applied *before* the final
-            clip to [0.03, 1], so values that overshoot 1 average out (XeGTAO's default is 1; 0 = raw).
+            clip to [0.03, 1], so values that overshoot 1 average out (XeGTAO's ``DenoisePasses`` default 1;
+            0 = raw, what the article-style comparisons of per-pixel noise use).
     """
 
     quality: str = "high"
@@ -85,9 +88,9 @@ class GTAOParams:
     thin_occluder_compensation: float = 0.0
     final_value_power: float = 2.2
     min_offset_pixels: float = 1.3
-    noise: NoiseSpec = "hash"
+    noise: NoiseSpec = "hilbert"
     seed: int = 0
-    denoise_passes: int = 0
+    denoise_passes: int = 1
 
     def __post_init__(self) -> None:
         if self.quality not in QUALITY_PRESETS:

@@ -68,6 +68,8 @@ from .ssr_dda_refine import _count, _fetch, _refine, _z
 from .ssr_fade import EDGE_FADE_MODES, distance_fade, edge_fade
 
 REQUIRES = ("view_z", "normal", "mask", "color")
+#: the parameters that play the shared roles of an equal-settings comparison (:func:`ssbench.evaluate.equal_settings`)
+EQUAL_SETTINGS = {"thickness": "z_thickness", "ray_length": "max_ray_distance"}
 REFINEMENTS = ("binary", "remarch", "none")
 
 

@@ -49,6 +49,8 @@ from .ssr_fade import EDGE_FADE_MODES, _positive, distance_fade, edge_fade
 
 REQUIRES = ("view_z", "normal", "mask", "color")
 REQUIRES_BACKFACE = REQUIRES + ("back_z",)
+#: the parameters that play the shared roles of an equal-settings comparison (:func:`ssbench.evaluate.equal_settings`)
+EQUAL_SETTINGS = {"thickness": "thickness", "ray_length": "max_ray_distance"}
 POSITION_FROM = ("depth", "view_z", "position")
 MAX_BINARY_SEARCH_ITERATIONS = 64  # the shader's loop bound
 

@@ -31,7 +31,7 @@ from .summary import SECTIONS, clean_json
 
 #: row fields that, with effect / scene / method / params, identify a row across runs
 KEY_FIELDS = ("width", "height", "weighting", "blur", "radius", "rays", "spp", "k_px", "reflective", "frames",
-              "truth_frames", "split", "seed")
+              "truth_frames", "split", "seed", "setting")
 #: (label, path in meta.json) of the compared metadata
 META = (("git commit", ("git", "commit")), ("dirty", ("git", "dirty")),
         *((k, ("environment", k)) for k in ("ssbench", "python", "torch", "mitsuba", "drjit", "kornia", "numpy",

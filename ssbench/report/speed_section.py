@@ -40,12 +40,12 @@ _AO_BANDING = [Panel("crytek", "kernel_size", "banding", _NB),
                Panel("ssao", "kernel_size", "banding", _NB + (("max_distance", 0.02),)),
                Panel("ssao", "noise_size", "banding", _NB + (("max_distance", 0.02),)),
                Panel("hbao", "num_directions", "banding", _NB),
-               Panel("gtao", "quality", "banding", _NB + (("noise", "hash"),)),
+               Panel("gtao", "quality", "banding", _NB + (("noise", "hilbert"),)),
                Panel("gtao", "noise", "banding", _NB + (("quality", "high"),))]
 _AO_HALOS = [Panel("ssao", "max_distance", "halo_dark_flavour", _SSAO_16),
              Panel("ssao", "blur", "halo_dark_flavour", _SSAO_16),
              Panel("hbao", "blur", "halo_dark_flavour", (("num_directions", 8), ("num_steps", 6))),
-             Panel("gtao", "blur", "halo_dark_flavour", (("quality", "high"), ("noise", "hash")))]
+             Panel("gtao", "blur", "halo_dark_flavour", (("quality", "high"), ("noise", "hilbert")))]
 _SSR_HITS = [Panel(m, p, _SSR_WRONG, fix, ylabel="share of reflective pixels") for m, p, fix in (
     ("linear", "iterations", (("jitter", 0.0), ("thickness", 0.1))),
     ("linear", "thickness", (("jitter", 0.0), ("iterations", 64))),

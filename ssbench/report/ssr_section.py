@@ -156,16 +156,23 @@ def build_ssr_section(run_dir: str, scenes: Optional[Iterable[str]] = None, widt
             if os.environ.get("SSBENCH_DEBUG"):
                 traceback.print_exc()
 
-    def pick(s, m, k):
-        return next((r.get(k) for r in rows if r["scene"] == s["name"] and r["method"] == m), None)
+    def pick(s, m, k, setting="defaults"):
+        return next((r.get(k) for r in rows if r["scene"] == s["name"] and r["method"] == m
+                     and r.get("setting") == setting), None)
 
     overview = [{"method": m, "cells": [fmt(pick(s, m, "frac_correct"), "{:.1%}") for s in out_scenes],
                  "missed": [fmt(pick(s, m, "frac_missed"), "{:.1%}") for s in out_scenes],
                  "seconds": [fmt(pick(s, m, "seconds"), "{:.3f}") for s in out_scenes]} for m in methods]
+    equal = [{"method": m, "cells": [f"{fmt(pick(s, m, 'frac_correct', 'equal'), '{:.1%}')} / "
+                                     f"{fmt(pick(s, m, 'frac_wrong_output', 'equal'), '{:.1%}')} / "
+                                     f"{fmt(pick(s, m, 'frac_missed', 'equal'), '{:.1%}')}" for s in out_scenes],
+              "params": [_equal_text(pick(s, m, "params", "equal"), m) for s in out_scenes]} for m in methods]
     from ..metrics.ssr import legend_entries
     return {"available": bool(out_scenes), "note": "" if out_scenes else "SSR section: every scene failed.",
             "notes": notes, "methods": methods, "scenes": out_scenes, "rows": rows,
-            "columns": [(k, label) for k, label, _ in TABLE], "overview": overview, "legend": legend_entries(),
+            "columns": [(k, label) for k, label, _ in TABLE], "overview": overview, "equal": equal,
+            "equal_rule": {"ray_length": evaluate.EQUAL_RAY_LENGTH, "thickness": evaluate.EQUAL_THICKNESS},
+            "legend": legend_entries(),
             "thickness": thickness_rows(cam) if cam is not None else None, "spp": spp, "k_px": k_px,
             "seconds": time.perf_counter() - t_start, "err_range": ERR_RANGE, "threads": torch.get_num_threads()}
 
@@ -214,10 +221,18 @@ def _scene(run_dir, name, methods, channels, width, height, spp, seed, k_px, use
             fn = f"{m}.png" if k == "color" else f"{m}_{k}.png"
             write_png(os.path.join(d, fn), rgb)
             imgs[k] = f"{rel}/{fn}"
-        rows.append(row)
+        rows.append({**row, "setting": "defaults"})
         method_rows.append({"method": m, "images": imgs, "visits_max": vmax,
                             "params": ", ".join(f"{k}={v}" for k, v in row["params"].items()),
                             "cells": [fmt(row.get(k), spec) for k, _, spec in TABLE]})
+    for m in results:                                    # the same methods at equal settings (no pictures)
+        try:
+            eq = evaluate.equal_settings(m, g)
+            ev = evaluate.run_ssr(sc, m, eq, seed=seed, spp=spp, k_px=k_px, repeats=1, warmup=False, gbuffer=g,
+                                  truth=truth, use_cache=use_cache, reflective="specular")
+            rows.append({**ev.row, "setting": "equal"})
+        except Exception as e:
+            notes.append(f"{m} at equal settings: {type(e).__name__}: {e}")
     fig11 = _fig11(d, rel, g, results, notes) if fig11 else None
     if fig11:
         images["fig11"] = fig11.pop("image")
@@ -226,6 +241,14 @@ def _scene(run_dir, name, methods, channels, width, height, spp, seed, k_px, use
              "truth_cells": {k: fmt(tf.get(k), "{:.1%}") for k in ("correct", "off_screen_target",
                                                                    "occluded_target", "back_face_target",
                                                                    "true_miss")}}, rows, g)
+
+
+def _equal_text(params: Optional[dict], method: str) -> str:
+    """The two shared settings of an equal-settings row, by the method's own parameter names."""
+    if not params:
+        return "–"
+    from ..evaluate import equal_roles
+    return ", ".join(f"{name}={params[name]:.3g}" for name in equal_roles(method).values() if name in params)
 
 
 def _fig11(d: str, rel: str, g, results: dict, notes: list) -> Optional[dict]:
@@ -251,13 +274,21 @@ def summary_md(ssr: dict) -> str:
     lines = ["", "## Screen-space reflections", ""]
     if not ssr.get("available"):
         return unavailable_md(lines, ssr, "SSR")
-    lines += [f"Each method at its defaults; {ssr['spp']} spp truth radiance, hit tolerance {ssr['k_px']} px. "
+    lines += [f"Each method at its authors' defaults; {ssr['spp']} spp truth radiance, hit tolerance {ssr['k_px']} px. "
               "Correct / missed share of reflective pixels (time s).", "",
               "| method | " + " | ".join(s["name"] for s in ssr["scenes"]) + " |",
               "|---|" + "---:|" * len(ssr["scenes"])]
     for o in ssr["overview"]:
         lines.append(f"| {o['method']} | " + " | ".join(f"{c} / {mi} ({t})" for c, mi, t in
                                                        zip(o["cells"], o["missed"], o["seconds"])) + " |")
+    if ssr.get("equal"):
+        rule = ssr["equal_rule"]
+        lines += ["", f"At equal settings (ray length {rule['ray_length']} × S, thickness {rule['thickness']} × S, "
+                  "S = median eye distance of the visible geometry): correct / wrong output / missed.", "",
+                  "| method | " + " | ".join(s["name"] for s in ssr["scenes"]) + " |",
+                  "|---|" + "---:|" * len(ssr["scenes"])]
+        lines += [f"| {o['method']} | " + " | ".join(f"{c} ({p})" for c, p in zip(o["cells"], o["params"])) + " |"
+                  for o in ssr["equal"]]
     return "\n".join(lines + _class_md(ssr.get("rows") or []) + [f"- {n}" for n in ssr["notes"]]) + "\n"
 
 
@@ -267,11 +298,11 @@ def _class_md(rows: list[dict]) -> list[str]:
     codes = [c for c in M.CLASS_NAMES if c != M.NOT_REFLECTIVE]
     out = ["", "Pixel classes, share of reflective pixels (wrong output: false + misplaced + punch-through + "
            "hit on unfixable target):", "",
-           "| scene | method | " + " | ".join(M.CLASS_LABELS[c] for c in codes) + " | wrong output |",
-           "|---|---|" + "---:|" * (len(codes) + 1)]
+           "| scene | method | setting | " + " | ".join(M.CLASS_LABELS[c] for c in codes) + " | wrong output |",
+           "|---|---|---|" + "---:|" * (len(codes) + 1)]
     for r in rows:
         cells = [fmt(r.get(f"frac_{M.CLASS_NAMES[c]}"), "{:.1%}") for c in codes]
-        out.append(f"| {r.get('scene')} | {r.get('method')} | " + " | ".join(cells)
+        out.append(f"| {r.get('scene')} | {r.get('method')} | {r.get('setting', 'defaults')} | " + " | ".join(cells)
                    + f" | {fmt(r.get('frac_wrong_output'), '{:.1%}')} |")
     out += [""] + [f"- *{M.CLASS_LABELS[c]}*: {M.CLASS_DESCRIPTIONS[c]}" for c in codes] + [""]
     return out

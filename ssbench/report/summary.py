@@ -45,7 +45,7 @@ def _ao_lines(ao: dict) -> list[dict]:
 
 def _ssr_lines(ssr: dict) -> list[dict]:
     lines = []
-    for m, rs in _by_method(ssr.get("rows") or []).items():
+    for m, rs in _by_method([r for r in ssr.get("rows") or [] if r.get("setting", "defaults") == "defaults"]).items():
         parts = [f"{label} {fmt(_mean(r.get(k) for r in rs), '{:.1%}')}" for k, label in
                  (("frac_correct", "correct"), ("frac_missed", "missed"), ("frac_false_hit", "false hit"),
                   ("frac_misplaced_hit", "misplaced hit"), ("frac_punch_through", "punch-through"),

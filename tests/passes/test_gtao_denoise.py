@@ -104,7 +104,7 @@ class TestDenoise:
 
     def test_open_plane_gtao_high_hash(self):
         g = open_plane_gbuffer()
-        ao = gtao(g, GTAOParams(quality="high", noise="hash", seed=3)).ao
+        ao = gtao(g, GTAOParams(quality="high", noise="hash", seed=3, denoise_passes=0)).ao
         raw = (ao[g.mask] >= 0.99).double().mean().item()
         den = gtao_denoise(ao, g.view_z, g.mask)
         after = (den[g.mask] >= 0.99).double().mean().item()

@@ -47,6 +47,10 @@ REQUIRES = ("view_z", "mask")
 class CrytekSSAOParams:
     """Settings of :func:`crytek_ssao`.
 
+    Defaults follow Crysis as Mittring describes it (M. Mittring, "Finding Next Gen — CryEngine 2", SIGGRAPH
+    2007 course notes, https://doi.org/10.1145/1281500.1281671): 16 samples per pixel in a sphere, rotated per
+    pixel by a 4×4 random texture; no bias. The radius and the range check are scene-scaled (the catalog's).
+
     Args:
         kernel_size: samples per pixel.
         kernel_radius: radius of the sample ball in view-space units.

@@ -82,7 +82,7 @@ class TestBothVariants:
         assert bool(((out.ao >= 0) & (out.ao <= 1)).all())
         assert out.debug["samples"].shape == (1, 1, 48, 64)
         # AO is exactly the counted fraction
-        torch.testing.assert_close(out.ao, 1 - out.debug["samples"].double() / 16, rtol=0, atol=0)
+        torch.testing.assert_close(out.ao, 1 - out.debug["samples"].double() / Params().kernel_size, rtol=0, atol=0)
 
     def test_background_is_one(self, fn, Params, Module, basic, horizon):
         ao = fn(horizon, Params()).ao
@@ -148,7 +148,7 @@ class TestBothVariants:
 
     def test_strength(self, fn, Params, Module, basic, crease):
         assert bool((fn(crease, Params(strength=0.0)).ao == 1).all())
-        occlusion = fn(crease, Params(), debug=True).debug["samples"].double() / 16
+        occlusion = fn(crease, Params(), debug=True).debug["samples"].double() / Params().kernel_size
         torch.testing.assert_close(fn(crease, Params(strength=3.0)).ao, (1 - 3 * occlusion).clamp(0, 1))
         assert float(fn(crease, Params(strength=100.0)).ao.min()) == 0.0   # clamped like an 8-bit target
 
@@ -207,7 +207,7 @@ class TestHemisphereSSAO:
         assert idx.shape == (1, 1, 48, 64)
         assert torch.equal(idx[0, 0, :4, :4].flatten(), torch.arange(16))   # the 4×4 tile, row-major
         assert torch.equal(idx[..., 4:8, 4:8], idx[..., :4, :4])
-        assert out.debug["kernel"].shape == (16, 3) and out.debug["noise"].shape == (3, 4, 4)
+        assert out.debug["kernel"].shape == (32, 3) and out.debug["noise"].shape == (3, 4, 4)
 
     def test_kernel_sizes(self, crease):
         for k in (8, 16, 32, 64):

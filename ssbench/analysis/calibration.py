@@ -12,7 +12,11 @@ https://github.com/mebiusbox/ssao):
 * :func:`banding_response` — the kernel size ``K`` of hemisphere SSAO with the rotation noise off
   (``noise_size = 1``, one kernel for every pixel: Fig. 5's bands) and on (4×4): banding must fall with ``K``
   and be lower with the rotation on;
-* :func:`halo_response` — the range check ``max_distance``: the dark halo must rise with it (Figs. 7–9).
+* :func:`halo_response` — the range check ``max_distance``: the dark halo must rise with it (Figs. 7–9);
+* :func:`flicker_response` — the sample count, over frames whose noise advances (no jitter, so the noise is the
+  only thing that moves): flicker must fall as the samples grow; with the noise frozen and no jitter it is 0.
+
+SSR and implicit experiments are in :mod:`ssbench.analysis.calibration_hits`.
 """
 from __future__ import annotations
 
@@ -23,7 +27,7 @@ from typing import Iterable, Optional, Sequence
 
 import torch
 
-__all__ = ["Response", "verdict", "banding_response", "halo_response"]
+__all__ = ["Response", "verdict", "banding_response", "halo_response", "flicker_response", "summarize"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -142,6 +146,30 @@ def halo_response(scenes: Sequence[str] = ("fence", "sphere_on_plane", "cornell_
                             tuple(dark), zeros, "rises", 1, note))
         out.append(Response("halo_missing_flavour", "max_distance", scene, "missing occlusion",
                             tuple(max_distances), tuple(missing), zeros, "falls", 1, note))
+    return out
+
+
+def flicker_response(scene: str = "sphere_on_plane", knobs: Optional[dict] = None, *, frames: int = 8,
+                     width: int = 160, height: int = 120, radius: float = 1.0,
+                     use_cache: bool = True) -> list[Response]:
+    """``flicker`` over each method's sample-count knob (``knobs``: method -> (parameter, values); default SSAO
+    ``kernel_size`` 8…64 and GTAO ``quality`` low…ultra), over ``frames`` frames whose noise advances, no jitter;
+    plus one point per method with the noise frozen (must be exactly 0) and with jitter alone."""
+    from ..evaluate import ao_frames
+    knobs = knobs or {"ssao": ("kernel_size", (8, 16, 32, 64)), "gtao": ("quality", ("low", "medium", "high",
+                                                                                     "ultra"))}
+    out = []
+    for method, (param, values) in knobs.items():
+        ys = [ao_frames(scene, method, {param: v}, frames=frames, jitter=False, radius=radius, width=width,
+                        height=height, use_cache=use_cache).flicker for v in values]
+        frozen = ao_frames(scene, method, frames=frames, jitter=False, advance_noise=False, radius=radius,
+                           width=width, height=height, use_cache=use_cache).flicker
+        jitter = ao_frames(scene, method, frames=frames, jitter=True, advance_noise=False, radius=radius,
+                           width=width, height=height, use_cache=use_cache).flicker
+        note = (f"{method}, radius {radius}, {frames} frames, {width}×{height}; at defaults: noise frozen and no "
+                f"jitter {frozen:.2g}, sub-pixel jitter alone {jitter:.2g}")
+        out.append(Response("flicker", param, scene, f"{method}, noise advancing", tuple(values), tuple(ys),
+                            tuple(0.0 for _ in values), "falls", 1, note))
     return out
 
 

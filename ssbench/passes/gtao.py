@@ -41,6 +41,8 @@ FLAVOUR = "cosine"  # the ground-truth weighting this pass estimates (ssbench.re
 REQUIRES = ("view_z", "normal", "mask")
 QUALITY_PRESETS = {"low": (1, 2), "medium": (2, 2), "high": (3, 3), "ultra": (9, 3)}  # slices, steps per side
 NOISE_KINDS = ("hash", "hilbert", "none")
+#: the parameter that advances the noise from frame to frame (ssbench.evaluate.ao_frames)
+FRAME_PARAM = "frame"
 _CENTER_Z_BIAS = 0.99999        # XE_GTAO_FP32_DEPTHS: move the centre toward the camera
 _SLOPE_FUDGE = 0.05             # |proj n| lerped 5 % toward 1 ("slight overdarkening on high slopes")
 _R1 = 0.6180339887498948482     # golden-ratio step noise
@@ -69,10 +71,12 @@ class GTAOParams:
         thin_occluder_compensation: scales sample Δz by ``1 + c`` in the falloff distance (0 = off).
         final_value_power: ``vis^p`` after averaging the slices.
         min_offset_pixels: ``pixelTooCloseThreshold``, added to every step as ``1.3/r_px``.
-        noise: ``"hilbert"`` (XeGTAO's R2 sequence along a 64² Hilbert curve, frame 0; the default),
+        noise: ``"hilbert"`` (XeGTAO's R2 sequence along a 64² Hilbert curve, advanced by ``frame``; the default),
             ``"hash"`` (per-pixel uniform pairs from ``seed``/the generator), ``"none"`` (0.5, the R2 value at index 0), or a tile
             ``(2, 4, 4)`` (slice, step noise) or ``(4, 4)`` (both) in [0, 1) read at ``[row % 4, col % 4]``.
         seed: seeds ``"hash"`` noise when no generator is passed.
+        frame: temporal index of the ``"hilbert"`` noise: XeGTAO adds ``288·(frame mod 64)`` to the Hilbert
+            index (``SpatioTemporalNoise``), so consecutive frames see other rotations for TAA to average.
         denoise_passes: XeGTAO's 3×3 edge-aware denoise passes (``gtao_denoise``) applied *before* the final
             clip to [0.03, 1], so values that overshoot 1 average out (XeGTAO's ``DenoisePasses`` default 1;
             0 = raw, what the article-style comparisons of per-pixel noise use).
@@ -90,6 +94,7 @@ class GTAOParams:
     min_offset_pixels: float = 1.3
     noise: NoiseSpec = "hilbert"
     seed: int = 0
+    frame: int = 0
     denoise_passes: int = 1
 
     def __post_init__(self) -> None:
@@ -113,6 +118,8 @@ class GTAOParams:
                 raise ValueError(f"noise: a tile must have shape (4, 4) or (2, 4, 4) with values in [0, 1), "
                                  f"got shape {tuple(t.shape)}")
         make_generator(self.seed, None)                      # validates seed
+        if isinstance(self.frame, bool) or not isinstance(self.frame, int) or self.frame < 0:
+            raise ValueError(f"frame: must be an integer >= 0, got {self.frame!r}")
         if isinstance(self.denoise_passes, bool) or not isinstance(self.denoise_passes, int) \
                 or self.denoise_passes < 0:
             raise ValueError(f"denoise_passes: must be an integer >= 0, got {self.denoise_passes!r}")

@@ -60,7 +60,7 @@ def noise_buffer(params: GTAOParams, batch: int, height: int, width: int,
     row = torch.arange(height).view(height, 1).expand(height, width)
     col = torch.arange(width).view(1, width).expand(height, width)
     if kind == "hilbert":
-        idx = _hilbert_index(col, row).to(torch.float64)                           # (H, W)
+        idx = _hilbert_index(col, row).to(torch.float64) + 288 * (params.frame % 64)   # (H, W), XeGTAO
         r2 = torch.tensor(_R2, dtype=torch.float64).view(2, 1, 1)
         return torch.frac(0.5 + idx * r2).expand(shape)
     tile = torch.as_tensor(params.noise, dtype=torch.float64).expand(2, 4, 4)     # (2, 4, 4)

@@ -2,7 +2,8 @@
 run on real scenes against Mitsuba ground truth, pinned."""
 import pytest
 
-from ssbench.analysis.calibration import banding_response, halo_response, verdict
+from ssbench.analysis.calibration import banding_response, flicker_response, halo_response, verdict
+from ssbench.analysis.calibration_hits import punch_through_response, ssr_response
 
 pytestmark = [pytest.mark.slow, pytest.mark.mitsuba]
 
@@ -24,3 +25,24 @@ def test_dark_halo_rises_with_the_range_check(scene):
     assert verdict(dark, 1e-9)["monotone"], dark.y
     assert dark.y[-1] >= 3 * max(dark.y[0], 1e-4), dark.y
     assert missing.y[-1] < missing.y[0]                                   # the range check trades one for the other
+
+
+def test_flicker_falls_with_the_sample_count_and_is_zero_when_nothing_moves():
+    for r in flicker_response("sphere_on_plane"):                        # SSAO kernel size, GTAO quality
+        v = verdict(r)
+        assert v["monotone"] and v["ratio"] >= 2.5, (r.series, r.y)
+        assert "noise frozen and no jitter 0," in r.note                   # exactly 0: nothing moves
+
+
+def test_ssr_classes_respond_to_thickness_and_stride():
+    false_hits, missed, misplaced = ssr_response("fence")
+    for r in (false_hits, missed, misplaced):
+        assert verdict(r)["monotone"], (r.series, r.y)
+    assert false_hits.y[-1] > 0.05 > 10 * false_hits.y[0]                # too thick invents hits
+    assert missed.y[0] > 0.3 > 10 * missed.y[-1]                         # too thin misses them
+    assert misplaced.y[-1] > 10 * misplaced.y[0]                         # coarse strides land pixels off
+
+
+def test_punch_through_falls_with_the_step_count():
+    (r,) = punch_through_response("thin_shell")
+    assert verdict(r)["monotone"] and r.y[0] > 2 * r.y[-1], r.y

@@ -1,0 +1,39 @@
+"""Frames of an AO method on a static scene: the noise advances as the method does it, the camera jitters."""
+import pytest
+import torch
+
+from ssbench.evaluate import ao_frames
+from ssbench.evaluate._temporal import halton
+from ssbench.passes.gtao import GTAOParams
+from ssbench.passes.gtao_parts import noise_buffer
+
+pytestmark = [pytest.mark.slow, pytest.mark.mitsuba]
+KW = dict(width=48, height=36, radius=1.0, frames=4)
+
+
+def test_frozen_noise_and_no_jitter_do_not_flicker_and_each_source_adds():
+    frozen = ao_frames("sphere_on_plane", "ssao", jitter=False, advance_noise=False, **KW)
+    assert frozen.flicker == 0.0 and frozen.offsets == ((0.0, 0.0),) * 4
+    assert torch.equal(frozen.ao[0], frozen.ao[3])
+    noise = ao_frames("sphere_on_plane", "ssao", jitter=False, **KW)
+    jitter = ao_frames("sphere_on_plane", "ssao", advance_noise=False, **KW)
+    assert noise.flicker > 0 and jitter.flicker > 0
+    assert jitter.offsets[0] == (halton(1, 2) - 0.5, halton(1, 3) - 0.5) == pytest.approx((0.0, -1 / 6))
+    assert not torch.equal(jitter.mask[0], jitter.mask[1]) or not torch.equal(jitter.ao[0], jitter.ao[1])
+
+
+def test_gtao_advances_its_hilbert_noise_by_the_frame_index():
+    a, b = (noise_buffer(GTAOParams(frame=f), 1, 8, 8) for f in (0, 1))
+    assert not torch.equal(a, b)
+    assert torch.equal(noise_buffer(GTAOParams(frame=64), 1, 8, 8), a)   # XeGTAO: 288 (frame mod 64)
+    run = ao_frames("sphere_on_plane", "gtao", jitter=False, **KW)
+    assert run.flicker > 0 and run.params.frame == 0
+    with pytest.raises(ValueError, match="frame"):
+        GTAOParams(frame=-1)
+
+
+def test_arguments_are_checked():
+    with pytest.raises(ValueError, match="frames"):
+        ao_frames("sphere_on_plane", "ssao", frames=1)
+    with pytest.raises(ValueError, match="seed"):
+        ao_frames("sphere_on_plane", "ssao", seed=-1)

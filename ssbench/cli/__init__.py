@@ -119,6 +119,8 @@ def _parser() -> _Parser:
     q.add_argument("--no-implicit", action="store_true", help="leave out the implicit-surface section")
     q.add_argument("--no-speed", action="store_true", help="leave out the speed section")
     q.add_argument("--no-tuning", action="store_true", help="leave out the tuning section")
+    q.add_argument("--no-calibration", action="store_true",
+                   help="leave out the metric calibration section (each metric against its artifact's knob)")
     q.add_argument("--compare", nargs=2, metavar=("RUN_A", "RUN_B"),
                    help="instead of building: compare two runs (folders, names under --out, or 'latest')")
     q.add_argument("--rtol", type=_non_negative_float, default=1e-3,

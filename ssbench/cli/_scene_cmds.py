@@ -103,7 +103,8 @@ def _cmd_report(args) -> int:
     index = build_report(args.out, scenes=args.scenes, width=args.width, height=args.height, spp=args.spp,
                          seed=args.seed, use_cache=not args.fresh_previews, gt_cache=not args.no_gt_cache, ao=not args.no_ao,
                          ao_radius=args.ao_radius, ao_rays=args.ao_rays, ssr=not args.no_ssr, ssr_spp=args.ssr_spp,
-                         implicit=off(args.no_implicit), speed=off(args.no_speed), tuning=off(args.no_tuning))
+                         implicit=off(args.no_implicit), speed=off(args.no_speed), tuning=off(args.no_tuning),
+                         calibration=off(args.no_calibration))
     print(f"report: {index}")
     print(f"latest: {os.path.join(os.path.abspath(args.out), 'latest', 'index.html')}")
     return 0

@@ -218,7 +218,8 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
                  height: int = 240, spp: int = 64, seed: int = 0, *, use_cache: bool = True,
                  progress: Optional[bool] = None, ao: bool = True, ao_radius: float = 0.5,
                  ao_rays: int = 128, ssr: bool = True, ssr_spp: int = 16, implicit: Optional[bool] = None,
-                 speed: Optional[bool] = None, tuning: Optional[bool] = None, gt_cache: bool = True) -> str:
+                 speed: Optional[bool] = None, tuning: Optional[bool] = None, calibration: Optional[bool] = None,
+                 gt_cache: bool = True) -> str:
     """Render every catalog scene (or ``scenes``) and write a report run; returns the run's ``index.html``.
 
     ``use_cache=True`` (default) reads the scene previews from the render cache when they are there (their times
@@ -231,7 +232,8 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
     reflective_floor and fence) with ``ssr_spp`` samples for the mirror radiance, reusing the G-buffers
     rendered here; ``implicit`` the implicit-surface section (:mod:`ssbench.report.implicit_section`; default:
     on for a full report, off with a ``scenes`` subset); ``speed`` and ``tuning`` the speed and tuning sections
-    (:mod:`ssbench.report.speed_section`, :mod:`ssbench.report.tuning_section`; defaults like ``implicit``).
+    (:mod:`ssbench.report.speed_section`, :mod:`ssbench.report.tuning_section`; defaults like ``implicit``);
+    ``calibration`` the metric calibration section (:mod:`ssbench.report.calibration_section`; likewise).
     No section ever fails the report (problems show as notes in the page). Each section's evaluation rows
     also go to ``rows/<section>.jsonl`` (see reports/README.md).
     """
@@ -285,6 +287,9 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
     meta["implicit"] = _implicit_section(run_dir, scenes, width, height, implicit, seed, sc_cache)
     meta["speed"] = _speed_section(run_dir, scenes, width, height, speed, seed, sc_cache, progress)
     meta["tuning"] = _tuning_section(run_dir, scenes, width, height, tuning, seed, sc_cache, progress)
+    meta["calibration"] = _optional_section("calibration", "Metric calibration", calibration, scenes,
+                                            lambda m: m.build_calibration_section(run_dir, use_cache=sc_cache,
+                                                                                  progress=progress))
     meta["total_s"] = time.perf_counter() - t_start
     meta["metadata_rows"] = summary.metadata_rows(meta)
     meta["glance"] = summary.glance(meta)

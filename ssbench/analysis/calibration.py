@@ -13,6 +13,10 @@ https://github.com/mebiusbox/ssao):
   (``noise_size = 1``, one kernel for every pixel: Fig. 5's bands) and on (4×4): banding must fall with ``K``
   and be lower with the rotation on;
 * :func:`halo_response` — the range check ``max_distance``: the dark halo must rise with it (Figs. 7–9);
+* :func:`flat_bias_response` — SSAO's ``min_distance`` (the article's Fig. 10 bias) on a floor seen at a grazing
+  angle, where nearest-texel depth makes samples just above the surface read as occluded: flat bias must fall
+  as the bias grows;
+* :func:`noise_response` — the sample count with the 4×4 rotation on: the noise variance must fall;
 * :func:`flicker_response` — the sample count, over frames whose noise advances (no jitter, so the noise is the
   only thing that moves): flicker must fall as the samples grow; with the noise frozen and no jitter it is 0.
 
@@ -27,7 +31,8 @@ from typing import Iterable, Optional, Sequence
 
 import torch
 
-__all__ = ["Response", "verdict", "banding_response", "halo_response", "flicker_response", "summarize"]
+__all__ = ["Response", "verdict", "banding_response", "halo_response", "flat_bias_response", "noise_response",
+           "flicker_response", "summarize"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -147,6 +152,38 @@ def halo_response(scenes: Sequence[str] = ("fence", "sphere_on_plane", "cornell_
         out.append(Response("halo_missing_flavour", "max_distance", scene, "missing occlusion",
                             tuple(max_distances), tuple(missing), zeros, "falls", 1, note))
     return out
+
+
+def _ssao_curve(scene: str, param: str, values: Sequence, key: str, *, width: int, height: int, rays: int,
+                use_cache: bool) -> tuple:
+    from ..evaluate import run_ao
+    refs: dict = {}
+    g, ys = None, []
+    for v in values:
+        ev = run_ao(scene, "ssao", {param: v}, width=width, height=height, rays=rays, repeats=1, warmup=False,
+                    references=refs, gbuffer=g, flip=False, oracle=False, use_cache=use_cache)
+        g = ev.gbuffer
+        ys.append(ev.row[key])
+    return tuple(ys)
+
+
+def flat_bias_response(scene: str = "grazing_floor", min_distances: Sequence[float] = (0.0, 1e-4, 5e-4, 2e-3, 5e-3),
+                       *, width: int = 96, height: int = 72, rays: int = 64, use_cache: bool = True) -> list[Response]:
+    """``flat_bias_flavour`` (occlusion added where the truth has none) over SSAO's ``min_distance``."""
+    ys = _ssao_curve(scene, "min_distance", min_distances, "flat_bias_flavour", width=width, height=height,
+                     rays=rays, use_cache=use_cache)
+    return [Response("flat_bias_flavour", "min_distance", scene, "self-occlusion", tuple(min_distances), ys,
+                     tuple(0.0 for _ in ys), "falls", 1,
+                     f"ssao defaults otherwise, {width}×{height}, vs its flavour ground truth ({rays} rays)")]
+
+
+def noise_response(scene: str = "grazing_floor", kernel_sizes: Sequence[int] = (8, 16, 32, 64), *, width: int = 96,
+                   height: int = 72, rays: int = 64, use_cache: bool = True) -> list[Response]:
+    """``noise`` (variance of AO minus its 5×5 box blur) over SSAO's kernel size, rotation on."""
+    ys = _ssao_curve(scene, "kernel_size", kernel_sizes, "noise", width=width, height=height, rays=rays,
+                     use_cache=use_cache)
+    return [Response("noise", "kernel_size", scene, "rotation on (4×4 noise)", tuple(kernel_sizes), ys,
+                     tuple(0.0 for _ in ys), "falls", 1, f"ssao defaults otherwise, {width}×{height}")]
 
 
 def flicker_response(scene: str = "sphere_on_plane", knobs: Optional[dict] = None, *, frames: int = 8,

@@ -41,6 +41,9 @@ FLAVOUR = "cosine"  # the ground-truth weighting this pass estimates (ssbench.re
 REQUIRES = ("view_z", "normal", "mask")
 QUALITY_PRESETS = {"low": (1, 2), "medium": (2, 2), "high": (3, 3), "ultra": (9, 3)}  # slices, steps per side
 NOISE_KINDS = ("hash", "hilbert", "none")
+#: where the defaults come from (shown by the report next to the parameters)
+DEFAULTS_SOURCE = ('XeGTAO (Intel, 2021, https://github.com/GameTechDev/XeGTAO): High quality, auto-tuned constants, '
+                   'Hilbert R2 noise, 1 denoise pass')
 #: the parameter that advances the noise from frame to frame (ssbench.evaluate.ao_frames)
 FRAME_PARAM = "frame"
 _CENTER_Z_BIAS = 0.99999        # XE_GTAO_FP32_DEPTHS: move the centre toward the camera

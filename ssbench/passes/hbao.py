@@ -46,6 +46,9 @@ from ..gbuffer import GBuffer
 from .common import AOResult, check_count, check_radius, fetch_uv, make_generator
 
 FLAVOUR = "obscurance"  # the ground-truth weighting this pass estimates (ssbench.reference.ao)
+#: where the defaults come from (shown by the report next to the parameters)
+DEFAULTS_SOURCE = ("NVIDIA's HBAO sample as ported by scanberg/hbao (6 directions × 6 steps, R 0.3, tangent bias 30°; "
+                   'Bavoil & Sainz, "Image-Space Horizon-Based Ambient Occlusion", SIGGRAPH 2008)')
 REQUIRES = ("view_z", "mask")
 POSITION_FROM = ("depth", "view_z")
 

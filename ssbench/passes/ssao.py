@@ -48,6 +48,9 @@ from .common import AOResult, check_count, check_radius, check_unit_normals, fet
 from .sampling import hemisphere_kernel, noise_texel, noise_texture
 
 FLAVOUR = "volume_hemisphere"  # the ground truth this pass estimates (ssbench.reference.ao_volume)
+#: where the defaults come from (shown by the report next to the parameters)
+DEFAULTS_SOURCE = ('three.js SSAOPass (32-sample kernel, 4×4 noise; https://github.com/mrdoob/three.js); distances '
+                   'scaled to the catalog scenes')
 REQUIRES = ("view_z", "normal", "mask")
 POSITION_FROM = ("depth", "view_z")
 

@@ -68,6 +68,9 @@ from .ssr_dda_refine import _count, _fetch, _refine, _z
 from .ssr_fade import EDGE_FADE_MODES, distance_fade, edge_fade
 
 REQUIRES = ("view_z", "normal", "mask", "color")
+#: where the defaults come from (shown by the report next to the parameters)
+DEFAULTS_SOURCE = ('McGuire & Mara, "Efficient GPU Screen-Space Ray Tracing", JCGT 3(4), 2014, as kode80 and '
+                   'mebiusbox/ssr ship it (thickness 0.1, max distance 10, stride 1, 4 bisections)')
 #: the parameters that play the shared roles of an equal-settings comparison (:func:`ssbench.evaluate.equal_settings`)
 EQUAL_SETTINGS = {"thickness": "z_thickness", "ray_length": "max_ray_distance"}
 REFINEMENTS = ("binary", "remarch", "none")

@@ -38,10 +38,12 @@ from torch import nn
 from ..gbuffer import GBuffer
 from .common import check_count
 from .ssr_common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS, SSRResult
-from .ssr_dda import EQUAL_SETTINGS, REQUIRES, DDASSRParams, _check, _count, _rays, _z, assemble
+from .ssr_dda import (DEFAULTS_SOURCE, EQUAL_SETTINGS, REQUIRES, DDASSRParams, _check, _count, _rays, _z,
+                      assemble)
 from .ssr_fade import EDGE_FADE_MODES
 
-__all__ = ["REQUIRES", "EQUAL_SETTINGS", "SupercoverDDASSRParams", "ssr_dda_supercover", "SupercoverDDASSR", "cell_setup"]
+__all__ = ["REQUIRES", "EQUAL_SETTINGS", "DEFAULTS_SOURCE", "SupercoverDDASSRParams", "ssr_dda_supercover",
+           "SupercoverDDASSR", "cell_setup"]
 
 
 @dataclass(frozen=True)

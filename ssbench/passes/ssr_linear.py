@@ -49,6 +49,8 @@ from .ssr_fade import EDGE_FADE_MODES, _positive, distance_fade, edge_fade
 
 REQUIRES = ("view_z", "normal", "mask", "color")
 REQUIRES_BACKFACE = REQUIRES + ("back_z",)
+#: where the defaults come from (shown by the report next to the parameters)
+DEFAULTS_SOURCE = ("the article's demo (mebiusbox/ssr: Iterations 50, 4 bisections, PixelZSize 1, MaxRayDistance 20)")
 #: the parameters that play the shared roles of an equal-settings comparison (:func:`ssbench.evaluate.equal_settings`)
 EQUAL_SETTINGS = {"thickness": "thickness", "ray_length": "max_ray_distance"}
 POSITION_FROM = ("depth", "view_z", "position")

@@ -241,6 +241,7 @@ def _scene(run_dir, name, methods, channels, width, height, radius, rays, seed, 
         rows.append(row)
         method_rows.append({"method": m, "images": imgs, "weighting": row["weighting"], "blurs": blurs,
                             "params": ", ".join(f"{k}={v}" for k, v in row["params"].items()),
+                            "source": defaults_source(m),
                             "cells": [fmt(row.get(k), spec) for k, _, spec in TABLE]})
     return ({"name": name, "description": sc.description, "images": images, "methods": method_rows,
              "notes": notes, "gt_seconds": gt_s, "flavours": list(FLAVOURS),
@@ -261,9 +262,32 @@ def summary_md(ao: dict) -> str:
     lines = ["", "## Ambient occlusion", ""]
     if not ao.get("available"):
         return unavailable_md(lines, ao, "AO")
-    lines += [f"Radius {ao['radius']}, {ao['rays']} GT rays per pixel; RMSE vs cosine GT (time s).", "",
+    lines += [f"Every method at its authors' defaults, all at the same radius {ao['radius']} (the equal setting); "
+              f"{ao['rays']} GT rays per pixel; RMSE vs cosine GT (time s).", "",
               "| method | " + " | ".join(s["name"] for s in ao["scenes"]) + " |",
               "|---|" + "---:|" * len(ao["scenes"])]
     for o in ao["overview"]:
         lines.append(f"| {o['method']} | " + " | ".join(f"{c} ({t})" for c, t in zip(o["cells"], o["seconds"])) + " |")
+    rows = ao.get("rows") or []
+    if rows:
+        lines += ["", "RMSE against the method's own flavour (what it estimates) and against cosine AO (what shading "
+                  "needs), mean over the scenes:", "", "| method | flavour | RMSE own flavour | RMSE cosine | "
+                  "banding | dark halo |", "|---|---|---:|---:|---:|---:|"]
+        for m in dict.fromkeys(r["method"] for r in rows):
+            rs = [r for r in rows if r["method"] == m]
+
+            def mean(k):
+                v = [r.get(k) for r in rs if isinstance(r.get(k), float) and r.get(k) == r.get(k)]
+                return sum(v) / len(v) if v else None
+            lines.append(f"| {m} | {rs[0].get('weighting')} | {fmt(mean('rmse_flavour'))} | {fmt(mean('rmse_cos'))} | "
+                         f"{fmt(mean('banding'))} | {fmt(mean('halo_dark_flavour'))} |")
+        lines += ["", "Defaults from:"] + [f"- {m}: {defaults_source(m) or 'not declared'}"
+                                          for m in dict.fromkeys(r["method"] for r in rows)]
     return "\n".join(lines + [f"- {n}" for n in ao["notes"]]) + "\n"
+
+
+def defaults_source(method: str) -> str:
+    """Where the method's defaults come from: its module's ``DEFAULTS_SOURCE`` (empty when it declares none)."""
+    import importlib
+    from ..passes import ao_method
+    return getattr(importlib.import_module(ao_method(method)[0].__module__), "DEFAULTS_SOURCE", "")

@@ -224,6 +224,7 @@ def _scene(run_dir, name, methods, channels, width, height, spp, seed, k_px, use
         rows.append({**row, "setting": "defaults"})
         method_rows.append({"method": m, "images": imgs, "visits_max": vmax,
                             "params": ", ".join(f"{k}={v}" for k, v in row["params"].items()),
+                            "source": defaults_source(m),
                             "cells": [fmt(row.get(k), spec) for k, _, spec in TABLE]})
     for m in results:                                    # the same methods at equal settings (no pictures)
         try:
@@ -289,6 +290,7 @@ def summary_md(ssr: dict) -> str:
                   "|---|" + "---:|" * len(ssr["scenes"])]
         lines += [f"| {o['method']} | " + " | ".join(f"{c} ({p})" for c, p in zip(o["cells"], o["params"])) + " |"
                   for o in ssr["equal"]]
+    lines += ["", "Defaults from:"] + [f"- {m}: {defaults_source(m) or 'not declared'}" for m in ssr["methods"]]
     return "\n".join(lines + _class_md(ssr.get("rows") or []) + [f"- {n}" for n in ssr["notes"]]) + "\n"
 
 
@@ -306,3 +308,10 @@ def _class_md(rows: list[dict]) -> list[str]:
                    + f" | {fmt(r.get('frac_wrong_output'), '{:.1%}')} |")
     out += [""] + [f"- *{M.CLASS_LABELS[c]}*: {M.CLASS_DESCRIPTIONS[c]}" for c in codes] + [""]
     return out
+
+
+def defaults_source(method: str) -> str:
+    """Where the method's defaults come from: its module's ``DEFAULTS_SOURCE`` (empty when it declares none)."""
+    import importlib
+    from ..passes import ssr_method
+    return getattr(importlib.import_module(ssr_method(method)[0].__module__), "DEFAULTS_SOURCE", "")

@@ -2,7 +2,8 @@
 run on real scenes against Mitsuba ground truth, pinned."""
 import pytest
 
-from ssbench.analysis.calibration import banding_response, flicker_response, halo_response, verdict
+from ssbench.analysis.calibration import (banding_response, flat_bias_response, flicker_response, halo_response,
+                                          noise_response, verdict)
 from ssbench.analysis.calibration_hits import punch_through_response, ssr_response
 
 pytestmark = [pytest.mark.slow, pytest.mark.mitsuba]
@@ -46,3 +47,10 @@ def test_ssr_classes_respond_to_thickness_and_stride():
 def test_punch_through_falls_with_the_step_count():
     (r,) = punch_through_response("thin_shell")
     assert verdict(r)["monotone"] and r.y[0] > 2 * r.y[-1], r.y
+
+
+def test_flat_bias_falls_with_the_self_occlusion_bias_and_noise_with_the_samples():
+    (flat,) = flat_bias_response("grazing_floor")
+    assert verdict(flat)["monotone"] and flat.y[0] > 0.05 > 100 * flat.y[-1], flat.y
+    (noise,) = noise_response("grazing_floor")
+    assert verdict(noise)["monotone"] and verdict(noise)["ratio"] >= 3, noise.y

@@ -1,4 +1,4 @@
-"""Do repeated ``ssbench sweep`` runs agree within their IQR? (a benchmark, not a test; issue 6 §2)
+"""Do repeated ``ssbench sweep`` runs agree within their IQR? (a benchmark, not a test)
 
 Runs one sweep ``--repeats`` times for each ``timing.processes`` value of ``--processes``, every run a fresh
 ``ssbench sweep --no-resume`` into its own folder, the values alternating run by run (A B A B ...) so that the

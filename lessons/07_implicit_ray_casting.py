@@ -748,5 +748,6 @@ assert checks and all(checks.values())
 #   `ambiguous_t`) and `implicit_dense.py`; `ssbench/metrics/implicit.py` (classes, `lipschitz_check`, the `w/h`
 #   prediction).
 # * `ssbench implicit thin_shell --method fixed --steps 32 --frames 1` for one tidy row;
-#   `shared/notes/implicit_anchors.md` for Hart, Keinert, Mitchell, Knoll, POV-Ray and curv.
+#   `ssbench/REFERENCES.md` for Hart (sphere tracing), Keinert et al. (enhanced sphere tracing), Mitchell and
+#   Knoll et al. (interval arithmetic).
 # * Next: **lesson 8**, the progressive method.

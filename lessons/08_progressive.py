@@ -391,7 +391,7 @@ fig.suptitle("Step 4 — bisection, ∇f shading, and the article's results pict
 plt.show()
 
 # %% [markdown]
-# ## 5. Frames of convergence, against the `w/h` prediction (手法 2; `implicit_anchors.md` (b))
+# ## 5. Frames of convergence, against the `w/h` prediction (手法 2, *method 2*)
 #
 # How fast does the shell fill in? A jittered lattice of spacing `h` catches a wall of chord `w` with
 # probability `min(1, w/h)` per frame, so after `K` frames a pixel is still unfound with probability

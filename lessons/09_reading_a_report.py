@@ -118,7 +118,7 @@ def knobs(r):
 print(f"{W}x{H}, {RAYS} ground-truth rays, files under {OUT}")
 
 # %% [markdown]
-# ## 1. One tidy row (issue 6; `ssbench.evaluate.ao`)
+# ## 1. One tidy row (`ssbench.evaluate.ao`)
 #
 # Everything in a report starts as one **row**: one method, one parameter set, one scene, scored against the
 # ray-traced ground truth. `evaluate.run_ao` returns the row and the images behind it (`evaluate.ao` the row
@@ -178,7 +178,7 @@ fig.suptitle("Step 1 — one row: the pass, the ground truth, the error and wher
 plt.show()
 
 # %% [markdown]
-# ## 2. A sweep is data (issue 6: `ssbench.bench`)
+# ## 2. A sweep is data (`ssbench.bench`)
 #
 # A sweep names an effect, scenes, a resolution, the ground truth's settings and, per method, a **grid** of
 # parameters; every combination is one configuration. It can live in a YAML file (the report's are
@@ -230,7 +230,7 @@ plt.show()
 # pixel is a noisy estimate, and XeGTAO relies on a denoiser this sweep does not run. A report is full of such
 # rows; the next steps are ways of not being lost in them.
 #
-# ## 3. Error against time, and the Pareto front (issue 6 §3)
+# ## 3. Error against time, and the Pareto front
 #
 # Plot every configuration at (time, error). A configuration is **dominated** when another one is at least as
 # fast *and* at least as accurate (and strictly better in one). The ones nobody dominates form the **Pareto
@@ -287,7 +287,7 @@ plt.show()
 # bit-for-bit repeatable, the times are not, so configurations close in time can swap places between runs. That
 # is what the next step is about.
 #
-# ## 4. Time in units of the gather floor (issue 6: `ssbench/bench/timing.py`)
+# ## 4. Time in units of the gather floor (`ssbench/bench/timing.py`)
 #
 # The `timing` block times the pass alone at one torch thread and, **in the same breath**, the *gather floor*: a
 # plain texture gather of as many depth texels per pixel as the pass reads (HBAO: directions × steps;
@@ -367,7 +367,7 @@ plt.show()
 # above assert definitions, not speeds. The report prints both columns; `bench.agree(a, b)` tells whether two
 # timing rows agree within their IQR. Claims about speed belong in `benchmarks/`, never in tests.
 #
-# ## 5. Equal-error cost: what the same error costs with the ray tracer (issue 6 §3)
+# ## 5. Equal-error cost: what the same error costs with the ray tracer
 #
 # The ground truth is an estimator too: ray-traced AO with `n` rays per pixel has a per-pixel variance `σ²/n`.
 # Against the `R`-ray reference (an independent seed) its RMSE is `sqrt(σ̄²(1/n + 1/R))`, with `σ̄²` read off the
@@ -428,7 +428,7 @@ plt.show()
 # report prints this table for every effect (SSR: the exact mirror trace at one ray per pixel; implicit
 # surfaces: fixed-step march steps against the certified reference).
 #
-# ## 6. Artifact small multiples: banding and halos (issue 6 §3; seed 002 Fig. 5, Figs. 7–9)
+# ## 6. Artifact small multiples: banding and halos (seed 002 Fig. 5, Figs. 7–9)
 #
 # Error against time hides *what kind* of error. The report adds small multiples: one panel per (method,
 # knob), an artifact metric on the y axis, one line per value of the other knobs (`analysis.Panel`,
@@ -486,7 +486,7 @@ check("the 5×5 box blur removes the 4×4 tile pattern (tile energy / 5 or less)
 # (lesson 2, Steps 5 and 9); a fixed kernel has none. The report's calibration section shows `banding` falling
 # with the kernel size and lower with the rotation on.
 #
-# ## 7. Tuning: default vs tuned, on scenes the tuner never saw (issue 6 §4)
+# ## 7. Tuning: default vs tuned, on scenes the tuner never saw
 #
 # Comparing methods at their defaults is unfair to the one with worse defaults. `ssbench.tune.tune` fits a
 # method's *continuous* parameters (radius, falloff, power, …; discrete sample counts stay fixed) to the fixed
@@ -537,7 +537,7 @@ plt.show()
 # parameter set that only helps its training scenes is overfitting, and the report shows it as such. A
 # `budget_ms` rejects configurations slower than a frame budget, so the tuned point stays comparable in cost.
 #
-# ## 8. A real report, and comparing two runs (issue 6: `build_report`, `ssbench report --compare`)
+# ## 8. A real report, and comparing two runs (`build_report`, `ssbench report --compare`)
 #
 # `build_report` renders the scenes, runs the sections and writes one **run folder**
 # `<out>/<YYYYmmdd-HHMMSS>/` plus a copy `<out>/latest/`:

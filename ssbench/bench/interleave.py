@@ -1,4 +1,4 @@
-"""Randomized interleaved timing of several passes (issue 6 §2).
+"""Randomized interleaved timing of several passes (so drift in machine load hits every pass alike).
 
 On a shared machine a pass's speed can switch between regimes every second or so (an SSR march at 160×120
 between ~60 and ~100 ms per call, measured on the 2-core VM this was written on) and the gather floor follows

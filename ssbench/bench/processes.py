@@ -1,4 +1,4 @@
-"""Timing pooled over several fresh processes (``timing: {processes: N}``; issue 6 §2).
+"""Timing pooled over several fresh processes (``timing: {processes: N}``: each process has its own memory layout).
 
 Why: rounds inside one process share that process — its memory layout (where the allocator and the kernel put
 the G-buffer, the pass's temporaries and the floor's indices) and the machine's state while it runs (a noisy

@@ -1,4 +1,5 @@
-"""Built-in implicit scenes: the hard cases of issue 5 §4 (``shared/notes/implicit_anchors.md`` (c)).
+"""Built-in implicit scenes: the hard cases of ray casting implicit surfaces (thin shells, grazing and tangent
+rays, double roots, invalid Lipschitz bounds; Hart 1996, Mitchell 1990, Knoll et al. 2009 in ``ssbench/REFERENCES.md``).
 
 Each entry is plain data run through the same validator as scene files (``schema.py``), so the catalog
 doubles as format examples. Every camera is small (160×120) with near 0.1 and a *small* far (8–12): the

@@ -1,4 +1,4 @@
-r"""Scoring implicit-surface ray casters against the certified reference (seed 004, issue 5 §3 and §5).
+r"""Scoring implicit-surface ray casters against the certified reference (seed 004: punch-through, false hits).
 
 :func:`classify` gives every pixel one label by comparing a method's
 :class:`~ssbench.passes.implicit_common.ImplicitResult` (``t``, ``hit``) with the reference
@@ -263,7 +263,7 @@ def detection_prediction(h: Union[float, torch.Tensor], chord: Union[float, torc
 
     A march samples ``t = s₀ + k·h`` with ``s₀`` uniform over one step (the article's ``s₀ = s₁R``): one
     sample per step length, so a slab ``[c, c + w]`` along the ray holds a sample with probability
-    ``min(1, w/h)`` (``implicit_anchors.md`` (b)); the expected number of frames to find it is ≈ ``h/w``.
+    ``min(1, w/h)`` (seed 004 手法 2); the expected number of frames to find it is ≈ ``h/w``.
     Broadcasts ``h`` (> 0) against ``chord`` (w ≤ 0 gives 0).
 
     Example:

@@ -2,7 +2,7 @@
 summary metrics and pictures. This module is the public import path; the code lives in:
 
 * :mod:`ssbench.metrics.ssr_classify` — :func:`classify` (every pixel gets exactly one label, seed 000 §4,
-  Figs. 14–16; ``ssr_anchors.md`` (e)) and :func:`truth_classes` (the labels of a perfect screen-space pass).
+  Figs. 14–16) and :func:`truth_classes` (the labels of a perfect screen-space pass).
   Its module docstring holds the table defining each class and the precedence of the three target labels;
 * :mod:`ssbench.metrics.ssr_classes` — the class codes (:data:`NOT_REFLECTIVE`, :data:`CORRECT`,
   :data:`MISSED`, :data:`FALSE_HIT`, :data:`PUNCH_THROUGH`, :data:`OFF_SCREEN_TARGET`, :data:`OCCLUDED_TARGET`,
@@ -26,8 +26,8 @@ from ._ssr_checks import (_RESULT_FIELDS, _TRUTH_FIELDS, _check_classes, _check_
                           _mask_arg)
 from .ssr_classes import (BACK_FACE_TARGET, CLASS_COLORS, CLASS_DESCRIPTIONS, CLASS_LABELS, CLASS_NAMES, CORRECT,
                           FALSE_HIT, MISSED, NOT_REFLECTIVE, OCCLUDED_TARGET, OFF_SCREEN_TARGET, PUNCH_THROUGH,
-                          TRUE_MISS, UNFIXABLE, MISPLACED_HIT, UNFIXABLE_HIT, WRONG_OUTPUT, _hex, class_rgb,  # noqa: F401
-                          legend_entries, legend_handles)
+                          TRUE_MISS, UNFIXABLE, MISPLACED_HIT, UNFIXABLE_HIT, WRONG_OUTPUT, _hex,  # noqa: F401
+                          class_rgb, legend_entries, legend_handles)
 from .ssr_classify import _behind, _origin, _shape_at, _target_masks, _valid, classify, truth_classes  # noqa: F401
 from .ssr_scores import (_stats, class_counts, class_fractions, color_error, color_error_map,  # noqa: F401
                          hit_error, hit_error_maps, termination_fractions)

@@ -5,7 +5,7 @@ march found a hit and where (``hit``, ``hit_pixel``, ``hit_view``). The ground t
 (``ssbench.reference.reflections`` → ``ReflectionReference``) traces the exact mirror ray of the same pixel
 in the full scene and says where it really lands and whether a depth buffer *could* hold that point
 (``on_screen``, ``visible``, ``back_face``). :func:`classify` compares the two and gives every pixel exactly
-one label (seed 000 §4, Figs. 14–16; ``ssr_anchors.md`` (e)):
+one label (seed 000 §4, Figs. 14–16):
 
 ============================ ==== ==========================================================================
 class                        code definition (``k`` = ``k_px``; the pass hit is the *raw* hit, before fades)

@@ -1,7 +1,8 @@
 r"""One physical thickness, four "thickness" knobs: what each anchor's knob would have to be set to.
 
 SSR implementations all expose a knob called *thickness*, but they measure different things
-(``/work/shared/notes/ssr_anchors.md`` (b), (e)5). Given one physical slab thickness :math:`T` (view / scene
+(McGuire & Mara 2014's ``zThickness``, kode80's ``pixelZSize``, three.js ``SSRShader``'s ``thickness``, HDRP's
+relative thickness; ``ssbench/REFERENCES.md``). Given one physical slab thickness :math:`T` (view / scene
 units: how far behind the front surface a ray still counts as inside the object), at view depth
 :math:`|z|`, the knobs are
 

@@ -11,7 +11,7 @@ consecutive points no longer overlap (``r_prev + r_new < step``), the step may h
 step back to the previous point and continue with ``ω = 1`` for the rest of the ray.
 
 **Overshoot.** With a *valid* λ a step from ``f ≥ 0`` cannot land at ``f < 0``. With an invalid one (the
-displaced torus of ``implicit_anchors.md`` §4) it can: we record it in ``debug["overshoot"]`` and bisect back
+displaced torus, whose declared λ = 1 is false) it can: we record it in ``debug["overshoot"]`` and bisect back
 to the crossing instead of reporting an interior point. Rays starting inside (``f(0) < 0``) or within ε of
 the surface are *unarmed*: they step ``|f|/λ + ε·t`` (always forward) and may not report a distance hit until
 they are clearly outside, so only the first **entering** crossing is a hit, as for the sign-change methods.

@@ -16,7 +16,8 @@ ahead, ``rayZMin`` the previous step's (``prevZMaxEstimate``), swapped for rays 
 solid box ``[sceneZMax − zThickness, sceneZMax]``. ``rayZMax`` is clamped to the segment's z range (G3D): half a
 step past the end ``k`` can reach 0.
 
-Fixes and choices (anchors: ``/work/shared/notes/ssr_anchors.md``):
+Fixes and choices (against McGuire & Mara 2014, G3D's ``screenSpaceRayTrace.glsl`` and kode80;
+``ssbench/REFERENCES.md``):
 
 * ``P`` is in pixels (py down, ``CONVENTIONS.md``): the 0.01 px nudge and the stride are pixels, not NDC units.
   ``pixel_stride`` is pixels per step near the camera, ``1 + s·(pixel_stride − 1)``, ``s = 1 − min(1, −rayOrg.z /

@@ -7,7 +7,7 @@ Order (``SSBENCH_VARIANT`` overrides it):
 3. ``scalar_rgb`` with a one-line :class:`SlowBackendWarning`.
 
 libLLVM 15 and 16 *abort the process* (SIGABRT, not an exception) on ``dr.minimum``, and Dr.Jit reads
-``DRJIT_LIBLLVM_PATH`` only when it is imported (``shared/notes/mitsuba_probe.md`` Q8). So every candidate is
+``DRJIT_LIBLLVM_PATH`` only when it is imported (both measured here; ``ssbench/REFERENCES.md``). So every candidate is
 tried in a **subprocess** running a smoke test (``dr.minimum``, a tiny ``mi.render``, a ``ray_intersect``), and
 the winner's path is put in ``DRJIT_LIBLLVM_PATH`` *before* this process imports drjit.
 

@@ -2,7 +2,7 @@
 
 Mitsuba object ids encode the scene index: ``s0003__ball`` (and ``s0003__ball__cap1`` for a cylinder cap), so
 G-buffer ``shape_id`` never depends on the order of ``scene.shapes()``, which is not stable across processes
-(``shared/notes/mitsuba_probe.md`` Q7).
+(measured here: the order changed between fresh processes on the same scene).
 """
 from __future__ import annotations
 

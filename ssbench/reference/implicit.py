@@ -1,7 +1,8 @@
 r"""Certified first-hit ground truth for implicit surfaces f(p) = 0 (seed 004): interval march + bisection.
 
 Per pixel, in float64, on the rays of :func:`ssbench.passes.implicit_common.camera_rays` (unit ``d``, ``t`` in
-world units), Mitchell-style root isolation (``implicit_anchors.md`` §1):
+world units), root isolation by interval bisection (Mitchell, "Robust Ray Intersection with Interval Arithmetic",
+Graphics Interface 1990):
 
 1. **Clip** ``[t_near, t_far]`` to the surface's world ``bounds`` (slab test; f > 0 outside them).
 2. **Interval march**, front to back and lock-step over all rays: a ray holds a position ``a`` and a trial

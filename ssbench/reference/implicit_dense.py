@@ -3,8 +3,7 @@ r"""Dense uniform march: the independent cross-check of :func:`ssbench.reference
 Per pixel the clipped range ``[t0, t1]`` (the same slab clip as the reference) is sampled uniformly,
 ``t_i = t0 + i·(t1 − t0)/steps`` for ``i = 0..steps``, and the first bracket ``f(t_i) ≥ 0 > f(t_{i+1})`` (the
 article's hit test) is returned. No interval arithmetic, no Lipschitz bound: with 10⁵ steps it finds every
-entering root whose chord is wider than the step — the reference must never miss one of those
-(``issue 5``, Acceptance).
+entering root whose chord is wider than the step — the certified reference must never miss one of those.
 
 Two backends compute the same samples: Dr.Jit (``surface.drjit_f(x, y, z)`` on ``drjit.llvm.Float64`` inside
 one symbolic ``dr.while_loop``, compiled to a single kernel) and a chunked torch loop (``surface.f``), used when

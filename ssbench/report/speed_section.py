@@ -1,4 +1,4 @@
-"""The report's speed-against-error section (issue 6 §3): embedded default sweeps, fronts, equal-error cost.
+"""The report's speed-against-error section: embedded default sweeps, fronts, equal-error cost.
 
 Per effect (``ao``, ``ssr``, ``implicit``) it runs the embedded sweep file ``sweeps/<effect>.yaml`` (one or more
 ``---``-separated sweep documents, rows pooled; resolution set to min(report size, :data:`SIZE`), seeds to
@@ -77,7 +77,8 @@ SPECS: dict[str, dict] = {
                        ("banding", "banding")], "eq": "rmse_cos",
            "derive": None, "figures": {"banding": ("Banding vs sample count and noise tile", _AO_BANDING),
                                        "halos": ("Halos vs range check and blur", _AO_HALOS)}},
-    "ssr": {"metrics": [("hit_error_share", "missed + wrong hits (false, misplaced, punch-through, unfixable)"), ("rmse_faded", "colour RMSE"),
+    "ssr": {"metrics": [("hit_error_share", "missed + wrong hits (false, misplaced, punch-through, unfixable)"),
+                        ("rmse_faded", "colour RMSE"),
                         ("flip_faded", "colour ꟻLIP")], "eq": "rmse_faded", "derive": _ssr_derived,
             "figures": {"hits": ("Missed / false hits and punch-through vs steps, stride, thickness, jitter",
                                  _SSR_HITS)}},

@@ -1,4 +1,4 @@
-"""The report's tuning section (issue 6 §4): default vs tuned AO error on held-out scenes.
+"""The report's tuning section: default vs tuned AO error on held-out scenes.
 
 :func:`ssbench.tune.tune` fits each method of :data:`METHODS` on :data:`TRAIN` against the cosine ray-traced AO
 at a fixed radius and scores the defaults and the tuned parameters on :data:`HELD_OUT`. To stay within about a

@@ -1,5 +1,6 @@
 """Fair comparison by tuning: fit each AO method's continuous parameters to a fixed ray-traced ground truth on
-training scenes, then report default vs tuned error on held-out scenes (issue 6 §4).
+training scenes, then report default vs tuned error on held-out scenes (XeGTAO's auto-tune protocol: fit to
+ray-traced AO, then compare; ``ssbench/REFERENCES.md``).
 
 * :mod:`ssbench.tune.space` — which parameters are tunable (:data:`SPACES`; with a blur also its ``blur_*`` ones,
   :data:`BLUR_SPACES`), their ranges, the baseline;

@@ -1,10 +1,10 @@
-"""Interval evaluator (issue 5 acceptance): enclosure on 10⁵ random boxes per operator and on whole trees.
+"""Interval evaluator: enclosure on 10⁵ random boxes per operator and on whole trees.
 
 Every property test draws seeded random intervals, evaluates the op *pointwise* in float64 torch at the box
 corners and at random interior points, and checks ``lo <= value <= hi``. A NaN interval contains anything; a
 NaN value needs a NaN interval (else NaN was lost); a bound is never NaN alone and never ``lo > hi``. That
 float check cannot see a missing outward rounding, so a subsample is also checked against exact (mpmath)
-values. The anchors' known bugs and the API contract are in ``test_interval_anchors.py``.
+values. Bugs known from other interval ray casters and the API contract are in ``test_interval_anchors.py``.
 """
 import math
 

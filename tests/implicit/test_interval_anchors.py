@@ -1,4 +1,4 @@
-"""The anchors' known interval bugs (../shared/notes/implicit_anchors.md §2, §4, (b)) as regression tests, plus
+"""Interval bugs known from other implicit ray casters (Knoll et al. 2009; POV-Ray, curv) as regression tests, plus
 outward rounding, tightness and the ``interval_eval`` contract. The random-box properties are in
 ``test_interval.py``.
 """

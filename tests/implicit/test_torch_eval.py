@@ -87,7 +87,7 @@ def test_gyroid_gradient_is_analytic(pts):
     want = k * torch.stack([x.cos() * y.cos() - z.sin() * x.sin(), -x.sin() * y.sin() + y.cos() * z.cos(),
                             -y.sin() * z.sin() + z.cos() * x.cos()], -1)
     torch.testing.assert_close(g, want, rtol=1e-12, atol=1e-12)
-    assert g.norm(dim=-1).max() <= 2 * math.sqrt(3) * k        # the Lipschitz bound of the anchors note
+    assert g.norm(dim=-1).max() <= 2 * math.sqrt(3) * k        # the Lipschitz bound of a gyroid
 
 
 def test_gradients_flow_into_tensor_parameters(pts):

@@ -16,7 +16,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 LESSONS_DIR = ROOT / "lessons"
 LESSONS = sorted(LESSONS_DIR.glob("[0-9][0-9]_*.py"))
-BUDGET_S = 120                       # per lesson, kernel start included (issue 7)
+BUDGET_S = 120                       # per lesson, kernel start included
 SYNC_HINT = "run `make lessons-sync` (python lessons/_sync.py) and commit the .py and the .ipynb together"
 IDS = [p.stem for p in LESSONS]
 

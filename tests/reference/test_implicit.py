@@ -1,4 +1,4 @@
-"""Certified implicit-surface truth (issue 5 §3): closed forms, the dense-march cross-check, hard cases.
+"""Certified implicit-surface truth: closed forms, the dense-march cross-check, hard cases.
 
 Scenes come from the implicit catalog at a tiny 24×18 resolution (same camera pose, fewer pixels).
 """

@@ -41,6 +41,11 @@ FLAVOUR = "cosine"  # the ground-truth weighting this pass estimates (ssbench.re
 REQUIRES = ("view_z", "normal", "mask")
 QUALITY_PRESETS = {"low": (1, 2), "medium": (2, 2), "high": (3, 3), "ultra": (9, 3)}  # slices, steps per side
 NOISE_KINDS = ("hash", "hilbert", "none")
+#: continuous parameters ``ssbench tune`` may fit: name -> (lo, hi, relative to the ground-truth radius)
+TUNABLE = {"radius": (0.25, 3.0, True), "falloff_range": (0.05, 1.0, False),
+           "final_value_power": (0.5, 4.0, False)}
+#: the report's tuning section fits this method
+TUNED_IN_REPORT = True
 #: where the defaults come from (shown by the report next to the parameters)
 DEFAULTS_SOURCE = ('XeGTAO (Intel, 2021, https://github.com/GameTechDev/XeGTAO): High quality, auto-tuned constants, '
                    'Hilbert R2 noise, 1 denoise pass')

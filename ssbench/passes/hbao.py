@@ -46,6 +46,11 @@ from ..gbuffer import GBuffer
 from .common import AOResult, check_count, check_radius, fetch_uv, make_generator
 
 FLAVOUR = "obscurance"  # the ground-truth weighting this pass estimates (ssbench.reference.ao)
+#: continuous parameters ``ssbench tune`` may fit: name -> (lo, hi, relative to the ground-truth radius)
+TUNABLE = {"radius": (0.25, 3.0, True), "tan_angle_bias": (0.0, 1.0, False),
+           "ao_strength": (0.5, 2.5, False)}
+#: the report's tuning section fits this method
+TUNED_IN_REPORT = True
 #: where the defaults come from (shown by the report next to the parameters)
 DEFAULTS_SOURCE = ("NVIDIA's HBAO sample as ported by scanberg/hbao (6 directions × 6 steps, R 0.3, tangent bias 30°; "
                    'Bavoil & Sainz, "Image-Space Horizon-Based Ambient Occlusion", SIGGRAPH 2008)')

@@ -48,6 +48,10 @@ from .common import AOResult, check_count, check_radius, check_unit_normals, fet
 from .sampling import hemisphere_kernel, noise_texel, noise_texture
 
 FLAVOUR = "volume_hemisphere"  # the ground truth this pass estimates (ssbench.reference.ao_volume)
+#: continuous parameters ``ssbench tune`` may fit: name -> (lo, hi, relative); relative ranges are multiples of the
+#: ground-truth radius (discrete ones — sample counts, noise — set the cost and stay fixed)
+TUNABLE = {"kernel_radius": (0.25, 4.0, True), "min_distance": (0.0, 0.005, False),
+           "max_distance": (0.002, 0.1, False), "strength": (0.5, 2.0, False)}
 #: where the defaults come from (shown by the report next to the parameters)
 DEFAULTS_SOURCE = ('three.js SSAOPass (32-sample kernel, 4×4 noise; https://github.com/mrdoob/three.js); distances '
                    'scaled to the catalog scenes')

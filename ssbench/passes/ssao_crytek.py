@@ -40,6 +40,9 @@ from .sampling import noise_texel, noise_texture, sphere_kernel
 from .ssao import check_gbuffer, check_ssao_params, range_check_count, ssao_result, view_position
 
 FLAVOUR = "volume_sphere"  # the ground truth this pass estimates (ssbench.reference.ao_volume)
+#: continuous parameters ``ssbench tune`` may fit (as hemisphere SSAO's: the same range check and strength)
+TUNABLE = {"kernel_radius": (0.25, 4.0, True), "min_distance": (0.0, 0.005, False),
+           "max_distance": (0.002, 0.1, False), "strength": (0.5, 2.0, False)}
 #: where the defaults come from (shown by the report next to the parameters)
 DEFAULTS_SOURCE = ('Mittring, "Finding Next Gen — CryEngine 2", SIGGRAPH 2007 (16 sphere samples, 4×4 rotation, no '
                    'bias); distances scaled to the catalog scenes')

@@ -20,8 +20,17 @@ import torch
 
 from .summary import unavailable_md
 
-#: methods tuned in the report, training scenes and held-out scenes
-METHODS = ("hbao", "gtao")
+def report_methods() -> tuple[str, ...]:
+    """The AO methods whose module declares ``TUNED_IN_REPORT = True`` (and something ``TUNABLE``)."""
+    import importlib
+    from ..passes import AO_METHODS, ao_method
+    mods = {m: importlib.import_module(ao_method(m)[0].__module__) for m in AO_METHODS}
+    return tuple(m for m, mod in mods.items()
+                 if getattr(mod, "TUNED_IN_REPORT", False) and getattr(mod, "TUNABLE", None))
+
+
+#: methods tuned in the report (each method's own ``TUNED_IN_REPORT``), training scenes and held-out scenes
+METHODS = report_methods()
 TRAIN = ("crease", "sphere_on_plane")
 HELD_OUT = ("cornell_box", "stairs")
 

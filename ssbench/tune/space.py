@@ -17,7 +17,8 @@ import difflib
 import math
 from typing import Any, Mapping, Optional, Sequence
 
-__all__ = ["Tunable", "SPACES", "BLUR_SPACES", "BLUR_DEFAULTS", "check_blur", "tunable_names", "method_parts",
+__all__ = ["Tunable", "SPACES", "declared_spaces",
+           "BLUR_SPACES", "BLUR_DEFAULTS", "check_blur", "tunable_names", "method_parts",
            "resolve_space", "baseline", "blur_defaults", "split_values", "with_values", "coerce_fixed"]
 
 
@@ -36,17 +37,21 @@ class Tunable:
         return (self.lo * s, self.hi * s)
 
 
-_SSAO = (Tunable("kernel_radius", 0.25, 4.0, relative=True), Tunable("min_distance", 0.0, 0.005),
-         Tunable("max_distance", 0.002, 0.1), Tunable("strength", 0.5, 2.0))
-#: tunable parameters per AO method (``ssbench.passes.AO_METHODS``)
-SPACES: dict[str, tuple[Tunable, ...]] = {
-    "gtao": (Tunable("radius", 0.25, 3.0, relative=True), Tunable("falloff_range", 0.05, 1.0),
-             Tunable("final_value_power", 0.5, 4.0)),
-    "hbao": (Tunable("radius", 0.25, 3.0, relative=True), Tunable("tan_angle_bias", 0.0, 1.0),
-             Tunable("ao_strength", 0.5, 2.5)),
-    "ssao": _SSAO,
-    "crytek": _SSAO,
-}
+def declared_spaces() -> dict[str, tuple[Tunable, ...]]:
+    """Tunable parameters per AO method, as each pass module declares them in ``TUNABLE`` (``name -> (lo, hi,
+    relative)``); methods that declare none are not tunable."""
+    import importlib
+    from ..passes import AO_METHODS, ao_method
+    out = {}
+    for m in AO_METHODS:
+        decl = getattr(importlib.import_module(ao_method(m)[0].__module__), "TUNABLE", None)
+        if decl:
+            out[m] = tuple(Tunable(name, float(lo), float(hi), bool(rel)) for name, (lo, hi, rel) in decl.items())
+    return out
+
+
+#: tunable parameters per AO method (``ssbench.passes.AO_METHODS``), from each module's ``TUNABLE``
+SPACES: dict[str, tuple[Tunable, ...]] = declared_spaces()
 
 
 #: tunable parameters of each named blur (``ssbench.evaluate.BLUR_NAMES``), at its fixed size (box 5×5, cross-

@@ -59,8 +59,8 @@ def _plot(path: str, title: str, responses: list) -> None:
                         label=f"{r.series} ({r.expect})")
             if numeric and min(xs) > 0 and max(xs) / min(xs) >= 8:
                 ax.set_xscale("log")
-            if not numeric:
-                ax.set_xticks(xs, [str(v) for v in r.x])
+                ax.minorticks_off()
+            ax.set_xticks(xs, [f"{v:g}" if numeric else str(v) for v in r.x])
         metrics = {r.metric for r in rs}
         ylabel = (metrics.pop() if len(metrics) == 1 else
                   "share of reflective pixels" if all(m.startswith("frac_") for m in metrics) else "AO units")

@@ -54,7 +54,7 @@ from typing import Any, Optional
 
 import torch
 
-from ..passes.common import length
+from ..rays import length
 from ._ssr_checks import _check_pair, _field, _k, _mask_arg
 from .ssr_classes import (BACK_FACE_TARGET, CLASS_NAMES, CORRECT, FALSE_HIT, MISPLACED_HIT, MISSED,
                           OCCLUDED_TARGET, OFF_SCREEN_TARGET, PUNCH_THROUGH, TRUE_MISS, UNFIXABLE_HIT)

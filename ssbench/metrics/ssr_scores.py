@@ -19,7 +19,7 @@ from typing import Any, Optional
 import torch
 
 from .. import checks
-from ..passes.common import length
+from ..rays import length
 from ._ssr_checks import _check_classes, _check_pair, _mask_arg
 from .ssr_classes import CLASS_NAMES, NOT_REFLECTIVE, UNFIXABLE, UNFIXABLE_HIT, WRONG_OUTPUT
 

@@ -24,7 +24,7 @@ from typing import Optional
 import torch
 
 from ..camera import Camera
-from .common import length
+from ..rays import CameraRays, camera_rays, length  # noqa: F401  (re-exported for the casters)
 
 # Termination reasons (``ImplicitResult.termination``, int8)
 MISS = 0            #: nothing found on [t_near, t_far] (transparent / background)
@@ -32,68 +32,6 @@ HIT = 1             #: a root was bracketed (or the distance fell below epsilon)
 OUT_OF_STEPS = 2    #: the step budget ran out before the end of the ray (NOT a hit)
 INVALIDATED = 3     #: progressive method: the stored t' failed the (1+eps)t' probe and the recast found nothing
 TERMINATION_NAMES = {MISS: "miss", HIT: "hit", OUT_OF_STEPS: "out of steps", INVALIDATED: "invalidated"}
-
-
-@dataclass(frozen=True)
-class CameraRays:
-    """World-space rays through pixel centres (plus optional sub-pixel jitter), all ``(B, H, W)``-shaped.
-
-    Attributes:
-        origin: :math:`(B, 3, H, W)` ray origins (the eye, broadcast).
-        direction: :math:`(B, 3, H, W)` unit world-space directions.
-        t_near: :math:`(B, 1, H, W)` distance to the near plane along the ray.
-        t_far: :math:`(B, 1, H, W)` distance to the far plane along the ray (the article's ``d_f``).
-        view_dir: :math:`(B, 3, H, W)` the same unit directions in view space.
-    """
-
-    origin: torch.Tensor
-    direction: torch.Tensor
-    t_near: torch.Tensor
-    t_far: torch.Tensor
-    view_dir: torch.Tensor
-
-    def point(self, t: torch.Tensor) -> torch.Tensor:
-        """World points ``o + t d`` for ``t`` of shape :math:`(B, 1, H, W)` (or ``(B, K, H, W)`` → ``(B, K, 3, H, W)``)."""
-        if t.shape[1] == 1:
-            return self.origin + t * self.direction
-        return self.origin.unsqueeze(1) + t.unsqueeze(2) * self.direction.unsqueeze(1)
-
-
-def camera_rays(camera: Camera, batch: int = 1, jitter: Optional[torch.Tensor] = None,
-                dtype: torch.dtype = torch.float32, device=None) -> CameraRays:
-    """Rays of every pixel of ``camera``.
-
-    Args:
-        camera: the pinhole camera (GL conventions, ``CONVENTIONS.md``).
-        batch: batch size ``B`` when ``jitter`` is None.
-        jitter: optional :math:`(B, 2, H, W)` or :math:`(B, 2, 1, 1)` sub-pixel offsets in pixels (x right,
-            y down the rows) added to the pixel centres, e.g. TXAA jitter in ``[-0.5, 0.5)``.
-        dtype, device: of the returned tensors (float64 for the reference).
-
-    Example:
-        >>> cam = Camera.from_look_at((0, 0, 4), (0, 0, 0), (0, 1, 0), 45.0, 4, 3, 0.1, 10.0)
-        >>> r = camera_rays(cam, dtype=torch.float64)
-        >>> r.direction.shape, bool(torch.allclose(r.direction.norm(dim=1), torch.ones(1, 3, 4, dtype=torch.float64)))
-        (torch.Size([1, 3, 3, 4]), True)
-    """
-    px = camera.pixel_centers(dtype, device).unsqueeze(0)                 # (1, 2, H, W)
-    if jitter is not None:
-        if jitter.dim() != 4 or jitter.shape[1] != 2:
-            raise ValueError(f"jitter: expected shape (B, 2, H, W) or (B, 2, 1, 1), got {tuple(jitter.shape)}")
-        px = px + jitter.to(dtype=dtype, device=device)
-        batch = px.shape[0]
-    else:
-        px = px.expand(batch, -1, -1, -1)
-    uv = camera.pixel_to_uv(px, dim=1)
-    v = camera.uv_to_view(uv, torch.full_like(uv[:, :1], -1.0), dim=1)    # z = -1
-    v = v / length(v)
-    cos_t = -v[:, 2:3]
-    c2w = camera.camera_to_world(dtype=dtype, device=device)
-    d = torch.einsum("ij,bjhw->bihw", c2w[:3, :3], v)
-    d = d / length(d)
-    eye = torch.tensor(camera.eye, dtype=dtype, device=device).view(1, 3, 1, 1)
-    return CameraRays(origin=eye.expand_as(d), direction=d, t_near=camera.near / cos_t,
-                      t_far=camera.far / cos_t, view_dir=v)
 
 
 @dataclass(frozen=True)

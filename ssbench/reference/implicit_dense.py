@@ -19,7 +19,7 @@ from typing import Optional
 
 import torch
 
-from ..passes.implicit_common import camera_rays
+from ..rays import camera_rays
 
 __all__ = ["dense_march", "DenseMarch", "clip_to_bounds"]
 

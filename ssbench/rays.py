@@ -1,0 +1,103 @@
+"""Rays and vector lengths, shared by the passes, the references that check them and the metrics.
+
+* :func:`length` — the Euclidean length of vector images, the fast way on the CPU;
+* :class:`CameraRays`, :func:`camera_rays` — world-space rays through every pixel centre of a
+  :class:`~ssbench.camera.Camera` (plus optional sub-pixel jitter), with the distances to the near and far
+  planes along each ray. Ray convention: a pixel's ray starts at the ``eye`` and runs along the **unit**
+  world-space direction ``d``; ``t`` is the distance along it in world units; ``t_far = far / cos θ`` with
+  ``cos θ = −d_view.z`` (the far distance ``d_f`` of seed 004), ``t_near = near / cos θ``.
+
+They live below :mod:`ssbench.passes` so that ground truth (``ssbench.reference``) and metrics never import the
+passes they score.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional
+
+import torch
+
+from .camera import Camera
+
+__all__ = ["length", "CameraRays", "camera_rays"]
+
+
+def length(x: torch.Tensor, dim: int = 1, keepdim: bool = True) -> torch.Tensor:
+    """Euclidean length of the vectors along ``dim`` of ``x``, e.g. :math:`(B, 3, H, W) \to (B, 1, H, W)`.
+
+    ``sqrt(sum(x²))``: on the CPU, ``Tensor.norm``/``torch.linalg.vector_norm`` over a dimension that is not
+    the innermost is 40-70x slower (torch 2.13, one thread: 9.4 ms against 0.14 ms for a 320×240 vector
+    image). The two agree to an ulp. When ``x`` needs a gradient this calls ``torch.linalg.vector_norm``,
+    whose gradient at a zero vector is 0 (the square root's would be NaN). Squares overflow beyond
+    :math:`|x| \approx 10^{19}` in float32, far from any scene's coordinates.
+
+    Example:
+        >>> length(torch.tensor([[[[3.0]], [[4.0]], [[0.0]]]])).flatten().tolist()
+        [5.0]
+    """
+    if x.requires_grad:
+        return torch.linalg.vector_norm(x, dim=dim, keepdim=keepdim)
+    return (x * x).sum(dim=dim, keepdim=keepdim).sqrt()
+
+
+
+@dataclass(frozen=True)
+class CameraRays:
+    """World-space rays through pixel centres (plus optional sub-pixel jitter), all ``(B, H, W)``-shaped.
+
+    Attributes:
+        origin: :math:`(B, 3, H, W)` ray origins (the eye, broadcast).
+        direction: :math:`(B, 3, H, W)` unit world-space directions.
+        t_near: :math:`(B, 1, H, W)` distance to the near plane along the ray.
+        t_far: :math:`(B, 1, H, W)` distance to the far plane along the ray (the article's ``d_f``).
+        view_dir: :math:`(B, 3, H, W)` the same unit directions in view space.
+    """
+
+    origin: torch.Tensor
+    direction: torch.Tensor
+    t_near: torch.Tensor
+    t_far: torch.Tensor
+    view_dir: torch.Tensor
+
+    def point(self, t: torch.Tensor) -> torch.Tensor:
+        """World points ``o + t d`` for ``t`` of shape :math:`(B, 1, H, W)` (or ``(B, K, H, W)`` → ``(B, K, 3, H, W)``)."""
+        if t.shape[1] == 1:
+            return self.origin + t * self.direction
+        return self.origin.unsqueeze(1) + t.unsqueeze(2) * self.direction.unsqueeze(1)
+
+
+def camera_rays(camera: Camera, batch: int = 1, jitter: Optional[torch.Tensor] = None,
+                dtype: torch.dtype = torch.float32, device=None) -> CameraRays:
+    """Rays of every pixel of ``camera``.
+
+    Args:
+        camera: the pinhole camera (GL conventions, ``CONVENTIONS.md``).
+        batch: batch size ``B`` when ``jitter`` is None.
+        jitter: optional :math:`(B, 2, H, W)` or :math:`(B, 2, 1, 1)` sub-pixel offsets in pixels (x right,
+            y down the rows) added to the pixel centres, e.g. TXAA jitter in ``[-0.5, 0.5)``.
+        dtype, device: of the returned tensors (float64 for the reference).
+
+    Example:
+        >>> cam = Camera.from_look_at((0, 0, 4), (0, 0, 0), (0, 1, 0), 45.0, 4, 3, 0.1, 10.0)
+        >>> r = camera_rays(cam, dtype=torch.float64)
+        >>> r.direction.shape, bool(torch.allclose(r.direction.norm(dim=1), torch.ones(1, 3, 4, dtype=torch.float64)))
+        (torch.Size([1, 3, 3, 4]), True)
+    """
+    px = camera.pixel_centers(dtype, device).unsqueeze(0)                 # (1, 2, H, W)
+    if jitter is not None:
+        if jitter.dim() != 4 or jitter.shape[1] != 2:
+            raise ValueError(f"jitter: expected shape (B, 2, H, W) or (B, 2, 1, 1), got {tuple(jitter.shape)}")
+        px = px + jitter.to(dtype=dtype, device=device)
+        batch = px.shape[0]
+    else:
+        px = px.expand(batch, -1, -1, -1)
+    uv = camera.pixel_to_uv(px, dim=1)
+    v = camera.uv_to_view(uv, torch.full_like(uv[:, :1], -1.0), dim=1)    # z = -1
+    v = v / length(v)
+    cos_t = -v[:, 2:3]
+    c2w = camera.camera_to_world(dtype=dtype, device=device)
+    d = torch.einsum("ij,bjhw->bihw", c2w[:3, :3], v)
+    d = d / length(d)
+    eye = torch.tensor(camera.eye, dtype=dtype, device=device).view(1, 3, 1, 1)
+    return CameraRays(origin=eye.expand_as(d), direction=d, t_near=camera.near / cos_t,
+                      t_far=camera.far / cos_t, view_dir=v)

@@ -121,6 +121,9 @@ def _parser() -> _Parser:
     q.add_argument("--no-tuning", action="store_true", help="leave out the tuning section")
     q.add_argument("--no-calibration", action="store_true",
                    help="leave out the metric calibration section (each metric against its artifact's knob)")
+    q.add_argument("--from", dest="from_run", metavar="RUN",
+                   help="instead of building: re-render RUN's index.html and summary.md from its meta.json, "
+                        "computing nothing (a folder, a name under --out, or 'latest')")
     q.add_argument("--compare", nargs=2, metavar=("RUN_A", "RUN_B"),
                    help="instead of building: compare two runs (folders, names under --out, or 'latest')")
     q.add_argument("--rtol", type=_non_negative_float, default=1e-3,

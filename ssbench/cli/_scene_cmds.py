@@ -98,6 +98,16 @@ def _cmd_report(args) -> int:
     if args.compare:
         from ..report.compare import cmd_compare
         return cmd_compare(args, args.report_parser)
+    if args.from_run:
+        from ..report.build import render_run
+        from ..report.compare import resolve_run
+        building = [d for d, v in vars(args).items() if d not in ("command", "out", "from_run", "report_parser")
+                    and v != args.report_parser.get_default(d)]
+        if building:
+            args.report_parser.error("--from cannot be combined with report-building options "
+                                     f"({', '.join('--' + d.replace('_', '-') for d in building)})")
+        print(f"report: {render_run(resolve_run(args.from_run, os.path.abspath(args.out), 'RUN'))}")
+        return 0
     from ..report.build import build_report
     off = lambda flag: False if flag else None                # noqa: E731  (None: the section's default)
     index = build_report(args.out, scenes=args.scenes, width=args.width, height=args.height, spp=args.spp,

@@ -237,7 +237,6 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
     No section ever fails the report (problems show as notes in the page). Each section's evaluation rows
     also go to ``rows/<section>.jsonl`` (see reports/README.md).
     """
-    import jinja2
     from tqdm import tqdm
     from .. import io
     from ..scenes import catalog, load
@@ -293,10 +292,7 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
     meta["total_s"] = time.perf_counter() - t_start
     meta["metadata_rows"] = summary.metadata_rows(meta)
     meta["glance"] = summary.glance(meta)
-    tpl_env = jinja2.Environment(loader=jinja2.FileSystemLoader(os.path.join(os.path.dirname(__file__),
-                                                                              "templates")),
-                                 autoescape=True, undefined=jinja2.StrictUndefined, trim_blocks=True,
-                                 lstrip_blocks=True)
+    tpl_env = _templates()
     raw = summary.rows_jsonl(meta)
     meta["rows_files"] = {key: f"rows/{key}.jsonl" for key in raw}
     html = _render_index(tpl_env, meta)
@@ -308,4 +304,38 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
                 + "".join(meta[k]["summary_md"] for k, _ in summary.SECTIONS))
     _write_text(os.path.join(run_dir, "meta.json"), json.dumps(meta, indent=2, default=str) + "\n")
     refresh_latest(run_dir, out_root)
+    return os.path.join(run_dir, "index.html")
+
+
+def _templates():
+    import jinja2
+    return jinja2.Environment(loader=jinja2.FileSystemLoader(os.path.join(os.path.dirname(__file__), "templates")),
+                              autoescape=True, undefined=jinja2.StrictUndefined, trim_blocks=True,
+                              lstrip_blocks=True)
+
+
+def render_run(run_dir: str) -> str:
+    """Re-render ``index.html`` and ``summary.md`` of a finished run from its ``meta.json``, computing nothing
+    (no rendering, no ground truth, no pass): for a changed template or summary. Rows, images and ``meta.json``
+    are left as they are. A section the run does not hold (an older run) shows as a note. Returns the path of
+    ``index.html``."""
+    import importlib
+    with open(os.path.join(run_dir, "meta.json"), encoding="utf-8") as f:
+        meta = json.load(f)
+    for key, title in summary.SECTIONS:
+        sec = meta.get(key)
+        if not isinstance(sec, dict):
+            meta[key] = {"available": False, "note": f"{title} section not in this run.", "notes": [],
+                         "summary_md": ""}
+        elif sec.get("available"):
+            try:                                             # today's summary of the stored section
+                sec["summary_md"] = importlib.import_module(f"{__package__}.{key}_section").summary_md(sec)
+            except Exception:                                # keep the one written with the run
+                pass
+    meta["glance"] = summary.glance(meta)
+    meta.setdefault("rows_files", {})
+    html = _render_index(_templates(), meta)
+    _write_text(os.path.join(run_dir, "index.html"), html)
+    _write_text(os.path.join(run_dir, "summary.md"), summary.summary_md(meta)
+                + "".join(meta[k].get("summary_md", "") for k, _ in summary.SECTIONS))
     return os.path.join(run_dir, "index.html")

@@ -457,3 +457,27 @@ def test_ssr_section_scores_specular_pixels_only(tmp_path, monkeypatch):
     ssr = build_ssr_section(str(tmp_path), ["reflective_floor"], 16, 12, spp=2, progress=False)
     assert ssr["available"] and seen == ["specular"]
     assert ssr["rows"][0]["reflective"] == "specular"
+
+
+@pytest.mark.slow
+def test_a_run_re_renders_from_its_meta_without_computing(report, monkeypatch):
+    from pathlib import Path
+    from ssbench import reference
+    from ssbench.cli import main
+    from ssbench.report.build import render_run
+    out, index = report
+    run = Path(index).parent
+    html, md = (run / "index.html").read_text(), (run / "summary.md").read_text()
+    monkeypatch.setattr(reference, "gbuffer", lambda *a, **k: pytest.fail("render_run must not render"))
+    (run / "index.html").unlink()
+    (run / "summary.md").unlink()
+    assert render_run(str(run)) == str(run / "index.html")
+    assert (run / "index.html").read_text() == html and (run / "summary.md").read_text() == md
+    meta = json.loads((run / "meta.json").read_text())
+    del meta["calibration"]                                              # a run from before the section existed
+    old = out / "old-run"
+    old.mkdir()
+    (old / "meta.json").write_text(json.dumps(meta))
+    render_run(str(old))
+    assert "Metric calibration section not in this run." in (old / "index.html").read_text()
+    assert main(["report", "--out", str(out), "--from", "old-run"]) == 0

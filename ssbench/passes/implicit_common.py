@@ -134,7 +134,7 @@ def bisect(surface, origin: torch.Tensor, direction: torch.Tensor, lo: torch.Ten
     return lo, hi
 
 
-def finish(shape: tuple[int, int, int], origin: torch.Tensor, direction: torch.Tensor, t_far: torch.Tensor,
+def finish(shape: tuple[int, int, int], *, origin: torch.Tensor, direction: torch.Tensor, t_far: torch.Tensor,
            surface, hit: torch.Tensor, t: torch.Tensor, evaluations: torch.Tensor, steps: torch.Tensor,
            termination: torch.Tensor, debug: Optional[dict] = None) -> ImplicitResult:
     """Build an :class:`ImplicitResult` from flat per-ray values: shades the hits (one gradient evaluation

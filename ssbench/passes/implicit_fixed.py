@@ -159,7 +159,8 @@ def fixed_step(surface, camera, params: FixedStepParams = FixedStepParams(), gen
     evaluations = steps + found.to(torch.int32) * params.refine_iterations
     term = torch.where(found, HIT, MISS).to(torch.int8)
     dbg = {"bracket": torch.stack([lo, hi], 1).reshape(B, H, W, 2).permute(0, 3, 1, 2).contiguous(), "R": R}
-    return finish((B, H, W), o, d, t_far, surface, found, 0.5 * (lo + hi), evaluations, steps, term, dbg)
+    return finish((B, H, W), origin=o, direction=d, t_far=t_far, surface=surface, hit=found, t=0.5 * (lo + hi),
+                  evaluations=evaluations, steps=steps, termination=term, debug=dbg)
 
 
 class FixedStep(nn.Module):

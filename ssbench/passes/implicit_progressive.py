@@ -163,7 +163,8 @@ def _run(surface, o, d, t_far, shape, state, params, generator, active) -> tuple
     hit, t, ev, st, term, invalid, bracket = _core(surface, o, d, t_far, t_prime, found_prev, R, params, active)
     dbg = {"invalidated": unflat(invalid, shape), "t_prime_before": state.t_prime.clone(),
            "bracket": unflat(bracket, shape), "R": unflat(R, shape)}
-    res = finish(shape, o, d, t_far, surface, hit, t, ev, st, term, dbg)
+    res = finish(shape, origin=o, direction=d, t_far=t_far, surface=surface, hit=hit, t=t, evaluations=ev,
+                 steps=st, termination=term, debug=dbg)
     return res, ProgressiveState(res.t.clone(), state.frame + 1, res.hit.clone())      # 2.5 t' := t
 
 

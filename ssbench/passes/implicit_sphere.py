@@ -189,7 +189,8 @@ def sphere_trace(surface, camera, params: SphereTraceParams = SphereTraceParams(
     shape = (B, H, W)
     dbg = {"overshoot": unflat(overshoot, shape), "fallbacks": unflat(fallbacks, shape),
            "t_last": unflat(t_out, shape)}
-    return finish(shape, o, d, t_far, surface, hit, t_hit, evaluations, steps, term, dbg)
+    return finish(shape, origin=o, direction=d, t_far=t_far, surface=surface, hit=hit, t=t_hit,
+                  evaluations=evaluations, steps=steps, termination=term, debug=dbg)
 
 
 class SphereTrace(nn.Module):

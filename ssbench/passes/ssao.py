@@ -175,7 +175,7 @@ def occlusion_to_ao(count: torch.Tensor, kernel_size: int, strength: float, mask
     return torch.where(mask, ao, torch.ones_like(ao))
 
 
-def ssao_result(count: torch.Tensor, p, mask: torch.Tensor, dtype: torch.dtype, debug: bool,
+def ssao_result(count: torch.Tensor, p, mask: torch.Tensor, *, dtype: torch.dtype, debug: bool,
                 row: torch.Tensor, col: torch.Tensor, kernel: torch.Tensor, noise: torch.Tensor) -> AOResult:
     """AO from the range-check ``count`` plus, with ``debug``, the per-pixel sample count, noise index,
     kernel and noise (shared by both SSAO passes)."""
@@ -249,7 +249,7 @@ def hemisphere_ssao(gbuffer: GBuffer, params: HemisphereSSAOParams = HemisphereS
     sample_point = position.unsqueeze(2) + sample_vector * p.kernel_radius         # (B, 3, K, H, W)
     count = range_check_count(cam, sample_point, texture, p.position_from == "depth",
                               p.min_distance, p.max_distance)                      # (B, 1, H, W)
-    return ssao_result(count, p, mask, dtype, debug, row, col, kernel, noise)
+    return ssao_result(count, p, mask, dtype=dtype, debug=debug, row=row, col=col, kernel=kernel, noise=noise)
 
 
 class HemisphereSSAO(nn.Module):

@@ -124,7 +124,7 @@ def crytek_ssao(gbuffer: GBuffer, params: CrytekSSAOParams = CrytekSSAOParams(),
     reflected = k - 2.0 * (k * random).sum(1, keepdim=True) * random               # (1, 3, K, H, W)
     sample_point = position.unsqueeze(2) + reflected * p.kernel_radius             # (B, 3, K, H, W)
     count = range_check_count(cam, sample_point, texture, False, p.min_distance, p.max_distance)
-    return ssao_result(count, p, mask, dtype, debug, row, col, kernel, noise)
+    return ssao_result(count, p, mask, dtype=dtype, debug=debug, row=row, col=col, kernel=kernel, noise=noise)
 
 
 class CrytekSSAO(nn.Module):

@@ -36,3 +36,18 @@ def test_the_bibliography_holds_the_source_articles():
     for needle in ("https://github.com/mebiusbox/ssr", "https://github.com/mebiusbox/ssao",
                    "https://www.shadertoy.com/view/XsdSR7", "Sphere Tracing"):
         assert needle in text, needle
+
+
+def test_the_ground_truth_does_not_import_the_passes_it_checks():
+    import ast
+    offenders = []
+    for path in sorted((ROOT / "ssbench" / "reference").glob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            names = []
+            if isinstance(node, ast.ImportFrom):
+                names = [("." * node.level) + (node.module or "")]
+            elif isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            offenders += [f"{path.name}:{node.lineno}: {n}" for n in names
+                          if n.startswith("..passes") or n.startswith("ssbench.passes")]
+    assert not offenders, offenders

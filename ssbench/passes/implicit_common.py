@@ -24,6 +24,7 @@ from typing import Optional
 import torch
 
 from ..camera import Camera
+from ..implicit.shading import safe_normal, shade_hits  # noqa: F401  (re-exported for the casters)
 from ..rays import CameraRays, camera_rays, length  # noqa: F401  (re-exported for the casters)
 
 # Termination reasons (``ImplicitResult.termination``, int8)
@@ -95,30 +96,6 @@ def unflat(x: torch.Tensor, shape: tuple[int, int, int]) -> torch.Tensor:
     B, H, W = shape
     x = x.reshape(B * H * W, -1)
     return x.reshape(B, H, W, x.shape[1]).permute(0, 3, 1, 2).contiguous()
-
-
-def safe_normal(grad: torch.Tensor) -> torch.Tensor:
-    """``∇f/|∇f|`` along the last axis; 0 where the gradient is 0 or not finite (never NaN)."""
-    n = grad.norm(dim=-1, keepdim=True)
-    ok = torch.isfinite(n) & (n > 0)
-    return torch.where(ok, grad / torch.where(ok, n, torch.ones_like(n)), torch.zeros_like(grad))
-
-
-def shade_hits(surface, points: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """Unit normals (n, 3) and object indices (n,) int32 at hit points (n, 3): one ``f_and_grad`` (counted as
-    one evaluation by the callers) and ``object_index`` (0 if the surface has none)."""
-    if points.shape[0] == 0:
-        return points.new_zeros(0, 3), torch.zeros(0, dtype=torch.int32, device=points.device)
-    if hasattr(surface, "f_and_grad"):
-        _, g = surface.f_and_grad(points)
-    else:
-        with torch.enable_grad():
-            q = points.detach().requires_grad_(True)
-            (g,) = torch.autograd.grad(surface.f(q).sum(), q, allow_unused=True)
-        g = torch.zeros_like(points) if g is None else g.detach()
-    idx = surface.object_index(points) if hasattr(surface, "object_index") else torch.zeros(
-        points.shape[:-1], dtype=torch.long, device=points.device)
-    return safe_normal(g.to(points.dtype)), idx.to(torch.int32)
 
 
 def bisect(surface, origin: torch.Tensor, direction: torch.Tensor, lo: torch.Tensor, hi: torch.Tensor,

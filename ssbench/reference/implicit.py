@@ -1,6 +1,6 @@
 r"""Certified first-hit ground truth for implicit surfaces f(p) = 0 (seed 004): interval march + bisection.
 
-Per pixel, in float64, on the rays of :func:`ssbench.passes.implicit_common.camera_rays` (unit ``d``, ``t`` in
+Per pixel, in float64, on the rays of :func:`ssbench.rays.camera_rays` (unit ``d``, ``t`` in
 world units), root isolation by interval bisection (Mitchell, "Robust Ray Intersection with Interval Arithmetic",
 Graphics Interface 1990):
 
@@ -43,7 +43,7 @@ from typing import Optional
 
 import torch
 
-from ..passes.implicit_common import shade_hits
+from ..implicit.shading import shade_hits
 from .implicit_dense import _rays, clip_to_bounds
 from .implicit_march import _bisect, _march, segment_box  # noqa: F401 (segment_box: API)
 
@@ -139,7 +139,7 @@ def implicit(surface, camera, *, epsilon: float = 1e-12, max_iterations: int = 2
         epsilon: relative bisection width: stop when ``hi − lo ≤ epsilon·max(1, t)``.
         max_iterations: cap on lock-step interval-march iterations; undecided rays are ``unfinished``.
         exits: also march on past the hit to the next crossing back to ``f ≥ 0`` (``t_exit``, the chord).
-        batch, jitter: as :func:`~ssbench.passes.implicit_common.camera_rays` (``jitter`` :math:`(B, 2, H, W)`).
+        batch, jitter: as :func:`~ssbench.rays.camera_rays` (``jitter`` :math:`(B, 2, H, W)`).
         tolerance: relative width of a leaf segment (``tolerance·max(1, t)``), where subdivision stops and
             point signs decide; an ambiguous stretch costs about ``tolerance^{-1/2}`` leaves at an exact
             tangency, so keep it ≥ 1e-9.

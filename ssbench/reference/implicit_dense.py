@@ -174,7 +174,7 @@ def dense_march(surface, camera, steps: int = 100_000, *, batch: int = 1, jitter
         surface: the implicit surface protocol (``bounds``; ``drjit_f`` for Dr.Jit, ``f`` for torch).
         camera: rays as :func:`ssbench.reference.implicit` (``camera_rays(..., dtype=float64)``).
         steps: number of uniform intervals (samples ``steps + 1``).
-        batch, jitter: as :func:`~ssbench.passes.implicit_common.camera_rays`.
+        batch, jitter: as :func:`~ssbench.rays.camera_rays`.
         backend: ``"auto"`` (Dr.Jit when a JIT variant works and the surface has ``drjit_f``), ``"drjit"``
             or ``"torch"``.
         chunk: torch backend: samples evaluated per chunk (memory ≈ 100 bytes per sample).

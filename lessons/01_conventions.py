@@ -19,9 +19,10 @@
 # way the axes point, how a pixel maps to a ray, and how depth is stored.
 #
 # The source articles rebuild positions and normals from the depth buffer in two different ways: mebiusbox,
-# 「スクリーンスペース・アンビエント・オクルージョン (SSAO)」, 2022 (demo code https://github.com/mebiusbox/ssao;
-# *seed 002* below), §2.2 and §3.3, and mebiusbox, 「スクリーンスペース・リフレクション (SSR)」, 2022
-# (https://github.com/mebiusbox/ssr; *seed 000*), §1.1 — the README's Sources lists them all. We derive both
+# 「スクリーンスペース・アンビエント・オクルージョン (SSAO)」, 2022, https://zenn.dev/mebiusbox/articles/c7ea4871698ada
+# (demo code https://github.com/mebiusbox/ssao; *seed 002* below), §2.2 and §3.3, and mebiusbox,
+# 「スクリーンスペース・リフレクション (SSR)」, 2022, https://zenn.dev/mebiusbox/articles/43ecf1bb12831c
+# (demo code https://github.com/mebiusbox/ssr; *seed 000*), §1.1 — `ssbench/REFERENCES.md` lists them all. We derive both
 # ways, check them against each other and against a G-buffer
 # that Mitsuba 3 ray traced **at the same pixel centres**, and meet the one place where Mitsuba's camera frame
 # differs from OpenGL's. The rules are collected on one page, `ssbench/CONVENTIONS.md`; `ssbench/camera.py`

@@ -33,7 +33,8 @@ def test_no_reference_outside_the_repository_or_to_an_issue():
 
 def test_the_bibliography_holds_the_source_articles():
     text = (ROOT / "ssbench" / "REFERENCES.md").read_text(encoding="utf-8")
-    for needle in ("https://github.com/mebiusbox/ssr", "https://github.com/mebiusbox/ssao",
+    for needle in ("https://zenn.dev/mebiusbox/articles/43ecf1bb12831c", "https://github.com/mebiusbox/ssr",
+                   "https://zenn.dev/mebiusbox/articles/c7ea4871698ada", "https://github.com/mebiusbox/ssao",
                    "https://www.shadertoy.com/view/XsdSR7", "Sphere Tracing"):
         assert needle in text, needle
 

@@ -7,7 +7,7 @@ metric was calibrated" section draws these curves next to the tables that use th
 (``tests/analysis/test_calibration.py``) pin the same responses.
 
 AO experiments (seed 002, mebiusbox, 「スクリーンスペース・アンビエント・オクルージョン (SSAO)」, 2022,
-https://github.com/mebiusbox/ssao):
+https://zenn.dev/mebiusbox/articles/c7ea4871698ada):
 
 * :func:`banding_response` — the kernel size ``K`` of hemisphere SSAO with the rotation noise off
   (``noise_size = 1``, one kernel for every pixel: Fig. 5's bands) and on (4×4): banding must fall with ``K``

@@ -1,7 +1,8 @@
 """Calibration of the hit classes (see :mod:`ssbench.analysis.calibration` for the idea and :class:`Response`).
 
 * :func:`ssr_response` — SSR classes against the knobs that cause them (seed 000, mebiusbox,
-  「スクリーンスペース・リフレクション (SSR)」, 2022, https://github.com/mebiusbox/ssr): the linear march's
+  「スクリーンスペース・リフレクション (SSR)」, 2022,
+  https://zenn.dev/mebiusbox/articles/43ecf1bb12831c): the linear march's
   ``thickness`` (too thick invents *false* hits, too thin *misses*, Figs. 4–6) and the DDA's ``pixel_stride``
   without refinement (a coarse stride lands on the right surface pixels off: *misplaced* hits);
 * :func:`punch_through_response` — implicit ray casting (seed 004, 「陰的に定義された曲面の漸進的レイトレーシング」,

@@ -1,8 +1,8 @@
 """Banding: the structured (low-frequency) part of an AO method's error, independent of any noise tile.
 
 Too few samples make SSAO show *bands* (seed 002 §1 Fig. 5: mebiusbox, 「スクリーンスペース・アンビエント・
-オクルージョン (SSAO)」, 2022, https://github.com/mebiusbox/ssao): with one fixed kernel every pixel makes the
-same mistakes, so neighbouring pixels' errors line up into contours; rotating the kernel per pixel (the noise
+オクルージョン (SSAO)」, 2022, https://zenn.dev/mebiusbox/articles/c7ea4871698ada): with one fixed kernel every
+pixel makes the same mistakes, so neighbouring pixels' errors line up into contours; rotating the kernel per pixel (the noise
 texture) turns the same error into fine noise, and a blur removes it (Fig. 6). The two differ only in the
 *spatial frequency* of the error. This metric keeps the part of the error a small blur does not remove:
 

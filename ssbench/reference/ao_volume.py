@@ -1,7 +1,8 @@
 """What sample-counting SSAO estimates: the fraction of its sample kernel that lies *inside* geometry.
 
 Crytek's SSAO and the normal-oriented hemisphere SSAO of seed 002 §1–§2.2 (mebiusbox, 「スクリーンスペース・
-アンビエント・オクルージョン (SSAO)」, 2022, https://github.com/mebiusbox/ssao) do not integrate visibility
+アンビエント・オクルージョン (SSAO)」, 2022,
+https://zenn.dev/mebiusbox/articles/c7ea4871698ada) do not integrate visibility
 over directions. They place sample *points* in a ball or half-ball around the shading point ``P`` and count
 those that lie behind the depth buffer; as the sample count grows and the noise rotates the kernel, the
 count converges to a **volume fraction**: the probability that a point drawn from the kernel's law lies

@@ -22,7 +22,7 @@ import torch.nn.functional as F
 from .. import checks
 from .image import prepare
 
-__all__ = ["halo", "HaloResult", "depth_edges", "flat_bias", "tile_energy", "power_spectrum", "noise", "highpass",
+__all__ = ["halo", "HaloResult", "depth_edges", "edge_band", "flat_bias", "tile_energy", "power_spectrum", "noise", "highpass",
            "over_darkening"]
 
 
@@ -88,6 +88,15 @@ def depth_edges(view_z: torch.Tensor, mask: Optional[torch.Tensor] = None, thres
     return edge & m
 
 
+def edge_band(view_z: torch.Tensor, mask: torch.Tensor, band: int, threshold: float = 0.1,
+              silhouettes: bool = False) -> torch.Tensor:
+    """:func:`depth_edges` dilated to every pixel within Chebyshev distance ``band`` (a :math:`(2k+1)^2`
+    ``max_pool2d``): the band :func:`halo` scores and :func:`~ssbench.metrics.banding` leaves out.
+    :math:`(B, 1, H, W)` bool."""
+    edges = depth_edges(view_z, mask, threshold, silhouettes)
+    return F.max_pool2d(edges.to(torch.float32), 2 * band + 1, stride=1, padding=band) > 0 if band else edges
+
+
 def halo(pred: torch.Tensor, target: torch.Tensor, view_z: torch.Tensor, mask: Optional[torch.Tensor] = None,
          band: int = 4, threshold: float = 0.1, silhouettes: bool = False) -> HaloResult:
     r"""Error near depth discontinuities vs elsewhere: how much a method's error is a halo.
@@ -140,8 +149,7 @@ def halo(pred: torch.Tensor, target: torch.Tensor, view_z: torch.Tensor, mask: O
         raise ValueError(f"band: must be a non-negative integer, got {band!r}")
     checks.check_same_size(pred, view_z, "pred", "view_z")
     pred, target, m = prepare(pred, target, mask)
-    edges = depth_edges(view_z, m, threshold, silhouettes)
-    near = F.max_pool2d(edges.to(pred.dtype), 2 * band + 1, stride=1, padding=band) > 0 if band else edges
+    near = edge_band(view_z, m, band, threshold, silhouettes)
     d = near & m
     e = m & ~near
     err = pred - target

@@ -29,27 +29,24 @@ from __future__ import annotations
 import math
 from typing import Optional
 
+import kornia
 import torch
-import torch.nn.functional as F
 
 from .. import checks
-from .ao import depth_edges
+from .ao import edge_band
 from .image import prepare
 
 __all__ = ["banding", "lowpass"]
 
 
 def _gaussian(sigma: float, dtype: torch.dtype, device) -> torch.Tensor:
-    r = max(1, int(math.ceil(3 * sigma)))
-    x = torch.arange(-r, r + 1, dtype=dtype, device=device)
-    g = torch.exp(-0.5 * (x / sigma) ** 2)
-    g = g / g.sum()
-    return g[:, None] * g[None, :]                                          # (2r+1, 2r+1), sums to 1
+    """:math:`(1, k, k)` normalised Gaussian kernel of ``sigma`` pixels, ``k = 2⌈3σ⌉ + 1`` (kornia)."""
+    k = 2 * max(1, int(math.ceil(3 * sigma))) + 1
+    return kornia.filters.get_gaussian_kernel2d((k, k), (sigma, sigma), dtype=dtype, device=device)
 
 
 def _conv(x: torch.Tensor, k: torch.Tensor) -> torch.Tensor:
-    r = k.shape[-1] // 2
-    return F.conv2d(F.pad(x, (r, r, r, r)), k[None, None])                  # zero border
+    return kornia.filters.filter2d(x, k, border_type="constant")            # zero border
 
 
 def lowpass(x: torch.Tensor, mask: torch.Tensor, sigma: float = 1.5) -> torch.Tensor:
@@ -104,7 +101,9 @@ def banding(pred: torch.Tensor, target: torch.Tensor, view_z: torch.Tensor, mask
     if view_z.shape != pred.shape:
         raise ValueError(f"view_z: shape must match pred {tuple(pred.shape)}, got {tuple(view_z.shape)}")
     x, t = pred.double(), target.double()
-    region = m & ~_near_edges(view_z, m, band) & (lowpass(t, m, sigma) < occluded)
+    if isinstance(band, bool) or not isinstance(band, int) or band < 0:
+        raise ValueError(f"band: must be an integer >= 0, got {band!r}")
+    region = m & ~edge_band(view_z, m[:, :1], band) & (lowpass(t, m, sigma) < occluded)
     if not bool(region.any()):
         return torch.tensor(float("nan"), dtype=pred.dtype)
     e = lowpass(x - t, m, sigma)
@@ -119,10 +118,3 @@ def banding(pred: torch.Tensor, target: torch.Tensor, view_z: torch.Tensor, mask
         floor = _conv(var, k * k) / _conv(mf, k).clamp_min(1e-300).square()   # variance of the blurred noise
         energy = energy - floor[region].mean()
     return energy.clamp_min(0).sqrt().to(pred.dtype)
-
-
-def _near_edges(view_z: torch.Tensor, m: torch.Tensor, band: int) -> torch.Tensor:
-    if isinstance(band, bool) or not isinstance(band, int) or band < 0:
-        raise ValueError(f"band: must be an integer >= 0, got {band!r}")
-    e = depth_edges(view_z, m[:, :1]).to(torch.float32)
-    return F.max_pool2d(e, 2 * band + 1, stride=1, padding=band).bool() if band else e.bool()

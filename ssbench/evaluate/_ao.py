@@ -78,7 +78,8 @@ def radius_param(params_cls: type, module=None) -> Optional[str]:
 
 def flavour(fn: Callable) -> str:
     """The AO flavour a pass approximates: its module's ``FLAVOUR`` (default ``"cosine"``)."""
-    return getattr(importlib.import_module(fn.__module__), "FLAVOUR", "cosine")
+    from ..passes import declared
+    return declared(fn, "FLAVOUR", "cosine")
 
 
 def score(pred: torch.Tensor, target: torch.Tensor, mask: torch.Tensor, view_z: torch.Tensor, suffix: str,

@@ -77,9 +77,8 @@ def scene_scale(gbuffer: GBuffer) -> float:
 
 def equal_roles(method: str) -> dict:
     """``{"thickness": name, "ray_length": name}``: the module's ``EQUAL_SETTINGS`` of SSR ``method``."""
-    from ..passes import ssr_method
-    fn = ssr_method(method)[0]
-    roles = getattr(importlib.import_module(fn.__module__), "EQUAL_SETTINGS", None)
+    from ..passes import declared, ssr_method
+    roles = declared(ssr_method(method)[0], "EQUAL_SETTINGS")
     if not roles or set(roles) != {"thickness", "ray_length"}:
         raise ValueError(f"method: {method!r} declares no EQUAL_SETTINGS (thickness, ray_length) in its module")
     return dict(roles)

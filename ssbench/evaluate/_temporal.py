@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
-import math
 from typing import Optional
 
 import torch
@@ -77,7 +76,7 @@ def ao_frames(scene, method: str, params=None, *, frames: int = 8, jitter: bool 
         use_cache: let the G-buffer renders use the disk cache.
     """
     from .. import reference
-    from ..passes import ao_method
+    from ..passes import ao_method, declared
     from ..scenes import load as load_scene
     from ._ao import radius_param
     if isinstance(frames, bool) or not isinstance(frames, int) or frames < 2:
@@ -92,7 +91,7 @@ def ao_frames(scene, method: str, params=None, *, frames: int = 8, jitter: bool 
         if rname is None:
             raise ValueError(f"radius: method {method!r} has no radius parameter")
         p = dataclasses.replace(p, **{rname: float(radius)})
-    frame_param = getattr(module, "FRAME_PARAM", None)
+    frame_param = declared(fn, "FRAME_PARAM")
     sc = load_scene(scene)
     cam = sc.camera.with_resolution(width, height)
     aos, masks, offsets = [], [], []
@@ -107,5 +106,4 @@ def ao_frames(scene, method: str, params=None, *, frames: int = 8, jitter: bool 
         masks.append(g.mask.cpu())
         offsets.append((dx, dy))
     ao, mask = torch.stack(aos), torch.stack(masks)
-    value = float(flicker(ao, mask))
-    return AOFrames(ao, mask, tuple(offsets), value if math.isfinite(value) else math.nan, p)
+    return AOFrames(ao, mask, tuple(offsets), float(flicker(ao, mask)), p)

@@ -62,5 +62,16 @@ def implicit_method(name: str):
     return getattr(m, fn), getattr(m, params)
 
 
+def declared(fn, name: str, default=None):
+    """What the module of pass ``fn`` declares as ``name``: the metadata a method keeps next to its code
+    (``FLAVOUR``, ``TUNABLE``, ``EQUAL_SETTINGS``, ``DEFAULTS_SOURCE``, ``FRAME_PARAM``, …), else ``default``.
+
+    Example:
+        >>> declared(ao_method("gtao")[0], "FLAVOUR")
+        'cosine'
+    """
+    return getattr(importlib.import_module(fn.__module__), name, default)
+
+
 __all__ = ["AOResult", "AO_METHODS", "ao_method", "SSR_METHODS", "ssr_method", "IMPLICIT_METHODS",
-           "implicit_method"]
+           "implicit_method", "declared"]

@@ -26,6 +26,7 @@ from typing import Iterable, Optional
 import numpy as np
 import torch
 
+from ..passes import ao_method, declared
 from .summary import unavailable_md
 
 #: scenes of the AO section when the report names none (small, so ``make report`` stays fast)
@@ -241,7 +242,7 @@ def _scene(run_dir, name, methods, channels, width, height, radius, rays, seed, 
         rows.append(row)
         method_rows.append({"method": m, "images": imgs, "weighting": row["weighting"], "blurs": blurs,
                             "params": ", ".join(f"{k}={v}" for k, v in row["params"].items()),
-                            "source": defaults_source(m),
+                            "source": declared(ao_method(m)[0], "DEFAULTS_SOURCE", ""),
                             "cells": [fmt(row.get(k), spec) for k, _, spec in TABLE]})
     return ({"name": name, "description": sc.description, "images": images, "methods": method_rows,
              "notes": notes, "gt_seconds": gt_s, "flavours": list(FLAVOURS),
@@ -281,13 +282,6 @@ def summary_md(ao: dict) -> str:
                 return sum(v) / len(v) if v else None
             lines.append(f"| {m} | {rs[0].get('weighting')} | {fmt(mean('rmse_flavour'))} | {fmt(mean('rmse_cos'))} | "
                          f"{fmt(mean('banding'))} | {fmt(mean('halo_dark_flavour'))} |")
-        lines += ["", "Defaults from:"] + [f"- {m}: {defaults_source(m) or 'not declared'}"
+        lines += ["", "Defaults from:"] + [f"- {m}: {declared(ao_method(m)[0], 'DEFAULTS_SOURCE') or 'not declared'}"
                                           for m in dict.fromkeys(r["method"] for r in rows)]
     return "\n".join(lines + [f"- {n}" for n in ao["notes"]]) + "\n"
-
-
-def defaults_source(method: str) -> str:
-    """Where the method's defaults come from: its module's ``DEFAULTS_SOURCE`` (empty when it declares none)."""
-    import importlib
-    from ..passes import ao_method
-    return getattr(importlib.import_module(ao_method(method)[0].__module__), "DEFAULTS_SOURCE", "")

@@ -30,6 +30,7 @@ from typing import Iterable, Optional
 import numpy as np
 import torch
 
+from ..passes import declared, ssr_method
 from .ao_section import fmt, write_png
 from .summary import unavailable_md
 
@@ -43,7 +44,8 @@ THICKNESS, THICKNESS_DEPTHS = 0.1, (1.0, 3.0, 10.0, 30.0)
 TABLE = (("seconds", "time s", "{:.3f}"), ("frac_correct", "correct", "{:.1%}"),
          ("frac_missed", "missed", "{:.1%}"), ("frac_false_hit", "false hit (wrong surface)", "{:.1%}"),
          ("frac_misplaced_hit", "misplaced hit (> k px)", "{:.1%}"),
-         ("frac_punch_through", "punch-through", "{:.1%}"), ("frac_unfixable_hit", "hit on unfixable", "{:.1%}"), ("frac_off_screen_target", "off-screen", "{:.1%}"),
+         ("frac_punch_through", "punch-through", "{:.1%}"), ("frac_unfixable_hit", "hit on unfixable", "{:.1%}"),
+         ("frac_off_screen_target", "off-screen", "{:.1%}"),
          ("frac_occluded_target", "occluded", "{:.1%}"), ("frac_back_face_target", "back-face", "{:.1%}"),
          ("frac_true_miss", "true miss", "{:.1%}"), ("hit_err_px_median", "hit err px (median)", "{:.2f}"),
          ("hit_err_view_median", "hit err view (median)", "{:.3f}"), ("mae_raw", "MAE raw", "{:.4f}"),
@@ -224,7 +226,7 @@ def _scene(run_dir, name, methods, channels, width, height, spp, seed, k_px, use
         rows.append({**row, "setting": "defaults"})
         method_rows.append({"method": m, "images": imgs, "visits_max": vmax,
                             "params": ", ".join(f"{k}={v}" for k, v in row["params"].items()),
-                            "source": defaults_source(m),
+                            "source": declared(ssr_method(m)[0], "DEFAULTS_SOURCE", ""),
                             "cells": [fmt(row.get(k), spec) for k, _, spec in TABLE]})
     for m in results:                                    # the same methods at equal settings (no pictures)
         try:
@@ -290,7 +292,8 @@ def summary_md(ssr: dict) -> str:
                   "|---|" + "---:|" * len(ssr["scenes"])]
         lines += [f"| {o['method']} | " + " | ".join(f"{c} ({p})" for c, p in zip(o["cells"], o["params"])) + " |"
                   for o in ssr["equal"]]
-    lines += ["", "Defaults from:"] + [f"- {m}: {defaults_source(m) or 'not declared'}" for m in ssr["methods"]]
+    lines += ["", "Defaults from:"] + [f"- {m}: {declared(ssr_method(m)[0], 'DEFAULTS_SOURCE') or 'not declared'}"
+                                      for m in ssr["methods"]]
     return "\n".join(lines + _class_md(ssr.get("rows") or []) + [f"- {n}" for n in ssr["notes"]]) + "\n"
 
 
@@ -308,10 +311,3 @@ def _class_md(rows: list[dict]) -> list[str]:
                    + f" | {fmt(r.get('frac_wrong_output'), '{:.1%}')} |")
     out += [""] + [f"- *{M.CLASS_LABELS[c]}*: {M.CLASS_DESCRIPTIONS[c]}" for c in codes] + [""]
     return out
-
-
-def defaults_source(method: str) -> str:
-    """Where the method's defaults come from: its module's ``DEFAULTS_SOURCE`` (empty when it declares none)."""
-    import importlib
-    from ..passes import ssr_method
-    return getattr(importlib.import_module(ssr_method(method)[0].__module__), "DEFAULTS_SOURCE", "")

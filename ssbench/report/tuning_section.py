@@ -22,11 +22,9 @@ from .summary import unavailable_md
 
 def report_methods() -> tuple[str, ...]:
     """The AO methods whose module declares ``TUNED_IN_REPORT = True`` (and something ``TUNABLE``)."""
-    import importlib
-    from ..passes import AO_METHODS, ao_method
-    mods = {m: importlib.import_module(ao_method(m)[0].__module__) for m in AO_METHODS}
-    return tuple(m for m, mod in mods.items()
-                 if getattr(mod, "TUNED_IN_REPORT", False) and getattr(mod, "TUNABLE", None))
+    from ..passes import AO_METHODS, ao_method, declared
+    return tuple(m for m in AO_METHODS
+                 if declared(ao_method(m)[0], "TUNED_IN_REPORT", False) and declared(ao_method(m)[0], "TUNABLE"))
 
 
 #: methods tuned in the report (each method's own ``TUNED_IN_REPORT``), training scenes and held-out scenes

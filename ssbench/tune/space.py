@@ -40,11 +40,10 @@ class Tunable:
 def declared_spaces() -> dict[str, tuple[Tunable, ...]]:
     """Tunable parameters per AO method, as each pass module declares them in ``TUNABLE`` (``name -> (lo, hi,
     relative)``); methods that declare none are not tunable."""
-    import importlib
-    from ..passes import AO_METHODS, ao_method
+    from ..passes import AO_METHODS, ao_method, declared
     out = {}
     for m in AO_METHODS:
-        decl = getattr(importlib.import_module(ao_method(m)[0].__module__), "TUNABLE", None)
+        decl = declared(ao_method(m)[0], "TUNABLE")
         if decl:
             out[m] = tuple(Tunable(name, float(lo), float(hi), bool(rel)) for name, (lo, hi, rel) in decl.items())
     return out

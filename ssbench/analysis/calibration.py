@@ -32,7 +32,7 @@ from typing import Iterable, Optional, Sequence
 import torch
 
 __all__ = ["Response", "verdict", "banding_response", "halo_response", "flat_bias_response", "noise_response",
-           "flicker_response", "summarize"]
+           "flicker_response"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -208,8 +208,3 @@ def flicker_response(scene: str = "sphere_on_plane", knobs: Optional[dict] = Non
         out.append(Response("flicker", param, scene, f"{method}, noise advancing", tuple(values), tuple(ys),
                             tuple(0.0 for _ in values), "falls", 1, note))
     return out
-
-
-def summarize(responses: Sequence[Response], tol: Optional[float] = None) -> list[dict]:
-    """One dict per response: its row plus :func:`verdict` (``tol`` default: 1e-9)."""
-    return [{**r.as_row(), **verdict(r, 1e-9 if tol is None else tol)} for r in responses]

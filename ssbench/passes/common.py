@@ -43,9 +43,9 @@ def make_generator(seed: int, generator: Optional[torch.Generator], device=None)
 
 def uv_to_texel(uv: torch.Tensor, height: int, width: int, dim: int = 1) -> tuple[torch.Tensor, torch.Tensor]:
     """Integer ``(col, row)`` of the ``NEAREST``/``CLAMP_TO_EDGE`` texel a shader reads at ``uv`` (v up)."""
-    u, v = uv.unbind(dim)
-    col = torch.floor(u * width).clamp(0, width - 1).long()
-    row = torch.floor((1.0 - v) * height).clamp(0, height - 1).long()
+    u, v = uv.unbind(dim)                         # NaN (a degenerate projection) reads texel 0, never INT64_MIN
+    col = torch.floor(u * width).nan_to_num(0.0).clamp(0, width - 1).long()
+    row = torch.floor((1.0 - v) * height).nan_to_num(0.0).clamp(0, height - 1).long()
     return col, row
 
 
@@ -65,9 +65,18 @@ def fetch_uv(tex: torch.Tensor, uv: torch.Tensor, dim: int = 1) -> torch.Tensor:
     return fetch(tex, col, row)
 
 
-def check_radius(value: float, name: str = "radius") -> None:
+def check_radius(value, name: str = "radius") -> None:
+    """A length > 0: a Python number, or a one-element floating tensor (the passes are differentiable in their
+    radii, so ``torch.tensor(0.5, requires_grad=True)`` is accepted; its value is not read on ``meta``)."""
     if not checks.checks_enabled():
         return
+    if isinstance(value, torch.Tensor):
+        if value.numel() != 1 or not value.is_floating_point():
+            raise ValueError(f"{name}: a tensor must be a floating scalar, got shape {tuple(value.shape)} "
+                             f"{value.dtype}")
+        if value.device.type == "meta" or bool(value.detach() > 0):
+            return
+        raise ValueError(f"{name}: must be > 0, got {float(value)}")
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
         raise ValueError(f"{name}: must be a number > 0, got {value!r}")
 
@@ -77,14 +86,3 @@ def check_count(value: int, name: str) -> None:
         return
     if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
         raise ValueError(f"{name}: must be a positive integer, got {value!r}")
-
-
-def check_unit_normals(normal: torch.Tensor, mask: torch.Tensor, name: str = "normal", tol: float = 1e-3) -> None:
-    """Normals on ``mask`` must have unit length (background zeros are allowed)."""
-    if not checks.checks_enabled():
-        return
-    n_len = length(normal)
-    bad = mask & (~torch.isfinite(n_len) | ((n_len - 1).abs() > tol))
-    if bool(bad.any()):
-        raise ValueError(f"{name}: {int(bad.sum())} normals on geometry are not unit length "
-                         f"(max |len-1| = {float((n_len - 1).abs()[mask].max()):.3g})")

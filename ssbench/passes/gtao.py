@@ -32,9 +32,9 @@ from typing import Optional, Sequence, Union
 import torch
 from torch import nn
 
-from .. import checks
 from ..gbuffer import GBuffer
-from .common import AOResult, check_count, check_radius, check_unit_normals, fetch, make_generator
+from .common import AOResult, check_count, check_radius, fetch, make_generator
+from .gbuffer_checks import check_gbuffer
 from .gtao_parts import _cross, _dot, _hilbert_index, _unit, noise_buffer, slice_visibility  # noqa: F401
 
 FLAVOUR = "cosine"  # the ground-truth weighting this pass estimates (ssbench.reference.ao)
@@ -143,29 +143,11 @@ class GTAOParams:
         return self.steps_per_slice if self.steps_per_slice is not None else QUALITY_PRESETS[self.quality][1]
 
 
-def _check(gbuffer: GBuffer, params: GTAOParams) -> None:
-    if not isinstance(gbuffer, GBuffer):
-        raise TypeError(f"gbuffer: expected a GBuffer, got {type(gbuffer).__name__}")
+def check_inputs(gbuffer: GBuffer, params: GTAOParams) -> None:
+    """Type checks of ``params`` and the shared G-buffer contract (:func:`~ssbench.passes.gbuffer_checks.check_gbuffer`)."""
     if not isinstance(params, GTAOParams):
         raise TypeError(f"params: expected GTAOParams, got {type(params).__name__}")
-    gbuffer.require(*REQUIRES)
-    if not checks.checks_enabled():
-        return
-    z, nrm, mask, H, W = gbuffer.view_z, gbuffer.normal, gbuffer.mask, gbuffer.height, gbuffer.width
-    for name, t, c in (("view_z", z, "1"), ("normal", nrm, "3"), ("mask", mask, "1")):
-        checks.check_shape(t, ["B", c, str(H), str(W)], name)
-        checks.check_same_size(z, t, "view_z", name)
-    if not z.is_floating_point():
-        raise ValueError(f"view_z: expected a floating-point dtype, got {z.dtype}")
-    if nrm.dtype != z.dtype:
-        raise ValueError(f"normal: dtype {nrm.dtype} must match view_z's {z.dtype}")
-    if mask.dtype != torch.bool:
-        raise ValueError(f"mask: expected dtype torch.bool, got {mask.dtype}")
-    if bool((mask & ~(z < 0)).any()):
-        raise ValueError("view_z: must be finite and < 0 on geometry (points in front of the camera)")
-    if bool((mask & ~torch.isfinite(nrm)).any()):
-        raise ValueError("normal: contains NaN or infinity on geometry")
-    check_unit_normals(nrm, mask, "normal")
+    check_gbuffer(gbuffer, REQUIRES)
 
 
 def gtao(gbuffer: GBuffer, params: GTAOParams = GTAOParams(), *, generator: Optional[torch.Generator] = None,
@@ -203,7 +185,7 @@ def gtao(gbuffer: GBuffer, params: GTAOParams = GTAOParams(), *, generator: Opti
         >>> r.ao.shape, bool((r.ao > 0.99).all())       # a wall facing the camera is unoccluded
         (torch.Size([1, 1, 6, 8]), True)
     """
-    _check(gbuffer, params)
+    check_inputs(gbuffer, params)
     cam, mask = gbuffer.camera, gbuffer.mask
     B, _, H, W = gbuffer.view_z.shape
     dtype, dev = gbuffer.view_z.dtype, gbuffer.view_z.device

@@ -41,9 +41,9 @@ from typing import Optional
 import torch
 from torch import nn
 
-from .. import checks
 from ..gbuffer import GBuffer
 from .common import AOResult, check_count, check_radius, fetch_uv, make_generator
+from .gbuffer_checks import check_gbuffer
 
 FLAVOUR = "obscurance"  # the ground-truth weighting this pass estimates (ssbench.reference.ao)
 #: continuous parameters ``ssbench tune`` may fit: name -> (lo, hi, relative to the ground-truth radius)
@@ -111,26 +111,11 @@ def noise_texture(params: HBAOParams, generator: torch.Generator) -> torch.Tenso
     return torch.stack([torch.cos(angle), torch.sin(angle), r[1]], 0)
 
 
-def _check(gbuffer: GBuffer, params: HBAOParams) -> None:
-    if not isinstance(gbuffer, GBuffer):
-        raise TypeError(f"gbuffer: expected a GBuffer, got {type(gbuffer).__name__}")
+def check_inputs(gbuffer: GBuffer, params: HBAOParams) -> None:
+    """Type checks of ``params`` and the shared G-buffer contract (:func:`~ssbench.passes.gbuffer_checks.check_gbuffer`)."""
     if not isinstance(params, HBAOParams):
         raise TypeError(f"params: expected HBAOParams, got {type(params).__name__}")
-    gbuffer.require(*REQUIRES)
-    if not checks.checks_enabled():
-        return
-    H, W = gbuffer.height, gbuffer.width
-    checks.check_shape(gbuffer.view_z, ["B", "1", str(H), str(W)], "view_z")
-    checks.check_shape(gbuffer.mask, ["B", "1", str(H), str(W)], "mask")
-    checks.check_same_size(gbuffer.view_z, gbuffer.mask, "view_z", "mask")
-    if not gbuffer.view_z.is_floating_point():
-        raise ValueError(f"view_z: expected a floating-point dtype, got {gbuffer.view_z.dtype}")
-    if gbuffer.mask.dtype != torch.bool:
-        raise ValueError(f"mask: expected dtype torch.bool, got {gbuffer.mask.dtype}")
-    if not bool(torch.isfinite(gbuffer.view_z).all()):
-        raise ValueError("view_z: contains NaN or infinity (background must hold -far)")
-    if bool((gbuffer.mask & (gbuffer.view_z >= 0)).any()):
-        raise ValueError("view_z: must be < 0 on geometry (points in front of the camera)")
+    check_gbuffer(gbuffer, REQUIRES)
 
 
 def _rsqrt(x: torch.Tensor) -> torch.Tensor:
@@ -190,7 +175,7 @@ def hbao(gbuffer: GBuffer, params: HBAOParams = HBAOParams(), *, generator: Opti
         >>> r.ao.shape, bool((r.ao == 1).all())         # a wall facing the camera is unoccluded
         (torch.Size([1, 1, 6, 8]), True)
     """
-    _check(gbuffer, params)
+    check_inputs(gbuffer, params)
     cam, view_z, mask = gbuffer.camera, gbuffer.view_z, gbuffer.mask
     B, _, H, W = view_z.shape
     D, dtype, dev = params.num_directions, view_z.dtype, view_z.device
@@ -265,7 +250,7 @@ def hbao(gbuffer: GBuffer, params: HBAOParams = HBAOParams(), *, generator: Opti
     samples = torch.ones_like(numSteps)
     for j in range(1, params.num_steps):                                         # the march: j < numSteps
         live = active & (j < numStepsLeft)                                       # (B, 1, H, W)
-        if not bool(live.any()):
+        if live.device.type != "meta" and not bool(live.any()):                   # (meta: shapes only)
             break
         samples = samples + live.to(dtype)
         uv = uv + deltaUV

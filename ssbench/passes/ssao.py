@@ -41,10 +41,10 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
-from .. import checks
 from ..camera import Camera
 from ..gbuffer import GBuffer
-from .common import AOResult, check_count, check_radius, check_unit_normals, fetch_uv, length, make_generator
+from .common import AOResult, check_count, check_radius, fetch_uv, length, make_generator
+from .gbuffer_checks import check_gbuffer
 from .sampling import hemisphere_kernel, noise_texel, noise_texture
 
 FLAVOUR = "volume_hemisphere"  # the ground truth this pass estimates (ssbench.reference.ao_volume)
@@ -109,27 +109,6 @@ class HemisphereSSAOParams:
         check_ssao_params(self)
         if self.position_from not in POSITION_FROM:
             raise ValueError(f"position_from: expected one of {POSITION_FROM}, got {self.position_from!r}")
-
-
-def check_gbuffer(gbuffer: GBuffer, requires: tuple[str, ...]) -> None:
-    """Type, channel, shape, dtype and value checks of a pass's inputs (errors name the channel)."""
-    if not isinstance(gbuffer, GBuffer):
-        raise TypeError(f"gbuffer: expected a GBuffer, got {type(gbuffer).__name__}")
-    gbuffer.require(*requires)
-    if not checks.checks_enabled():
-        return
-    H, W = str(gbuffer.height), str(gbuffer.width)
-    for name in requires:
-        t = getattr(gbuffer, name)
-        checks.check_shape(t, ["B", "3" if name == "normal" else "1", H, W], name)
-        checks.check_same_size(gbuffer.view_z, t, "view_z", name)
-        if (name == "mask") != (t.dtype == torch.bool) or (name != "mask" and not t.is_floating_point()):
-            raise ValueError(f"{name}: wrong dtype {t.dtype} (mask is torch.bool, the others floating point)")
-    z, m = gbuffer.view_z, gbuffer.mask
-    if not bool(torch.isfinite(z).all()) or bool((z[m] >= 0).any()):
-        raise ValueError("view_z: must be finite everywhere and < 0 (in front of the camera) on mask")
-    if "normal" in requires:
-        check_unit_normals(gbuffer.normal, m, "normal")
 
 
 def view_position(camera: Camera, view_z: torch.Tensor, position_from: str) -> tuple[torch.Tensor, torch.Tensor]:

@@ -37,7 +37,8 @@ from torch import nn
 from ..gbuffer import GBuffer
 from .common import AOResult, make_generator
 from .sampling import noise_texel, noise_texture, sphere_kernel
-from .ssao import check_gbuffer, check_ssao_params, range_check_count, ssao_result, view_position
+from .gbuffer_checks import check_gbuffer
+from .ssao import check_ssao_params, range_check_count, ssao_result, view_position
 
 FLAVOUR = "volume_sphere"  # the ground truth this pass estimates (ssbench.reference.ao_volume)
 #: continuous parameters ``ssbench tune`` may fit (as hemisphere SSAO's: the same range check and strength)

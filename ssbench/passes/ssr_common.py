@@ -13,7 +13,7 @@ import torch
 from .common import length
 
 # Termination reasons (``SSRResult.termination``, int8)
-NO_RAY = 0          #: background or non-reflective pixel: no ray was marched
+NO_RAY = 0          #: background, non-reflective, or non-finite origin (depth precision exhausted): no ray
 HIT = 1             #: thickness test passed (after refinement)
 OFF_SCREEN = 2      #: the ray left the screen
 MAX_DISTANCE = 3    #: reached MaxRayDistance / the clipped end point without a hit

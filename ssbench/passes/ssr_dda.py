@@ -59,10 +59,10 @@ from typing import Optional
 import torch
 from torch import nn
 
-from .. import checks
 from ..camera import Camera
 from ..gbuffer import GBuffer
-from .common import check_count, check_unit_normals, fetch, length, make_generator
+from .common import check_count, fetch, length, make_generator
+from .gbuffer_checks import check_gbuffer
 from .ssr_common import (BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult,
                          clip_ray_length, reflection_rays)
 from .ssr_dda_refine import _count, _fetch, _refine, _z
@@ -142,19 +142,11 @@ def jitter_fractions(params: DDASSRParams, shape, generator: torch.Generator) ->
     return torch.rand(tuple(shape), generator=generator, dtype=torch.float64) * params.jitter
 
 
-def _check(gbuffer: GBuffer, params: DDASSRParams) -> None:
-    if not isinstance(gbuffer, GBuffer):
-        raise TypeError(f"gbuffer: expected a GBuffer, got {type(gbuffer).__name__}")
+def check_inputs(gbuffer: GBuffer, params: DDASSRParams) -> None:
+    """Type checks of ``params`` and the shared G-buffer contract (:func:`~ssbench.passes.gbuffer_checks.check_gbuffer`)."""
     if not isinstance(params, DDASSRParams):
         raise TypeError(f"params: expected DDASSRParams, got {type(params).__name__}")
-    gbuffer.require(*REQUIRES)
-    if not checks.checks_enabled():
-        return
-    if not bool(torch.isfinite(gbuffer.view_z).all()) or bool((gbuffer.mask & (gbuffer.view_z >= 0)).any()):
-        raise ValueError("view_z: must be finite, < 0 on geometry and -far on background")
-    checks.check_finite(gbuffer.normal, "normal")
-    check_unit_normals(gbuffer.normal, gbuffer.mask, "normal")
-    checks.check_finite(gbuffer.color, "color")
+    check_gbuffer(gbuffer, REQUIRES, finite=("color",), meta_ok=False)
 
 
 def _rays(gbuffer: GBuffer, params: DDASSRParams, jitter: torch.Tensor):
@@ -286,7 +278,7 @@ def ssr_dda(gbuffer: GBuffer, params: DDASSRParams = DDASSRParams(), *, generato
         >>> r.hit.any().item(), r.termination.unique().tolist(), r.color.shape
         (False, [2], torch.Size([1, 3, 6, 8]))
     """
-    _check(gbuffer, params)
+    check_inputs(gbuffer, params)
     B, _, H, W = gbuffer.view_z.shape
     jitter = jitter_fractions(params, (B, 1, H, W), make_generator(params.seed, generator))
     s, sel, P0, P1 = _rays(gbuffer, params, jitter)
@@ -313,7 +305,9 @@ def assemble(gbuffer: GBuffer, params, sel: torch.Tensor, P1: torch.Tensor, o: d
     hit_pixel = image(torch.where(is_hit, o["P"], -1.0), -1.0)
     hit_view = image(torch.where(is_hit, o["Q"] / o["k"][:, None], 0.0), 0.0)
     hit = term == HIT                                                             # (B, 1, H, W)
-    col, row = hit_pixel[:, 0].floor().clamp(0, W - 1).long(), hit_pixel[:, 1].floor().clamp(0, H - 1).long()
+    # the texel is floored in the march's own dtype: a hit at 8.999999999999998 must not round to 9 first
+    texel = image(torch.where(is_hit, o["P"], 0.0).floor(), 0.0, torch.float64)
+    col, row = texel[:, 0].clamp(0, W - 1).long(), texel[:, 1].clamp(0, H - 1).long()
     raw = torch.where(hit, fetch(gbuffer.color.to(dt), col, row), 0.0)            # (B, 3, H, W)
     origin = cam.uv_to_view(cam.uv_grid(dt, dev).unsqueeze(0), gbuffer.view_z)
     at = hit_pixel if params.edge_fade_mode == "circular" else cam.pixel_centers(dt, dev)[None]   # hit / vUv

@@ -40,9 +40,9 @@ from typing import Optional
 import torch
 from torch import nn
 
-from .. import checks
-from ..gbuffer import CHANNELS, GBuffer
-from .common import check_unit_normals, make_generator, uv_to_texel
+from ..gbuffer import GBuffer
+from .common import make_generator, uv_to_texel
+from .gbuffer_checks import check_gbuffer
 from .ssr_common import (BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult,
                          clip_ray_length, reflection_rays)
 from .ssr_fade import EDGE_FADE_MODES, _positive, distance_fade, edge_fade
@@ -125,29 +125,12 @@ def jitter_noise(params: LinearSSRParams, generator: Optional[torch.Generator], 
     return torch.rand(shape, generator=make_generator(params.seed, generator), dtype=torch.float64)
 
 
-def _check(gbuffer: GBuffer, params: LinearSSRParams) -> None:
-    if not isinstance(gbuffer, GBuffer):
-        raise TypeError(f"gbuffer: expected a GBuffer, got {type(gbuffer).__name__}")
+def check_inputs(gbuffer: GBuffer, params: LinearSSRParams) -> None:
+    """Type checks of ``params`` and the shared G-buffer contract (:func:`~ssbench.passes.gbuffer_checks.check_gbuffer`)."""
     if not isinstance(params, LinearSSRParams):
         raise TypeError(f"params: expected LinearSSRParams, got {type(params).__name__}")
-    names = required_channels(params)
-    gbuffer.require(*names)
-    if not checks.checks_enabled():
-        return
-    for n in names:
-        t = getattr(gbuffer, n)
-        checks.check_shape(t, ["B", str(CHANNELS[n]), str(gbuffer.height), str(gbuffer.width)], n)
-        checks.check_same_size(gbuffer.view_z, t, "view_z", n)
-        if (n == "mask") != (t.dtype == torch.bool) or (n != "mask" and not t.is_floating_point()):
-            raise ValueError(f"{n}: expected dtype {'torch.bool' if n == 'mask' else 'float'}, got {t.dtype}")
-    if not bool(torch.isfinite(gbuffer.view_z).all()):
-        raise ValueError("view_z: contains NaN or infinity (background must hold -far)")
-    if bool((gbuffer.mask & (gbuffer.view_z >= 0)).any()):
-        raise ValueError("view_z: must be < 0 on geometry (points in front of the camera)")
-    check_unit_normals(gbuffer.normal, gbuffer.mask)
-    for n in ("color", "back_z", "position"):
-        if n in names:
-            checks.check_finite(getattr(gbuffer, n), n)
+    check_gbuffer(gbuffer, required_channels(params), finite=("color", "back_z", "position"),
+                  meta_ok=False)
 
 
 def _flat(t: torch.Tensor) -> torch.Tensor:                                      # (B, C, H, W) -> (B·H·W, C)
@@ -189,7 +172,7 @@ def ssr_linear(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(), *,
         >>> r.color.shape, bool(r.hit.any())                           # rays come back toward the eye
         (torch.Size([1, 3, 6, 8]), False)
     """
-    _check(gbuffer, params)
+    check_inputs(gbuffer, params)
     cam, view_z, mask = gbuffer.camera, gbuffer.view_z, gbuffer.mask
     B, _, H, W = view_z.shape
     dtype, dev, HW = view_z.dtype, view_z.device, H * W
@@ -215,12 +198,15 @@ def ssr_linear(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(), *,
     Q = rayOrg if xi is None else rayOrg - deltaStep * (params.jitter * xi.to(dtype=dtype, device=dev))
 
     # ---- flatten the marched rays: per-ray state tensors of length n ----
-    ray = mask.reshape(-1).nonzero().squeeze(1)                                   # (n,) flat pixel ids
+    # a pixel starts a ray where it holds geometry whose origin and direction are finite numbers (the origin
+    # read back from a depth buffer whose precision is exhausted, e.g. near/far = 1e-30/1e30, is ±inf)
+    ok = mask & torch.isfinite(rayOrg).all(1, keepdim=True) & torch.isfinite(deltaStep).all(1, keepdim=True)
+    ray = ok.reshape(-1).nonzero().squeeze(1)                                     # (n,) flat pixel ids
     n = ray.numel()                                                               # rays marched
     O, dS, Q = _flat(rayOrg)[ray], _flat(deltaStep)[ray], _flat(Q)[ray]           # (n, 3)
     clipped = (rayLength < params.max_ray_distance).reshape(-1)[ray]
     base = (ray // HW) * HW                                                       # batch offset of each ray
-    zs, bk = sceneZ.reshape(-1), (back.reshape(-1) if back is not None else None)
+    zs, bk, ms = sceneZ.reshape(-1), (back.reshape(-1) if back is not None else None), mask.reshape(-1)
     visits = torch.zeros(B * HW, dtype=torch.int64, device=dev)
     trace_ids = {}
     if trace_pixel is not None:
@@ -234,10 +220,10 @@ def ssr_linear(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(), *,
         return uv, base_q + row * W + col
 
     def intersects(z, t):                          # rayIntersectsDepth (§1.2), dist = z − sceneZMax
-        dist = z - zs[t]
-        if bk is None:
-            return (dist < 0) & (dist > -T)
-        return (dist < 0) & (z > bk[t] - T)        # back-face interval [back − T, front)
+        dist = z - zs[t]                           # a cleared background texel is never hit (three.js
+        if bk is None:                             # SSRShader: if (-vZ >= cameraFar) continue)
+            return (dist < 0) & (dist > -T) & ms[t]
+        return (dist < 0) & (z > bk[t] - T) & ms[t]   # back-face interval [back − T, front)
 
     def record(ids, q, hit, refine):
         for b, k in trace_ids.items():

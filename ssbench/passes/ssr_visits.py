@@ -54,7 +54,7 @@ def visit_map(gbuffer: GBuffer, params: Union[D.DDASSRParams, S.SupercoverDDASSR
     """
     supercover = isinstance(params, S.SupercoverDDASSRParams)
     dda = params.dda() if supercover else params
-    D._check(gbuffer, dda)
+    D.check_inputs(gbuffer, dda)
     B, _, H, W = gbuffer.view_z.shape
     x, y = pixel
     if not (0 <= x < W and 0 <= y < H) or not bool(gbuffer.mask[0, 0, y, x]):

@@ -49,7 +49,7 @@ from .implicit_march import _bisect, _march, segment_box  # noqa: F401 (segment_
 
 __all__ = ["implicit", "ImplicitReference", "segment_box", "ISOLATION_LEAVES"]
 
-_KERNEL_VERSION = 2  # 2: the `isolation` field
+_KERNEL_VERSION = 3  # 2: the `isolation` field; 3: long unresolved runs crossed with doubling leaves
 #: a hit is certified only if its isolating bracket is at most this many leaf widths long
 ISOLATION_LEAVES = 64
 

@@ -39,7 +39,14 @@ def _f(surface, o, d, t):
         return surface.f(o + t[:, None] * d).reshape(-1).to(torch.float64)
 
 
-def _march(surface, o, d, t0, t1, tol_rel, max_iterations, exits, budget=2048, max_lanes=128):
+#: after this many unresolved leaves in a row the run is no longer walked leaf by leaf: the ray's leaf width
+#: doubles every iteration until the run ends. Such a ray is not certified anyway (an ambiguous run), and
+#: without this a NaN or zero region (f = 0 on a solid, log of a negative) costs ~1 iteration per leaf, i.e.
+#: hours; an exact tangency at the default tolerance runs ~tolerance^{-1/2} ≈ 3·10³ leaves.
+RUN_LEAVES = 256
+
+
+def _march(surface, o, d, t0, t1, tol_rel, max_iterations, exits, budget=2048, max_lanes=128, run_leaves=RUN_LEAVES):
     """Lock-step interval march over the rays (a loop over iterations, compacted to the active rays).
 
     One iteration evaluates, per active ray and in one ``surface.interval`` call, ``K`` consecutive segments
@@ -60,6 +67,8 @@ def _march(surface, o, d, t0, t1, tol_rel, max_iterations, exits, budget=2048, m
     iso = inf.clone()                        # start of the bracket that isolates the first root
     n_int = torch.zeros(N, dtype=torch.int32, device=dev)
     n_pt = torch.zeros_like(n_int)
+    coarse = torch.ones(N, dtype=torch.float64, device=dev)    # leaf-width factor of a ray in a long run
+    n_run = torch.zeros_like(n_int)                 # unresolved leaves since the last excluded segment
 
     def close_runs(g):                       # a run not ended by a sign change was ambiguous
         g = g[torch.isfinite(run[g]) & ~phase[g]]
@@ -75,6 +84,8 @@ def _march(surface, o, d, t0, t1, tol_rel, max_iterations, exits, budget=2048, m
         run[g[hit]] = math.inf
         clean[g[back]], run[g[back]] = False, math.inf                  # an exiting root: ray started inside
         run[g[pend]] = torch.where(torch.isinf(run[g[pend]]), s[pend], run[g[pend]])
+        n_run[g[pend | (ph & ~leave)]] += 1                           # unresolved (entry) / no exit yet
+        n_run[g[hit | out]] = 0
         br_lo[g[hit]], br_hi[g[hit]], found[g[hit]], phase[g[hit]] = s[hit], e[hit], True, True
         ex_lo[g[out]], ex_hi[g[out]] = s[out], e[out]
         return out | (hit & (not exits))
@@ -105,13 +116,14 @@ def _march(surface, o, d, t0, t1, tol_rel, max_iterations, exits, budget=2048, m
             flo, fhi = surface.interval(*segment_box(o[rep], d[rep], lo_t, hi_t))
         excl = ((flo.reshape(-1) > 0) | (fhi.reshape(-1) < 0)).reshape(n, K + J)   # NaN: may hold a root
         n_int[idx] += K + J
-        tol = tol_rel * grid.abs().clamp(min=1.0)
+        tol = tol_rel * coarse[idx, None] * grid.abs().clamp(min=1.0)
         leafmode = Hh <= tol[:, 0]                                      # every segment is a leaf
         # rows not in leaf mode: skip the leading excluded segments, stop at the first other one
         exk = excl[:, :K] & (grid[:, 1:] > grid[:, :-1])
         m = torch.where(exk.all(1), K, (~exk).to(torch.int8).argmax(1)).long()
         mv = ~leafmode & (m > 0)
         close_runs(idx[mv])
+        n_run[idx[mv]] = 0
         a[idx[mv]] = grid[mv, m[mv]]
         grow_by = 2.0 ** max(1, J // 2)                                 # after K excluded segments
         grow = ~leafmode & (m == K)
@@ -134,6 +146,7 @@ def _march(surface, o, d, t0, t1, tol_rel, max_iterations, exits, budget=2048, m
                 cand = event & (ar[None, :] >= kp[:, None])
                 nk = torch.where(cand.any(1), cand.to(torch.int8).argmax(1).long(), K)
                 close_runs(idx[go & (nk > kp)])
+                n_run[idx[go & (nk > kp)]] = 0
                 kc = nk.clamp(max=K - 1)[:, None]
                 s, e = grid.gather(1, kc)[:, 0], grid.gather(1, kc + 1)[:, 0]
                 a[idx[go]] = torch.where(nk < K, s, grid[:, K])[go]
@@ -158,6 +171,7 @@ def _march(surface, o, d, t0, t1, tol_rel, max_iterations, exits, budget=2048, m
             adv = jx < J
             gl = idx[L]
             a[gl[adv]], h[gl[adv]] = lad[L[adv], jx[adv]], Hh[L[adv]] * 2.0 ** -(jx[adv] + 1).double()
+            n_run[gl[adv]] = 0
             lf = ~adv & (jleaf < J)
             dfr[L[lf]], dlo[L[lf]], dhi[L[lf]] = True, A[L[lf]], lad[L[lf], jleaf[lf]]
             deeper = ~adv & ~lf
@@ -170,6 +184,12 @@ def _march(surface, o, d, t0, t1, tol_rel, max_iterations, exits, budget=2048, m
             stop[r] = leaf(idx[r], dlo[r], dhi[r], fv[:, 0], fv[:, 1])
             a[idx[r]], h[idx[r]] = dhi[r], 2.0 * (dhi[r] - dlo[r])
         active[idx[stop | (a[idx] >= T1)]] = False
+        # a long unresolved run (NaN, zero or tangent stretch) is crossed with doubling leaves, not walked
+        open_ = n_run[idx] > 0
+        long_run = open_ & (n_run[idx] > run_leaves)
+        coarse[idx] = torch.where(open_, torch.where(long_run, (2.0 * coarse[idx]).clamp(max=1.0 / tol_rel),
+                                                     coarse[idx]), 1.0)
+        h[idx] = torch.where(long_run, 2.0 * h[idx], h[idx])
     close_runs(torch.arange(N, device=dev))
     unfinished = active & ~found                                        # undecided first hit
     no_exit = found & torch.isinf(ex_lo)                                # chord cut by the range (or the cap)

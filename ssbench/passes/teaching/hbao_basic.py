@@ -16,7 +16,7 @@ import torch
 
 from ...gbuffer import GBuffer
 from ..common import AOResult, make_generator
-from ..hbao import HBAOParams, _check, noise_texture
+from ..hbao import HBAOParams, check_inputs, noise_texture
 
 
 def hbao_basic(gbuffer: GBuffer, params: HBAOParams = HBAOParams(),
@@ -30,7 +30,7 @@ def hbao_basic(gbuffer: GBuffer, params: HBAOParams = HBAOParams(),
         >>> hbao_basic(g, HBAOParams(radius=1.0)).ao.flatten().tolist()
         [1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0]
     """
-    _check(gbuffer, params)
+    check_inputs(gbuffer, params)
     cam = gbuffer.camera
     B, _, H, W = gbuffer.view_z.shape
     near, far = cam.near, cam.far

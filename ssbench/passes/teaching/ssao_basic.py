@@ -21,7 +21,8 @@ import torch
 from ...gbuffer import GBuffer
 from ..common import AOResult, make_generator
 from ..sampling import hemisphere_kernel, noise_texture, sphere_kernel
-from ..ssao import REQUIRES, HemisphereSSAOParams, check_gbuffer
+from ..gbuffer_checks import check_gbuffer
+from ..ssao import REQUIRES, HemisphereSSAOParams
 from ..ssao_crytek import REQUIRES as CRYTEK_REQUIRES, CrytekSSAOParams
 
 TINY = sys.float_info.min                      # the smallest normal float64, torch.finfo(float64).tiny

@@ -18,7 +18,7 @@ import torch
 from ...gbuffer import GBuffer
 from ..common import make_generator
 from ..ssr_common import BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult
-from ..ssr_dda import DDASSRParams, _check, jitter_fractions, project_to_pixel_matrix
+from ..ssr_dda import DDASSRParams, check_inputs, jitter_fractions, project_to_pixel_matrix
 
 TINY = sys.float_info.min                              # torch.finfo(float64).tiny
 
@@ -54,7 +54,7 @@ def ssr_dda_basic(gbuffer: GBuffer, params: DDASSRParams = DDASSRParams(),
         >>> ssr_dda_basic(g).termination.flatten().tolist()      # rays toward the camera leave the screen
         [2, 2, 2, 2, 2, 2, 2, 2, 2, 2, 2, 2]
     """
-    _check(gbuffer, params)
+    check_inputs(gbuffer, params)
     cam = gbuffer.camera
     B, _, H, W = gbuffer.view_z.shape
     # uniforms

@@ -16,7 +16,7 @@ import torch
 
 from ...gbuffer import GBuffer
 from ..ssr_common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS, SSRResult
-from ..ssr_dda import _check, _rays, assemble
+from ..ssr_dda import _rays, assemble, check_inputs
 from ..ssr_dda_supercover import SupercoverDDASSRParams
 
 TINY = sys.float_info.min                              # torch.finfo(float64).tiny
@@ -78,7 +78,7 @@ def ssr_dda_supercover_basic(gbuffer: GBuffer,
         [2, 2, 2, 2, 2, 2, 2, 2, 2, 2, 2, 2]
     """
     dda = params.dda()
-    _check(gbuffer, dda)
+    check_inputs(gbuffer, dda)
     B, _, H, W = gbuffer.view_z.shape
     dt, dev = gbuffer.view_z.dtype, gbuffer.view_z.device
     s, sel, P0, P1 = _rays(gbuffer, dda, torch.zeros(B, 1, H, W, dtype=torch.float64))

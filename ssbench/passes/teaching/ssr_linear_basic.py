@@ -18,7 +18,7 @@ import torch
 
 from ...gbuffer import GBuffer
 from ..ssr_common import BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult
-from ..ssr_linear import MAX_BINARY_SEARCH_ITERATIONS, LinearSSRParams, _check, jitter_noise
+from ..ssr_linear import MAX_BINARY_SEARCH_ITERATIONS, LinearSSRParams, check_inputs, jitter_noise
 
 
 def ssr_linear_basic(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(),
@@ -34,7 +34,7 @@ def ssr_linear_basic(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams
         >>> ssr_linear_basic(g).termination.flatten().tolist()     # 2 = off screen: rays come back outward
         [2, 2, 2, 2, 2, 2, 2, 2, 2, 2, 2, 2]
     """
-    _check(gbuffer, params)
+    check_inputs(gbuffer, params)
     cam = gbuffer.camera
     B, _, H, W = gbuffer.view_z.shape
     CameraNear, CameraFar = cam.near, cam.far
@@ -89,6 +89,8 @@ def ssr_linear_basic(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams
         return [P[0] * 0.5 + 0.5, P[1] * 0.5 + 0.5]                  # hitPixel (uv)
 
     def rayIntersectsDepth(b, z, uv):
+        if not texture2D(mask, b, uv)[0]:                            # cleared background: nothing to hit
+            return False                                             # (three.js: if (-vZ >= cameraFar) continue)
         sceneZMax = getViewZ(getDepth(b, uv))
         dist = z - sceneZMax
         if backface:                                                 # rayIntersectsDepthBF: [back − T, front)

@@ -14,7 +14,9 @@ Preview encodings (:func:`preview_png`), background pixels black unless noted:
 """
 from __future__ import annotations
 
+import contextlib
 import os
+import secrets
 import shutil
 import tempfile
 from typing import Optional
@@ -66,20 +68,50 @@ def _umask_mode() -> int:
 
 
 def replace_dir(new: str, dest: str) -> str:
-    """Swap the finished folder ``new`` in as ``dest`` by renames, so ``dest`` is never seen half-written; the
-    previous ``dest`` (a folder, or a link, which is unlinked) is moved aside first and then removed."""
+    """Publish the finished folder ``new`` as ``dest`` so that ``dest`` always exists and is never half-written.
+
+    ``dest`` is a symbolic link to a hidden sibling folder ``.<name>-<token>``: ``new`` is renamed to such a
+    folder, a fresh link to it is renamed over ``dest`` (``rename(2)`` replaces a link atomically, so a reader
+    sees the old tree or the new one, never neither), and the previous target is then removed. Swaps of one
+    ``dest`` are serialised by an ``flock`` on ``.<name>.lock``, so concurrent publishers leave no stray
+    folders. A ``dest`` that is still a real folder (written by an older ssbench) is moved aside once.
+    """
     root = os.path.dirname(os.path.abspath(dest))
-    old = None
-    if os.path.lexists(dest):
-        old = tempfile.mkdtemp(prefix=".old-" + os.path.basename(dest) + "-", dir=root)
-        os.rmdir(old)
-        os.replace(dest, old)
-    os.replace(new, dest)
-    if old is not None and os.path.isdir(old) and not os.path.islink(old):
-        shutil.rmtree(old, ignore_errors=True)
-    elif old is not None:
-        os.unlink(old)
+    name = os.path.basename(os.path.abspath(dest))
+    with _locked(os.path.join(root, f".{name}.lock")):
+        target = tempfile.mkdtemp(prefix=f".{name}-", dir=root)
+        os.rmdir(target)
+        os.replace(new, target)
+        old = None
+        if os.path.islink(dest):
+            old = os.path.join(root, os.readlink(dest))
+        elif os.path.isdir(dest):                              # the pre-link layout: one last non-atomic swap
+            old = tempfile.mkdtemp(prefix=f".old-{name}-", dir=root)
+            os.rmdir(old)
+            os.replace(dest, old)
+        link = os.path.join(root, f".{name}.link-{os.getpid()}-{secrets.token_hex(4)}")
+        os.symlink(os.path.basename(target), link)
+        os.replace(link, dest)
+        if old is not None and os.path.basename(old).startswith(".") and os.path.isdir(old) \
+                and os.path.abspath(old) != os.path.abspath(target):
+            shutil.rmtree(old, ignore_errors=True)
     return dest
+
+
+@contextlib.contextmanager
+def _locked(path: str):
+    """An exclusive ``flock`` on ``path`` for the block (no lock where ``fcntl`` is missing)."""
+    try:
+        import fcntl
+    except ImportError:                                        # pragma: no cover - not POSIX
+        yield
+        return
+    with open(path, "a") as f:
+        fcntl.flock(f.fileno(), fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(f.fileno(), fcntl.LOCK_UN)
 
 
 def _atomic(path: str, suffix: str, write) -> str:

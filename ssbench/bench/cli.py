@@ -63,6 +63,8 @@ def cmd_sweep(args) -> int:
             params = ",".join(f"{k}={v}" for k, v in c.params.items()) or "defaults"
             print(f"  {c.config_id}  {c.scene} {c.method} {params} seed={c.seed} {c.width}x{c.height}")
         return 0
+    from ..cli._args import out_dir
+    out_dir(out)
     executor = "dask" if args.address else args.executor
     res = run_sweep(sweep, out, executor=executor, workers=args.workers, address=args.address,
                     resume=args.resume, retry_errors=args.retry_errors, progress=not args.quiet)

@@ -13,7 +13,10 @@ A rename is atomic, so a ``kill -9`` at any moment leaves each row either absent
 duplicate nor half-write a row. ``rows/`` is the truth: the consolidated tables are rewritten at the end of
 each run (a killed run leaves the previous ones, and its ``runs/<run_id>.json`` says ``"status": "running"``).
 Two invocations on one folder at once at worst compute a configuration twice; the later rename wins.
-Rows are JSON with ``NaN``/``Infinity`` as Python writes them.
+Rows are strict JSON (RFC 8259): a non-finite number is written as ``null`` and its place recorded in the
+row's ``"nonfinite"`` field (``{"rmse": "nan", "params.radius": "inf"}``), so :meth:`RowStore.read_row` gives
+back the same floats, and pandas/pyarrow/jq read the files as they are. A row file that does not parse is
+moved aside to ``rows/<config_id>.json.corrupt-<time>`` (with a warning naming it) and recomputed.
 
 Fields that differ between two runs of the same configuration are :data:`TIMING_FIELDS` (wall times) and
 :data:`METADATA_FIELDS`; :func:`stable` drops them, :func:`canonical_json` compares what is left.
@@ -29,7 +32,7 @@ from typing import Any, Optional, Sequence
 from .timing import TIMING_FIELDS as _PASS_TIMING
 
 __all__ = ["RowStore", "TIMING_FIELDS", "METADATA_FIELDS", "is_volatile", "stable", "canonical_json",
-           "new_run_id", "run_metadata", "tidy_columns"]
+           "new_run_id", "run_metadata", "tidy_columns", "encode_row", "decode_row", "dumps_row"]
 
 #: wall-time fields: the evaluation's own, the per-config wall time, and :mod:`ssbench.bench.timing`'s numbers
 TIMING_FIELDS = ("seconds", "seconds_runs", "blur_seconds", "gt_seconds", "gt_seconds_cos", "gt_seconds_flavour",
@@ -59,9 +62,65 @@ def _default(x: Any) -> Any:
     return str(x)
 
 
+NONFINITE = "nonfinite"
+
+
+def encode_row(row: dict) -> dict:
+    """``row`` with every non-finite float (at any depth of dicts) replaced by ``None`` and listed under
+    :data:`NONFINITE` by its dotted path; :func:`decode_row` undoes it.
+
+    Example:
+        >>> encode_row({"a": float("nan"), "p": {"r": float("-inf")}, "b": 1.0})
+        {'a': None, 'p': {'r': None}, 'b': 1.0, 'nonfinite': {'a': 'nan', 'p.r': '-inf'}}
+    """
+    marks: dict[str, str] = {}
+
+    def walk(x, path):
+        if isinstance(x, float) and x != x:
+            marks[path] = "nan"
+            return None
+        if isinstance(x, float) and x in (float("inf"), float("-inf")):
+            marks[path] = "inf" if x > 0 else "-inf"
+            return None
+        if isinstance(x, dict):
+            return {k: walk(v, f"{path}.{k}" if path else str(k)) for k, v in x.items()}
+        if hasattr(x, "tolist") and not isinstance(x, (list, tuple)):
+            return walk(x.tolist(), path)
+        if isinstance(x, (list, tuple)):       # (non-finite list items become null without a mark)
+            return [None if isinstance(v, float) and not (v == v and abs(v) != float("inf")) else walk(v, path)
+                    for v in x]
+        return x
+
+    out = walk({k: v for k, v in row.items() if k != NONFINITE}, "")
+    if marks:
+        out[NONFINITE] = marks
+    return out
+
+
+def decode_row(row: dict) -> dict:
+    """Inverse of :func:`encode_row`: put the marked non-finite floats back."""
+    marks = row.pop(NONFINITE, None) or {}
+    for path, kind in marks.items():
+        *head, last = path.split(".")
+        d = row
+        for k in head:
+            d = d.get(k) if isinstance(d, dict) else None
+        if isinstance(d, dict) and d.get(last) is None:
+            d[last] = float(kind)
+    return row
+
+
+def dumps_row(row: dict, **kw) -> str:
+    """Strict JSON text of ``row`` (:func:`encode_row`; never a bare ``NaN``)."""
+    return json.dumps(encode_row(row), default=_default, allow_nan=False, **kw)
+
+
 def canonical_json(row: dict) -> str:
-    """Sorted JSON of the stable part of ``row`` (``NaN == NaN`` here, unlike in a dict comparison)."""
-    return json.dumps(stable(row), sort_keys=True, default=_default)
+    """Sorted strict JSON of the stable part of ``row`` (``NaN == NaN`` here, unlike in a dict comparison); a row
+    read raw from a file (``null`` + ``nonfinite``) and the same row decoded give the same text."""
+    import copy
+    return json.dumps(stable(encode_row(decode_row(copy.deepcopy(row)))), sort_keys=True, default=_default,
+                      allow_nan=False)
 
 
 def new_run_id() -> str:
@@ -95,7 +154,7 @@ def write_tables(rows: Sequence[dict], base: str) -> dict[str, str]:
     atomically; returns ``{"jsonl": path, "parquet"|"csv": path}``."""
     d, name = os.path.split(base)
     out = {"jsonl": base + ".jsonl"}
-    write_text_atomic(out["jsonl"], "".join(json.dumps(r, default=_default) + "\n" for r in rows))
+    write_text_atomic(out["jsonl"], "".join(dumps_row(r) + "\n" for r in rows))
     cols = tidy_columns(rows)
     try:
         import pyarrow as pa
@@ -169,7 +228,7 @@ class RowStore:
         if not isinstance(cid, str) or not cid or os.sep in cid or cid.startswith("."):
             raise ValueError(f"row: needs a plain string config_id, got {cid!r}")
         path = os.path.join(self.rows_dir, f"{cid}.json")
-        self._write_atomic(path, json.dumps(row, default=_default) + "\n")
+        self._write_atomic(path, dumps_row(row) + "\n")
         return path
 
     def _clean_tmp(self) -> None:
@@ -191,8 +250,36 @@ class RowStore:
         return {n[:-5] for n in os.listdir(self.rows_dir) if n.endswith(".json") and not n.startswith(".")}
 
     def read_row(self, cid: str) -> dict:
-        with open(os.path.join(self.rows_dir, f"{cid}.json"), encoding="utf-8") as f:
-            return json.loads(f.read())
+        """The row ``cid`` (non-finite floats restored); ``ValueError`` naming the file when it does not parse."""
+        path = os.path.join(self.rows_dir, f"{cid}.json")
+        with open(path, encoding="utf-8") as f:
+            text = f.read()
+        try:
+            row = json.loads(text)
+        except ValueError as e:
+            raise ValueError(f"{path}: not a JSON row ({e})") from None
+        if not isinstance(row, dict) or row.get("config_id") != cid:
+            raise ValueError(f"{path}: not the row of {cid} (got {type(row).__name__} with config_id "
+                             f"{row.get('config_id') if isinstance(row, dict) else None!r})")
+        return decode_row(row)
+
+    def quarantine_corrupt(self, ids: Optional[Sequence[str]] = None) -> list[str]:
+        """Move every finished row among ``ids`` (all when None) that does not parse to
+        ``<file>.corrupt-<UTC time>``, warning with its name, so that it is recomputed; returns the new paths."""
+        import warnings
+        moved = []
+        done = self.done_ids()
+        for cid in sorted(done if ids is None else set(ids) & done):
+            try:
+                self.read_row(cid)
+            except (ValueError, UnicodeDecodeError) as e:
+                src = os.path.join(self.rows_dir, f"{cid}.json")
+                dst = src + ".corrupt-" + _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%dT%H%M%S%fZ")
+                os.replace(src, dst)
+                warnings.warn(f"sweep row {src} is corrupt ({str(e).split(' (', 1)[-1].rstrip(')')}); moved to "
+                              f"{dst} and recomputing it", RuntimeWarning, stacklevel=2)
+                moved.append(dst)
+        return moved
 
     def rows(self, ids: Optional[Sequence[str]] = None) -> list[dict]:
         """The finished rows with these ids, in this order (missing ones skipped); all when ``ids`` is None."""

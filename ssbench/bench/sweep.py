@@ -204,6 +204,8 @@ def run_sweep(sweep: Union[Sweep, str, "os.PathLike"], out: Optional[str] = None
     skip: set[str] = set()
     notes: list[str] = []
     if resume:
+        for path in store.quarantine_corrupt(ids):
+            notes.append(f"corrupt row moved to {path}; recomputed")
         done = store.done_ids()
         for cid in ids:
             if cid in done:

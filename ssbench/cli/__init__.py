@@ -3,7 +3,8 @@
 
 ``main(argv)`` returns the exit status instead of exiting, so it can be called in-process; user errors print
 ``ssbench: error: ...`` to stderr (exit status 2 for bad arguments, 1 for a failed run) without a traceback
-(set ``SSBENCH_DEBUG=1`` to get the traceback of a ``ValueError``/``KeyError`` instead).
+(set ``SSBENCH_DEBUG=1`` to get the traceback instead). Any other exception, an ``OSError`` included, is
+reported the same way, in one line; work above :data:`~ssbench.cli._args.LIMITS` needs ``--force``.
 """
 from __future__ import annotations
 
@@ -39,6 +40,7 @@ def _parser() -> _Parser:
     q.add_argument("--channels", type=_channels, default=tuple(CHANNELS),
                    help=f"comma-separated channels (default: all of {','.join(CHANNELS)})")
     q.add_argument("--no-cache", action="store_true", help="do not read or write the render cache")
+    q.add_argument("--force", action="store_true", help="run work above the size limits (ssbench/RELIABILITY.md)")
     from ..passes import AO_METHODS
     from ..reference.ao import WEIGHTINGS as AO_WEIGHTINGS
     q = sub.add_parser("ao", help="run one AO method on a scene and score it against the ray-traced GT")
@@ -59,6 +61,7 @@ def _parser() -> _Parser:
     q.add_argument("--out", metavar="DIR", help="write ao.png, gt.png, error maps and row.json here")
     q.add_argument("--json", action="store_true", help="print the row as JSON")
     q.add_argument("--no-cache", action="store_true", help="do not read or write the render cache")
+    q.add_argument("--force", action="store_true", help="run work above the size limits (ssbench/RELIABILITY.md)")
     from ..passes import SSR_METHODS
     q = sub.add_parser("ssr", help="run one SSR method on a scene and classify it against the exact reflections")
     q.add_argument("scene", metavar="SCENE", help="catalog name or scene file (.yaml, .toml, .xml)")
@@ -76,6 +79,7 @@ def _parser() -> _Parser:
     q.add_argument("--out", metavar="DIR", help="write colour, class, visit and error maps and row.json here")
     q.add_argument("--json", action="store_true", help="print the row as JSON")
     q.add_argument("--no-cache", action="store_true", help="do not read or write the render cache")
+    q.add_argument("--force", action="store_true", help="run work above the size limits (ssbench/RELIABILITY.md)")
     from ..passes import IMPLICIT_METHODS
     q = sub.add_parser("implicit", help="ray cast an implicit-surface scene over frames, scored against the "
                                         "certified first hit")
@@ -95,6 +99,7 @@ def _parser() -> _Parser:
     q.add_argument("--fps", type=_positive("fps"), default=10, help="frames per second of the GIF (10)")
     q.add_argument("--json", action="store_true", help="print the row as JSON")
     q.add_argument("--no-cache", action="store_true", help="do not read or write the reference cache")
+    q.add_argument("--force", action="store_true", help="run work above the size limits (ssbench/RELIABILITY.md)")
     from ..bench.cli import add_sweep_parser
     from ..tune.cli import add_tune_parser
     add_sweep_parser(sub)
@@ -156,6 +161,8 @@ _COMMANDS["tune"] = _cmd_tune
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run the ``ssbench`` command line; returns the exit status."""
     args = None
+    import warnings
+    warnings.formatwarning = lambda message, category, *rest, **kw: f"ssbench: warning: {message}\n"
     try:
         args = _parser().parse_args(argv)
         return _COMMANDS[args.command](args)
@@ -180,6 +187,19 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         resume = " (re-run the same command to resume)" if getattr(args, "command", None) == "sweep" else ""
         print(f"ssbench: interrupted{resume}", file=sys.stderr)
         return 130
+    except OSError as e:                                     # a file or folder the run could not read or write
+        if os.environ.get("SSBENCH_DEBUG"):
+            raise
+        where = f"{e.filename}: " if e.filename else ""
+        print(f"ssbench: error: {where}{e.strerror or e}", file=sys.stderr)
+        return 1
+    except Exception as e:                                   # never a traceback: one line, and how to get it
+        if os.environ.get("SSBENCH_DEBUG"):
+            raise
+        msg = str(e).strip().splitlines()[0] if str(e).strip() else ""
+        print(f"ssbench: error: {type(e).__name__}: {msg} (set SSBENCH_DEBUG=1 for the traceback)",
+              file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -167,3 +167,40 @@ def write_row_json(out_dir: str, row: dict) -> str:
             json.dump(row, f, indent=2, default=str)
             f.write("\n")
     return _atomic(os.path.join(out_dir, "row.json"), ".json", write)
+
+
+#: work above these limits is refused unless ``--force`` (documented in ``ssbench/RELIABILITY.md``): an image
+#: of more pixels than 8192×8192, more ground-truth rays in all than 2^30 (Dr.Jit arrays stop at 2^32
+#: entries) or more implicit frames than 10 000 is far more likely a typo than a plan
+LIMITS = {"pixels": 8192 * 8192, "rays": 2 ** 30, "frames": 10_000}
+
+
+def guard_work(*, force: bool, width: int, height: int, rays: int = 1, frames: int = 1,
+               size_args: str = "--width/--height", rays_arg: str = "--rays") -> None:
+    """Refuse work above :data:`LIMITS` with a usage error naming the argument, unless ``force``."""
+    if force:
+        return
+    px = int(width) * int(height)
+    if px > LIMITS["pixels"]:
+        raise _UsageError(f"argument {size_args}: {width}x{height} = {px:.3g} pixels exceeds the limit of "
+                          f"{LIMITS['pixels']:.3g} (8192x8192); pass --force to try anyway")
+    if px * int(rays) > LIMITS["rays"]:
+        raise _UsageError(f"argument {rays_arg}: {rays} rays x {px} pixels = {px * int(rays):.3g} exceeds the "
+                          f"limit of {LIMITS['rays']:.3g} rays; lower it or pass --force")
+    if int(frames) > LIMITS["frames"]:
+        raise _UsageError(f"argument --frames: {frames} exceeds the limit of {LIMITS['frames']}; "
+                          f"pass --force to run them anyway")
+
+
+def out_dir(path: str, arg: str = "--out") -> str:
+    """Create the output folder ``path`` up front (before any work), or raise a usage error naming ``arg``."""
+    import os
+    if os.path.exists(path) and not os.path.isdir(path):
+        raise _UsageError(f"argument {arg}: {path!r} exists and is not a folder")
+    try:
+        os.makedirs(path, exist_ok=True)
+    except OSError as e:
+        raise _UsageError(f"argument {arg}: cannot create {path!r}: {e.strerror or e}") from None
+    if not os.access(path, os.W_OK):
+        raise _UsageError(f"argument {arg}: {path!r} is not writable")
+    return path

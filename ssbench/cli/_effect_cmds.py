@@ -5,7 +5,7 @@ import json
 import os
 import sys
 
-from ._args import _UsageError, coerce_params, write_row_json
+from ._args import _UsageError, coerce_params, guard_work, out_dir, write_row_json
 from ._scene_cmds import _load_scene
 
 
@@ -58,6 +58,9 @@ def _cmd_ao(args) -> int:
     if args.radius is not None and rname in params:
         raise _UsageError(f"argument --radius: conflicts with --param {rname}={params[rname]}; give one of them")
     _check_params(params_cls, params, args.method)
+    guard_work(force=args.force, width=args.width, height=args.height, rays=args.rays)
+    if args.out:
+        out_dir(args.out)
     try:
         ev = evaluate.run_ao(sc, args.method, params, width=args.width, height=args.height, radius=args.radius,
                              rays=args.rays, weighting=args.weighting, seed=args.seed, repeats=args.repeats,
@@ -117,6 +120,9 @@ def _cmd_ssr(args) -> int:
     from ..passes import ssr_method
     sc, params_cls, params = _scene_and_params(args, ssr_method)
     _check_params(params_cls, params, args.method)
+    guard_work(force=args.force, width=args.width, height=args.height, rays=args.spp, rays_arg="--spp")
+    if args.out:
+        out_dir(args.out)
     try:
         ev = evaluate.run_ssr(sc, args.method, params, width=args.width, height=args.height, seed=args.seed,
                               repeats=args.repeats, spp=args.spp, k_px=args.k_px, debug=bool(args.out),

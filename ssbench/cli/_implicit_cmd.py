@@ -4,7 +4,7 @@ from __future__ import annotations
 import json
 import os
 
-from ._args import _UsageError, coerce_params, write_row_json
+from ._args import _UsageError, coerce_params, guard_work, out_dir, write_row_json
 from ._effect_cmds import _check_params
 
 
@@ -68,6 +68,10 @@ def _cmd_implicit(args) -> int:
     _check_params(params_cls, params, args.method)
     if args.gif and not args.out:
         raise _UsageError("argument --gif: needs --out DIR")
+    w0, h0 = args.size or (sc.camera.width, sc.camera.height)
+    guard_work(force=args.force, width=w0, height=h0, frames=args.frames, size_args="--size")
+    if args.out:
+        out_dir(args.out)
     from ..report import implicit_section as S
     frames = []
 

@@ -5,7 +5,7 @@ import json
 import os
 import time
 
-from ._args import _UsageError
+from ._args import _UsageError, guard_work, out_dir
 
 
 def _cmd_info(args) -> int:
@@ -61,6 +61,8 @@ def _cmd_render(args) -> int:
     from ..reference import backend
     from ..report.build import render_scene
     sc = _load_scene(args.scene)
+    guard_work(force=args.force, width=args.width or sc.camera.width, height=args.height or sc.camera.height)
+    out_dir(args.out)
     t_start = time.perf_counter()
     info = backend.info()                                    # probe + import Mitsuba outside the timings
     backend_init_s = time.perf_counter() - t_start
@@ -109,6 +111,7 @@ def _cmd_report(args) -> int:
         print(f"report: {render_run(resolve_run(args.from_run, os.path.abspath(args.out), 'RUN'))}")
         return 0
     from ..report.build import build_report
+    out_dir(args.out)
     off = lambda flag: False if flag else None                # noqa: E731  (None: the section's default)
     index = build_report(args.out, scenes=args.scenes, width=args.width, height=args.height, spp=args.spp,
                          seed=args.seed, use_cache=not args.fresh_previews, gt_cache=not args.no_gt_cache, ao=not args.no_ao,

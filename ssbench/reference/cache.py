@@ -66,7 +66,7 @@ def load(key: str, meta: Optional[dict] = None) -> Optional[dict[str, np.ndarray
     if not enabled():
         return None
     p = path_for(key)
-    if not os.path.exists(p):
+    if not os.path.isfile(p):
         return None
     try:
         with np.load(p, allow_pickle=False) as z:
@@ -91,15 +91,36 @@ def store(key: str, arrays: dict[str, np.ndarray], meta: Optional[dict] = None) 
     if not enabled():
         return
     p = path_for(key)
-    os.makedirs(os.path.dirname(p), exist_ok=True)
     m = dict(meta or {}, sha256=_digest(arrays))
     payload = dict(arrays, __meta__=np.frombuffer(json.dumps(m).encode(), dtype=np.uint8))
-    fd, tmp = tempfile.mkstemp(dir=os.path.dirname(p), suffix=".tmp")
+    try:
+        os.makedirs(os.path.dirname(p), exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=os.path.dirname(p), suffix=".tmp")
+    except OSError as e:                     # a file where the folder should be, no permission, disk full ...
+        _warn_unwritable(e)
+        return
     try:
         with os.fdopen(fd, "wb") as f:
             np.savez(f, **payload)
         os.replace(tmp, p)
+    except OSError as e:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        _warn_unwritable(e)
     except BaseException:
         if os.path.exists(tmp):
             os.remove(tmp)
         raise
+
+
+_WARNED: set = set()
+
+
+def _warn_unwritable(e: OSError) -> None:
+    """One warning per cache folder: the run goes on uncached (results are the same, only slower next time)."""
+    d = cache_dir()
+    if d not in _WARNED:
+        _WARNED.add(d)
+        warnings.warn(f"ssbench cache: cannot write to {d} ({e.strerror or e}); running uncached "
+                      f"(set SSBENCH_CACHE_DIR to a writable folder, or SSBENCH_CACHE=0)", RuntimeWarning,
+                      stacklevel=3)

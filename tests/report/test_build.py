@@ -38,7 +38,8 @@ def test_run_dir_and_latest(report):
     for d in (run_dir, latest):
         for f in ("index.html", "summary.md", "meta.json"):
             assert os.path.isfile(os.path.join(d, f)), (d, f)
-    assert not [n for n in os.listdir(root) if n.startswith(".")]            # no temporaries left behind
+    published = {".latest.lock", os.readlink(latest)}                    # latest -> .latest-<token>/
+    assert not [n for n in os.listdir(root) if n.startswith(".") and n not in published]   # no temporaries
 
 
 @pytest.mark.slow
@@ -102,7 +103,8 @@ def test_refresh_latest_replaces_previous_copy(tmp_path):
         refresh_latest(str(root / run), str(root))
         assert (root / "latest" / "index.html").read_text() == text
     assert sorted(os.listdir(root / "latest" / "img")) == ["b.png"]         # a full copy, not a merge
-    assert sorted(os.listdir(root)) == ["a", "b", "latest"]
+    assert sorted(n for n in os.listdir(root) if not n.startswith(".")) == ["a", "b", "latest"]
+    assert os.path.islink(root / "latest") and len([n for n in os.listdir(root) if n.startswith(".latest-")]) == 1
 
 
 def test_unknown_scene_is_rejected_before_rendering(tmp_path):

@@ -115,7 +115,8 @@ def test_the_comparison_folder_replaces_itself_and_leaves_runs_alone(tmp_path):
     assert '<tr class="changed"><td>* git commit</td><td>abc</td><td>def</td></tr>' in html
     (tmp_path / "compare-a-vs-b" / "stale.txt").write_text("x")
     assert write_comparison(c, str(tmp_path)) == dest and "stale.txt" not in os.listdir(dest)
-    assert sorted(os.listdir(tmp_path)) == ["a", "b", "compare-a-vs-b"]      # no temporaries left behind
+    published = {".compare-a-vs-b.lock", os.readlink(dest)}                  # dest -> .compare-a-vs-b-<token>/
+    assert sorted(n for n in os.listdir(tmp_path) if n not in published) == ["a", "b", "compare-a-vs-b"]
     assert {p: os.stat(p).st_mtime_ns for d in (a, b) for p in d.rglob("*")} == before
 
 

@@ -126,3 +126,40 @@ def test_write_rgb_png_round_trips_and_rejects_other_arrays(tmp_path):
         with pytest.raises(ValueError, match="^rgb:"):
             write_rgb_png(str(tmp_path / "bad.png"), bad)
     assert sorted(os.listdir(tmp_path)) == ["x.png"]                  # nothing half-written
+
+
+def _swapper(root: str, tag: str, n: int) -> None:
+    import tempfile as _t
+    from ssbench.io import replace_dir
+    for i in range(n):
+        new = _t.mkdtemp(prefix=".new-", dir=root)
+        with open(os.path.join(new, "index.html"), "w") as f:
+            f.write(f"{tag}{i}")
+        replace_dir(new, os.path.join(root, "latest"))
+
+
+@pytest.mark.slow
+def test_latest_is_present_in_every_poll_of_two_concurrent_swappers(tmp_path):
+    """Issue 17, finding 8: the folder swap had a window without ``latest`` (89 errors and 5 stray
+    ``.old-latest-*`` folders in 30k swaps with two swappers); now a symlink is renamed over it, under a lock."""
+    import multiprocessing as mp
+    root = str(tmp_path)
+    _swapper(root, "init", 1)
+    ctx = mp.get_context("fork")
+    procs = [ctx.Process(target=_swapper, args=(root, t, 300)) for t in ("a", "b")]
+    for p in procs:
+        p.start()
+    polls = missing = 0
+    while any(p.is_alive() for p in procs):
+        polls += 1
+        try:
+            with open(os.path.join(root, "latest", "index.html")) as f:
+                assert f.read()[:1] in ("i", "a", "b")
+        except FileNotFoundError:
+            missing += 1
+    for p in procs:
+        p.join()
+        assert p.exitcode == 0
+    assert polls > 100 and missing == 0
+    link = os.readlink(os.path.join(root, "latest"))
+    assert sorted(n for n in os.listdir(root) if n not in (link, ".latest.lock")) == ["latest"]   # nothing stray

@@ -37,7 +37,7 @@ import os
 import re
 from typing import Any, Mapping, Optional
 
-from ..scenes.files import read_toml, read_yaml
+from ..scenes.files import read_text, read_toml, read_yaml
 from ..scenes.model import SceneError
 from .effects import EFFECTS, Effect, get_effect
 from .grids import (SweepError, _coerce, _dedupe, _field_kinds, _grid, _names_hint, _SweepCtx, expand_logrange,
@@ -293,6 +293,8 @@ def load_sweep(path: "str | os.PathLike") -> Sweep:
     ext = os.path.splitext(path)[1].lower()
     if ext not in (".yaml", ".yml", ".toml"):
         raise SweepError(f"{path}:1: unknown sweep file type {ext!r} (use .yaml, .yml or .toml)")
-    with open(path, encoding="utf-8") as f:
-        text = f.read()
+    try:
+        text = read_text(path)
+    except SceneError as e:
+        raise SweepError(str(e)) from None
     return parse_sweep(text, path, "toml" if ext == ".toml" else "yaml", os.path.dirname(os.path.abspath(path)))

@@ -185,6 +185,19 @@ def parse_toml(text: str, filename: str = "<toml>", base_dir: str | None = None)
     return scene_from_dict(data, locate, filename, base_dir)
 
 
+def read_text(path: str) -> str:
+    """The UTF-8 text of a scene file; a file that is not UTF-8 is a :class:`SceneError` naming file:line:column."""
+    with open(path, "rb") as f:
+        raw = f.read()
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as e:
+        line = raw[:e.start].count(b"\n") + 1
+        col = e.start - (raw.rfind(b"\n", 0, e.start) + 1) + 1
+        raise SceneError(f"{path}:{line}: byte 0x{raw[e.start]:02x} at column {col} is not UTF-8; scene files are "
+                         f"UTF-8 text (re-save it as UTF-8)") from None
+
+
 def read_data_file(path: str | os.PathLike) -> tuple[Any, Locator]:
     """Read a ``.yaml``/``.yml`` or ``.toml`` file into plain data and its locator (shared by the validators)."""
     path = os.fspath(path)
@@ -193,8 +206,7 @@ def read_data_file(path: str | os.PathLike) -> tuple[Any, Locator]:
         raise FileNotFoundError(f"name_or_path: scene file not found: {path}")
     if ext not in (".yaml", ".yml", ".toml"):
         raise SceneError(f"{path}:1: unknown scene file type {ext!r} (use .yaml, .yml or .toml)")
-    with open(path, encoding="utf-8") as f:
-        text = f.read()
+    text = read_text(path)
     return read_yaml(text, path) if ext in (".yaml", ".yml") else read_toml(text, path)
 
 
@@ -204,8 +216,7 @@ def load_file(path: str | os.PathLike) -> Scene:
     ext = os.path.splitext(path)[1].lower()
     if not os.path.isfile(path):
         raise FileNotFoundError(f"name_or_path: scene file not found: {path}")
-    with open(path, encoding="utf-8") as f:
-        text = f.read()
+    text = read_text(path)
     base = os.path.dirname(os.path.abspath(path))
     if ext in (".yaml", ".yml"):
         return parse_yaml(text, path, base)

@@ -56,6 +56,28 @@ def _path_str(path: Path) -> str:
     return out or "<root>"
 
 
+
+def kind_of(v: Any) -> str:
+    """What a scene-file value is, in the file's words (a YAML list is "a list", whatever class holds it).
+
+    Example:
+        >>> kind_of([1, 2]), kind_of({"a": 1}), kind_of("x"), kind_of(None), kind_of(2.5)
+        ('a list', 'a mapping', "a string ('x')", 'null', 'a number (2.5)')
+    """
+    if v is None:
+        return "null"
+    if isinstance(v, bool):
+        return f"a boolean ({str(v).lower()})"
+    if isinstance(v, dict):
+        return "a mapping"
+    if isinstance(v, (list, tuple)):
+        return "a list"
+    if isinstance(v, str):
+        return f"a string ({v[:40]!r})"
+    if isinstance(v, (int, float)):
+        return f"a number ({v!r})"
+    return type(v).__name__
+
 class _Ctx:
     def __init__(self, locate: Locator, base_dir: str | None):
         self.locate, self.base_dir = locate, base_dir
@@ -66,7 +88,7 @@ class _Ctx:
     # ------------------------------------------------------------ typed getters
     def mapping(self, v: Any, path: Path) -> dict:
         if not isinstance(v, dict):
-            raise self.fail(path, f"expected a mapping, got {type(v).__name__}")
+            raise self.fail(path, f"expected a mapping, got {kind_of(v)}")
         return v
 
     def keys(self, d: dict, allowed: set, path: Path) -> None:

@@ -110,3 +110,33 @@ def test_real_rows_with_timing(tmp_path):
         ev = run_ssr("reflective_floor", method, params, width=32, height=24, spp=2, flip=False, repeats=1)
         assert r["floor_samples"] == max(1, round(float(ev.result.steps.float().mean())))   # reads per pixel
         assert r["floor_ratio"] > 0 and 0 <= r["frac_correct"] <= 1
+
+
+def test_a_corrupt_row_is_quarantined_named_and_recomputed(toy, tmp_path):
+    """Issue 17, finding 6: a corrupt row file stopped the resume ('Unterminated string …') without naming it."""
+    s = _toy()
+    first = run_sweep(s, tmp_path, progress=False)
+    victim = first.rows[3]["config_id"]
+    path = tmp_path / "rows" / f"{victim}.json"
+    path.write_text('{"config_id": "' + victim[:5])                             # a torn write
+    CALLS.clear()
+    with pytest.warns(RuntimeWarning, match=f"sweep row .*{victim}.json is corrupt"):
+        again = run_sweep(s, tmp_path, progress=False)
+    assert again.ran == 1 and again.skipped == 11 and len(CALLS) == 1
+    aside = [n for n in os.listdir(tmp_path / "rows") if n.startswith(f"{victim}.json.corrupt-")]
+    assert len(aside) == 1 and any(aside[0] in n for n in again.notes)
+    assert [canonical_json(r) for r in again.rows] == [canonical_json(r) for r in first.rows]
+
+
+def test_rows_are_strict_json_and_round_trip_non_finite_values(toy, tmp_path):
+    """Issue 17, finding 9: rows.jsonl held a bare NaN (not JSON)."""
+    first = run_sweep(_toy(), tmp_path, progress=False)
+    strict = lambda text: json.loads(text, parse_constant=lambda c: pytest.fail(f"bare {c} in a row"))  # noqa: E731
+    lines = [strict(x) for x in (tmp_path / "rows.jsonl").read_text().splitlines()]
+    ok = [r for r in lines if r.get("error") is None]
+    assert ok and all(r["nan_metric"] is None and r["nonfinite"]["nan_metric"] == "nan" for r in ok)
+    for name in os.listdir(tmp_path / "rows"):
+        strict((tmp_path / "rows" / name).read_text())
+    assert all(math.isnan(r["nan_metric"]) for r in first.rows if r.get("error") is None)
+    again = run_sweep(_toy(), tmp_path, progress=False)                         # read back from the files
+    assert all(math.isnan(r["nan_metric"]) for r in again.rows if r.get("error") is None)

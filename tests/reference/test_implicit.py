@@ -240,3 +240,25 @@ def test_bad_input_names_the_argument():
         dense_march(surf, cam, steps=0)
     with pytest.raises(ValueError, match="backend"):
         dense_march(surf, cam, backend="cuda")
+
+
+RING = {"id": "ring", "f": "length(vec3(length(vec3(x, 0, z)) - 1, y, 0)) - 0.3",
+        "bounds": [[-1.4, -0.4, -1.4], [1.4, 0.4, 1.4]]}
+
+
+@pytest.mark.parametrize("f", ["max(length(p) - 1, 0)",                      # f = 0 on a solid ball
+                               "length(p) - 0.5 + 0*log(length(p) - 1)"])   # NaN everywhere inside |p| < 1
+def test_degenerate_regions_end_in_bounded_iterations(f):
+    """Issue 17, finding 4: a zero or NaN region was walked one leaf per iteration (10 of 10 CLI runs past 60 s
+    at 40×30); a long unresolved run is now crossed with doubling leaves. Such rays are never certified,
+    the ring behind the ball is still found, and nothing is unfinished."""
+    sc = load({"name": "degenerate", "camera": {"eye": [0, 2, 5], "target": [0, 0, 0], "up": [0, 1, 0],
+                                                 "fovy": 45, "width": 40, "height": 30, "near": 0.1, "far": 12},
+               "implicit": [{"id": "a", "f": f, "bounds": [[-1.4, -1.4, -1.4], [1.4, 1.4, 1.4]]}, RING]})
+    for exits in (False, True):
+        ref = implicit(sc.surface(0), sc.camera_at(0), exits=exits, use_cache=False)
+        assert ref.iterations <= 1000, ref.iterations                     # was the 20000 cap, ~5 min
+        assert not bool(ref.unfinished.any())
+        through = torch.isfinite(ref.ambiguous_t)                            # rays that met the region
+        assert int(through.sum()) > 50 and not bool(ref.certified[through].any())
+        assert int((ref.hit & (ref.object_index == 1)).sum()) > 50                # the ring is hit

@@ -10,6 +10,9 @@ Every pass calls :func:`check_gbuffer` with the channels it reads. The contract 
 * ``normal`` is finite and unit length on the mask, within a tolerance that scales with the dtype's epsilon
   (:func:`normal_tolerance`); background normals are not read.
 * the channels in ``finite`` (``color``, ``position``, ``back_z``, …) hold no NaN.
+* float16 and bfloat16 G-buffers are computed in float32 (:func:`half_in_float32`): their normals are checked at
+  their own dtype's tolerance and renormalised, and the float outputs come back in the input dtype (hit
+  positions stay float32: :data:`KEEP_FLOAT32`).
 * on the ``meta`` device the AO passes return correctly shaped meta tensors; the SSR marchers, whose work
   depends on values, raise ``ValueError``.
 
@@ -19,6 +22,8 @@ and when checks are switched off (:mod:`ssbench.checks`).
 """
 from __future__ import annotations
 
+import functools
+from dataclasses import fields, replace
 from typing import Iterable
 
 import torch
@@ -122,3 +127,36 @@ def check_gbuffer(gbuffer: GBuffer, requires: Iterable[str], *, finite: Iterable
         t = getattr(gbuffer, name)
         if t is not None and bool(torch.isnan(t).any()):
             raise ValueError(f"{name}: contains NaN")
+
+
+HALF = (torch.float16, torch.bfloat16)
+#: result fields that stay float32 for half inputs: float16 holds a pixel coordinate above 2048 only to 2 px
+#: (and bfloat16 above 256), so a hit's position would name another texel than the one the pass read
+KEEP_FLOAT32 = ("hit_pixel", "hit_view")
+
+
+def half_in_float32(fn):
+    """Decorator of a pass ``fn(gbuffer, ...)``: a float16/bfloat16 G-buffer is promoted to float32, the pass
+    runs, and its result's float32 tensors are cast back to the input dtype (except :data:`KEEP_FLOAT32`).
+
+    Half precision cannot carry a pass's intermediate values (squared view-space distances overflow float16
+    above 256, and a projection at near = 1e-6 underflows), so the pass computes in float32, as a GPU shader
+    reading a half-float G-buffer does. Normals within :func:`normal_tolerance` of unit length *for the input
+    dtype* are renormalised after the promotion; the others stay as they are and are refused by the pass's
+    checks. Other dtypes, and the ``meta`` device, pass through untouched.
+    """
+    @functools.wraps(fn)
+    def wrapper(gbuffer, *args, **kwargs):
+        z = getattr(gbuffer, "view_z", None)
+        if not isinstance(gbuffer, GBuffer) or not isinstance(z, torch.Tensor) or z.dtype not in HALF:
+            return fn(gbuffer, *args, **kwargs)
+        g32 = gbuffer.to(dtype=torch.float32)
+        if g32.normal is not None and g32.mask is not None and has_values(g32.normal):
+            n_len = length(g32.normal)
+            ok = g32.mask & ((n_len - 1).abs() <= normal_tolerance(z.dtype))
+            g32 = replace(g32, normal=torch.where(ok, g32.normal / n_len.clamp_min(1e-30), g32.normal))
+        out = fn(g32, *args, **kwargs)
+        cast = {f.name: getattr(out, f.name).to(z.dtype) for f in fields(out) if f.name not in KEEP_FLOAT32
+                and isinstance(getattr(out, f.name), torch.Tensor) and getattr(out, f.name).dtype == torch.float32}
+        return replace(out, **cast)
+    return wrapper

@@ -34,7 +34,7 @@ from torch import nn
 
 from ..gbuffer import GBuffer
 from .common import AOResult, check_count, check_radius, fetch, make_generator
-from .gbuffer_checks import check_gbuffer
+from .gbuffer_checks import check_gbuffer, half_in_float32
 from .gtao_parts import _cross, _dot, _hilbert_index, _unit, noise_buffer, slice_visibility  # noqa: F401
 
 FLAVOUR = "cosine"  # the ground-truth weighting this pass estimates (ssbench.reference.ao)
@@ -150,6 +150,7 @@ def check_inputs(gbuffer: GBuffer, params: GTAOParams) -> None:
     check_gbuffer(gbuffer, REQUIRES)
 
 
+@half_in_float32
 def gtao(gbuffer: GBuffer, params: GTAOParams = GTAOParams(), *, generator: Optional[torch.Generator] = None,
          debug: bool = False, bent_normals: bool = False) -> AOResult:
     """GTAO of a G-buffer, XeGTAO's main pass vectorised over pixels (loops over slices and steps only).
@@ -231,6 +232,7 @@ def gtao(gbuffer: GBuffer, params: GTAOParams = GTAOParams(), *, generator: Opti
         cx = col + torch.cat([off_x, -off_x], 1)                                     # (B, 2K, H, W)
         cy = row + torch.cat([off_y, -off_y], 1)
         on = (cx >= 0) & (cx < W) & (cy >= 0) & (cy < H)                             # off screen: ignored
+        cx, cy = torch.where(on, cx, col), torch.where(on, cy, row)      # (weight 0; huge r_px overflowed delta)
         zs = fetch(z, cx.clamp(0, W - 1).long(), cy.clamp(0, H - 1).long())[:, 0]     # (B, 2K, H, W)
         delta = (ray_x(cx) * -zs - P[0], ray_y(cy) * -zs - P[1], zs - P[2])
         dist = _dot(delta, delta).sqrt().clamp_min(tiny)

@@ -43,7 +43,7 @@ from torch import nn
 
 from ..gbuffer import GBuffer
 from .common import AOResult, check_count, check_radius, fetch_uv, make_generator
-from .gbuffer_checks import check_gbuffer
+from .gbuffer_checks import check_gbuffer, half_in_float32
 
 FLAVOUR = "obscurance"  # the ground-truth weighting this pass estimates (ssbench.reference.ao)
 #: continuous parameters ``ssbench tune`` may fit: name -> (lo, hi, relative to the ground-truth radius)
@@ -144,6 +144,7 @@ def _min_diff(P: torch.Tensor, Pa: torch.Tensor, Pb: torch.Tensor) -> torch.Tens
     return torch.where((v1 * v1).sum(1, keepdim=True) < (v2 * v2).sum(1, keepdim=True), v1, v2)
 
 
+@half_in_float32
 def hbao(gbuffer: GBuffer, params: HBAOParams = HBAOParams(), *, generator: Optional[torch.Generator] = None,
          debug: bool = False) -> AOResult:
     """Horizon-based ambient occlusion of a G-buffer (seed 002 §3.3, vectorised over pixels and directions).

@@ -44,7 +44,7 @@ from torch import nn
 from ..camera import Camera
 from ..gbuffer import GBuffer
 from .common import AOResult, check_count, check_radius, fetch_uv, length, make_generator
-from .gbuffer_checks import check_gbuffer
+from .gbuffer_checks import check_gbuffer, half_in_float32
 from .sampling import hemisphere_kernel, noise_texel, noise_texture
 
 FLAVOUR = "volume_hemisphere"  # the ground truth this pass estimates (ssbench.reference.ao_volume)
@@ -167,6 +167,7 @@ def ssao_result(count: torch.Tensor, p, mask: torch.Tensor, *, dtype: torch.dtyp
     return AOResult(ao=ao, debug=extra)
 
 
+@half_in_float32
 def hemisphere_ssao(gbuffer: GBuffer, params: HemisphereSSAOParams = HemisphereSSAOParams(), *,
                     generator: torch.Generator | None = None, debug: bool = False) -> AOResult:
     r"""Hemisphere SSAO of seed 002 §2.2 (see the module docstring for the algorithm and edge cases).

@@ -37,7 +37,7 @@ from torch import nn
 from ..gbuffer import GBuffer
 from .common import AOResult, make_generator
 from .sampling import noise_texel, noise_texture, sphere_kernel
-from .gbuffer_checks import check_gbuffer
+from .gbuffer_checks import check_gbuffer, half_in_float32
 from .ssao import check_ssao_params, range_check_count, ssao_result, view_position
 
 FLAVOUR = "volume_sphere"  # the ground truth this pass estimates (ssbench.reference.ao_volume)
@@ -80,6 +80,7 @@ class CrytekSSAOParams:
         check_ssao_params(self)
 
 
+@half_in_float32
 def crytek_ssao(gbuffer: GBuffer, params: CrytekSSAOParams = CrytekSSAOParams(), *,
                 generator: torch.Generator | None = None, debug: bool = False) -> AOResult:
     r"""Crytek's sphere SSAO (see the module docstring).

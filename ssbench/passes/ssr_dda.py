@@ -62,7 +62,7 @@ from torch import nn
 from ..camera import Camera
 from ..gbuffer import GBuffer
 from .common import check_count, fetch, length, make_generator
-from .gbuffer_checks import check_gbuffer
+from .gbuffer_checks import check_gbuffer, half_in_float32
 from .ssr_common import (BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult,
                          clip_ray_length, reflection_rays)
 from .ssr_dda_refine import _count, _fetch, _refine, _z
@@ -249,6 +249,7 @@ def _march(s: dict, tex, params: DDASSRParams, H: int, W: int, visits: Optional[
     return out
 
 
+@half_in_float32
 def ssr_dda(gbuffer: GBuffer, params: DDASSRParams = DDASSRParams(), *, generator: Optional[torch.Generator] = None,
             debug: bool = False) -> SSRResult:
     """Screen-space reflections by perspective-correct DDA (seed 000 §2.2), vectorised over pixels.
@@ -308,6 +309,8 @@ def assemble(gbuffer: GBuffer, params, sel: torch.Tensor, P1: torch.Tensor, o: d
     # the texel is floored in the march's own dtype: a hit at 8.999999999999998 must not round to 9 first
     texel = image(torch.where(is_hit, o["P"], 0.0).floor(), 0.0, torch.float64)
     col, row = texel[:, 0].clamp(0, W - 1).long(), texel[:, 1].clamp(0, H - 1).long()
+    lo, hi = texel.to(dt), torch.nextafter((texel + 1).to(dt), texel.to(dt))      # and hit_pixel stays in it
+    hit_pixel = torch.where(hit, torch.minimum(torch.maximum(hit_pixel, lo), hi), hit_pixel)
     raw = torch.where(hit, fetch(gbuffer.color.to(dt), col, row), 0.0)            # (B, 3, H, W)
     origin = cam.uv_to_view(cam.uv_grid(dt, dev).unsqueeze(0), gbuffer.view_z)
     at = hit_pixel if params.edge_fade_mode == "circular" else cam.pixel_centers(dt, dev)[None]   # hit / vUv

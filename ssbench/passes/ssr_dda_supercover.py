@@ -38,6 +38,7 @@ from torch import nn
 from ..gbuffer import GBuffer
 from .common import check_count
 from .ssr_common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS, SSRResult
+from .gbuffer_checks import half_in_float32
 from .ssr_dda import (DEFAULTS_SOURCE, EQUAL_SETTINGS, REQUIRES, DDASSRParams, _count, _rays, _z, check_inputs,
                       assemble)
 from .ssr_fade import EDGE_FADE_MODES
@@ -156,6 +157,7 @@ def _march(s: dict, tex, z_thickness: float, max_steps: int, H: int, W: int,
     return out
 
 
+@half_in_float32
 def ssr_dda_supercover(gbuffer: GBuffer, params: SupercoverDDASSRParams = SupercoverDDASSRParams(), *,
                        debug: bool = False) -> SSRResult:
     """Screen-space reflections walking every pixel the reflected ray's screen segment crosses, vectorised.

@@ -42,7 +42,7 @@ from torch import nn
 
 from ..gbuffer import GBuffer
 from .common import make_generator, uv_to_texel
-from .gbuffer_checks import check_gbuffer
+from .gbuffer_checks import check_gbuffer, half_in_float32
 from .ssr_common import (BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult,
                          clip_ray_length, reflection_rays)
 from .ssr_fade import EDGE_FADE_MODES, _positive, distance_fade, edge_fade
@@ -137,6 +137,7 @@ def _flat(t: torch.Tensor) -> torch.Tensor:                                     
     return t.permute(0, 2, 3, 1).reshape(-1, t.shape[1])
 
 
+@half_in_float32
 def ssr_linear(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(), *,
                generator: Optional[torch.Generator] = None, debug: bool = False,
                trace_pixel: Optional[tuple[int, int]] = None) -> SSRResult:

@@ -70,31 +70,32 @@ def _umask_mode() -> int:
 def replace_dir(new: str, dest: str) -> str:
     """Publish the finished folder ``new`` as ``dest`` so that ``dest`` always exists and is never half-written.
 
-    ``dest`` is a symbolic link to a hidden sibling folder ``.<name>-<token>``: ``new`` is renamed to such a
+    ``dest`` is a symbolic link to a hidden sibling folder ``.<name>@<token>``: ``new`` is renamed to such a
     folder, a fresh link to it is renamed over ``dest`` (``rename(2)`` replaces a link atomically, so a reader
-    sees the old tree or the new one, never neither), and the previous target is then removed. Swaps of one
-    ``dest`` are serialised by an ``flock`` on ``.<name>.lock``, so concurrent publishers leave no stray
-    folders. A ``dest`` that is still a real folder (written by an older ssbench) is moved aside once.
+    sees the old tree or the new one, never neither). The previous folder is kept until the next swap, so a
+    reader that resolved the old link (a browser fetching images) still finds its files; older ones are
+    removed. Swaps of one ``dest`` are serialised by an ``flock`` on ``.<name>.lock``, so concurrent
+    publishers leave nothing behind. A ``dest`` that is still a real folder (an older ssbench) is moved once.
     """
     root = os.path.dirname(os.path.abspath(dest))
     name = os.path.basename(os.path.abspath(dest))
     with _locked(os.path.join(root, f".{name}.lock")):
-        target = tempfile.mkdtemp(prefix=f".{name}-", dir=root)
+        target = tempfile.mkdtemp(prefix=f".{name}@", dir=root)
         os.rmdir(target)
         os.replace(new, target)
-        old = None
-        if os.path.islink(dest):
-            old = os.path.join(root, os.readlink(dest))
-        elif os.path.isdir(dest):                              # the pre-link layout: one last non-atomic swap
-            old = tempfile.mkdtemp(prefix=f".old-{name}-", dir=root)
-            os.rmdir(old)
-            os.replace(dest, old)
+        previous = os.readlink(dest) if os.path.islink(dest) else None
+        if previous is None and os.path.isdir(dest):           # the pre-link layout: one last non-atomic swap
+            aside = tempfile.mkdtemp(prefix=f".{name}@", dir=root)
+            os.rmdir(aside)
+            os.replace(dest, aside)
+            previous = os.path.basename(aside)
         link = os.path.join(root, f".{name}.link-{os.getpid()}-{secrets.token_hex(4)}")
         os.symlink(os.path.basename(target), link)
         os.replace(link, dest)
-        if old is not None and os.path.basename(old).startswith(".") and os.path.isdir(old) \
-                and os.path.abspath(old) != os.path.abspath(target):
-            shutil.rmtree(old, ignore_errors=True)
+        keep = {os.path.basename(target), previous}
+        for entry in os.listdir(root):
+            if entry.startswith(f".{name}@") and entry not in keep:
+                shutil.rmtree(os.path.join(root, entry), ignore_errors=True)
     return dest
 
 

@@ -113,7 +113,7 @@ def test_real_rows_with_timing(tmp_path):
 
 
 def test_a_corrupt_row_is_quarantined_named_and_recomputed(toy, tmp_path):
-    """Issue 17, finding 6: a corrupt row file stopped the resume ('Unterminated string …') without naming it."""
+    """Regression: a corrupt row file stopped the resume ('Unterminated string …') without naming it."""
     s = _toy()
     first = run_sweep(s, tmp_path, progress=False)
     victim = first.rows[3]["config_id"]
@@ -129,7 +129,7 @@ def test_a_corrupt_row_is_quarantined_named_and_recomputed(toy, tmp_path):
 
 
 def test_rows_are_strict_json_and_round_trip_non_finite_values(toy, tmp_path):
-    """Issue 17, finding 9: rows.jsonl held a bare NaN (not JSON)."""
+    """Regression: rows.jsonl held a bare NaN (not JSON)."""
     first = run_sweep(_toy(), tmp_path, progress=False)
     strict = lambda text: json.loads(text, parse_constant=lambda c: pytest.fail(f"bare {c} in a row"))  # noqa: E731
     lines = [strict(x) for x in (tmp_path / "rows.jsonl").read_text().splitlines()]

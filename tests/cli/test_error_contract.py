@@ -1,4 +1,4 @@
-"""The CLI contract (issue 17): every bad argument, output path or environment exits non-zero with exactly one
+"""The CLI contract: every bad argument, output path or environment exits non-zero with exactly one
 ``ssbench: error: …`` line naming the argument or file — never a traceback — checked in subprocesses."""
 from __future__ import annotations
 
@@ -93,3 +93,22 @@ def test_unexpected_exception_is_one_line(tmp_path, monkeypatch, capsys):
     assert cli.main(["scenes"]) == 1
     err = capsys.readouterr().err
     assert err.strip() == "ssbench: error: RuntimeError: boom (set SSBENCH_DEBUG=1 for the traceback)"
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["sweep", "nope.yaml"], "nope.yaml"),
+    (["tune", "nope"], "METHOD"),
+    (["tune", "hbao", "--scenes", "nope"], "--scenes"),
+    (["report", "--compare", "a", "b"], "RUN_A"),
+    (["report", "--from", "nope"], "RUN"),
+    (["info", "--bogus"], "--bogus"),
+    (["ssr", "nope", "--method", "dda"], "SCENE"),
+    (["implicit", "nope"], "SCENE"),
+    (["implicit", "sphere", "--size", "0x5"], "--size"),
+    (["ao", "sphere_on_plane", "--method", "hbao", "--param", "radius=-1"], "radius"),
+    (["ao", "sphere_on_plane", "--method", "hbao", "--param", "nope=1"], "nope"),
+    (["implicit", "sphere", "--gif"], "--gif"),
+])
+def test_bad_arguments_of_every_command(args, needle, tmp_path):
+    rc, err = _run(args, tmp_path)
+    _one_error_line(rc, err, needle)

@@ -1,4 +1,4 @@
-"""Property-based fuzzing of every screen-space pass (issue 17), with hypothesis.
+"""Property-based fuzzing of every screen-space pass, with hypothesis.
 
 Each pass gets :data:`EXAMPLES` generated G-buffers: depths anywhere from before the near plane to 1e30 beyond
 the far one, NaN/±inf/0/positive depths, zero, unnormalised, NaN and grazing normals, background everywhere or

@@ -1,4 +1,4 @@
-"""The one G-buffer contract (passes/gbuffer_checks.py) and the reliability findings of issue 17 that live in
+"""The one G-buffer contract (passes/gbuffer_checks.py) and the reliability findings that live in
 the passes: each test here failed on the code before the fix."""
 from __future__ import annotations
 

@@ -218,7 +218,7 @@ def test_bad_input():
 
 @pytest.mark.slow
 def test_float32_colour_equals_float64_on_cornell_box():
-    """Issue 17, finding 7: hits on an integer texel boundary (9.000005 in float32, 8.999999999999998 in
+    """Regression: hits on an integer texel boundary (9.000005 in float32, 8.999999999999998 in
     float64) fetched another texel on 13 of 3072 pixels (max colour difference 0.8); the walk now runs in
     float64 and the texel is floored before any cast."""
     from ssbench.reference import gbuffer

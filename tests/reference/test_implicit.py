@@ -249,7 +249,7 @@ RING = {"id": "ring", "f": "length(vec3(length(vec3(x, 0, z)) - 1, y, 0)) - 0.3"
 @pytest.mark.parametrize("f", ["max(length(p) - 1, 0)",                      # f = 0 on a solid ball
                                "length(p) - 0.5 + 0*log(length(p) - 1)"])   # NaN everywhere inside |p| < 1
 def test_degenerate_regions_end_in_bounded_iterations(f):
-    """Issue 17, finding 4: a zero or NaN region was walked one leaf per iteration (10 of 10 CLI runs past 60 s
+    """Regression: a zero or NaN region was walked one leaf per iteration (10 of 10 CLI runs past 60 s
     at 40×30); a long unresolved run is now crossed with doubling leaves. Such rays are never certified,
     the ring behind the ball is still found, and nothing is unfinished."""
     sc = load({"name": "degenerate", "camera": {"eye": [0, 2, 5], "target": [0, 0, 0], "up": [0, 1, 0],

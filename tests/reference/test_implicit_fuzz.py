@@ -1,4 +1,4 @@
-"""Property-based fuzzing of implicit scenes and their certified reference (issue 17), with hypothesis.
+"""Property-based fuzzing of implicit scenes and their certified reference, with hypothesis.
 
 Random expression texts — well-formed trees over ``x y z p`` with every function of the grammar, and malformed
 ones (stray characters, unbalanced brackets, unknown names, wrong arity, attribute access) — go through the

@@ -38,7 +38,7 @@ def test_run_dir_and_latest(report):
     for d in (run_dir, latest):
         for f in ("index.html", "summary.md", "meta.json"):
             assert os.path.isfile(os.path.join(d, f)), (d, f)
-    published = {".latest.lock", os.readlink(latest)}                    # latest -> .latest-<token>/
+    published = {".latest.lock", os.readlink(latest)}                    # latest -> .latest@<token>/
     assert not [n for n in os.listdir(root) if n.startswith(".") and n not in published]   # no temporaries
 
 
@@ -104,7 +104,8 @@ def test_refresh_latest_replaces_previous_copy(tmp_path):
         assert (root / "latest" / "index.html").read_text() == text
     assert sorted(os.listdir(root / "latest" / "img")) == ["b.png"]         # a full copy, not a merge
     assert sorted(n for n in os.listdir(root) if not n.startswith(".")) == ["a", "b", "latest"]
-    assert os.path.islink(root / "latest") and len([n for n in os.listdir(root) if n.startswith(".latest-")]) == 1
+    # latest -> .latest@<b>; the previous copy .latest@<a> is kept until the next swap (readers mid-page)
+    assert os.path.islink(root / "latest") and len([n for n in os.listdir(root) if n.startswith(".latest@")]) == 2
 
 
 def test_unknown_scene_is_rejected_before_rendering(tmp_path):

@@ -115,8 +115,10 @@ def test_the_comparison_folder_replaces_itself_and_leaves_runs_alone(tmp_path):
     assert '<tr class="changed"><td>* git commit</td><td>abc</td><td>def</td></tr>' in html
     (tmp_path / "compare-a-vs-b" / "stale.txt").write_text("x")
     assert write_comparison(c, str(tmp_path)) == dest and "stale.txt" not in os.listdir(dest)
-    published = {".compare-a-vs-b.lock", os.readlink(dest)}                  # dest -> .compare-a-vs-b-<token>/
-    assert sorted(n for n in os.listdir(tmp_path) if n not in published) == ["a", "b", "compare-a-vs-b"]
+    kept = [n for n in os.listdir(tmp_path) if n.startswith(".compare-a-vs-b@")]  # the current and previous copy
+    assert os.readlink(dest) in kept and len(kept) == 2
+    assert sorted(n for n in os.listdir(tmp_path) if n not in kept and n != ".compare-a-vs-b.lock") == \
+        ["a", "b", "compare-a-vs-b"]
     assert {p: os.stat(p).st_mtime_ns for d in (a, b) for p in d.rglob("*")} == before
 
 

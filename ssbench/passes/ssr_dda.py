@@ -156,7 +156,8 @@ def _rays(gbuffer: GBuffer, params: DDASSRParams, jitter: torch.Tensor):
     dt, dev = vz.dtype, vz.device
     pos = cam.uv_to_view(cam.uv_grid(dt, dev).unsqueeze(0), vz)                   # (B, 3, H, W) rayOrg
     R = reflection_rays(pos, gbuffer.normal.to(dt))                               # (B, 3, H, W) rayDir
-    sel = gbuffer.mask[:, 0].reshape(-1).nonzero().squeeze(1)                     # (N,) flat b·H·W + j·W + i
+    # geometry nearer than the near plane cannot be in a depth buffer (its rays would start behind w = 0)
+    sel = (gbuffer.mask & (vz <= -cam.near))[:, 0].reshape(-1).nonzero().squeeze(1)   # (N,) flat b·H·W + j·W + i
     o, d = pos.permute(0, 2, 3, 1).reshape(-1, 3)[sel], R.permute(0, 2, 3, 1).reshape(-1, 3)[sel]   # (N, 3)
     end = o + d * clip_ray_length(o[:, 2], d[:, 2], params.max_ray_distance, cam.near)[:, None]   # rayEnd
     M = project_to_pixel_matrix(cam, dt, dev)

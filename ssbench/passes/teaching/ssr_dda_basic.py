@@ -223,8 +223,8 @@ def ssr_dda_basic(gbuffer: GBuffer, params: DDASSRParams = DDASSRParams(),
     for b in range(B):
         for j in range(H):
             for i in range(W):
-                if not mask[b][0][j][i]:
-                    continue                             # background: no ray
+                if not mask[b][0][j][i] or depth[b][0][j][i] > -cam.near:
+                    continue                             # background, or nearer than the near plane: no ray
                 vUv = ((i + 0.5) / W, 1.0 - (j + 0.5) / H)
                 viewZ = depth[b][0][j][i]
                 rayOrg = ((UvToViewParams[0] * vUv[0] + UvToViewParams[2]) * viewZ,

@@ -57,14 +57,14 @@ def to_hwc(x, layout: Optional[str] = None) -> np.ndarray:
     return np.moveaxis(a, 0, -1) if layout == "chw" else a
 
 
-def _umask() -> int:
+def umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
     return mask
 
 
-def _umask_mode() -> int:
-    return 0o666 & ~_umask()
+def umask_mode() -> int:
+    return 0o666 & ~umask()
 
 
 def replace_dir(new: str, dest: str) -> str:
@@ -115,7 +115,7 @@ def _locked(path: str):
             fcntl.flock(f.fileno(), fcntl.LOCK_UN)
 
 
-def _atomic(path: str, suffix: str, write) -> str:
+def write_atomic(path: str, suffix: str, write) -> str:
     path = os.fspath(path)
     d = os.path.dirname(os.path.abspath(path))
     os.makedirs(d, exist_ok=True)
@@ -123,7 +123,7 @@ def _atomic(path: str, suffix: str, write) -> str:
     os.close(fd)
     try:
         write(tmp)
-        os.chmod(tmp, _umask_mode())                            # mkstemp makes 0600; give the usual mode
+        os.chmod(tmp, umask_mode())                            # mkstemp makes 0600; give the usual mode
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
@@ -137,7 +137,7 @@ def write_exr(path, array, layout: Optional[str] = None) -> str:
     from .reference import backend
     mi = backend.mitsuba()
     hwc = np.ascontiguousarray(to_hwc(array, layout).astype(np.float32))
-    return _atomic(path, ".exr", lambda tmp: mi.Bitmap(hwc).write(tmp))
+    return write_atomic(path, ".exr", lambda tmp: mi.Bitmap(hwc).write(tmp))
 
 
 # ---------------------------------------------------------------------------------------------- previews
@@ -219,12 +219,12 @@ def write_rgb_png(path, rgb: np.ndarray) -> str:
     rgb = np.ascontiguousarray(rgb)
     if rgb.dtype != np.uint8 or rgb.ndim != 3 or rgb.shape[-1] != 3:
         raise ValueError(f"rgb: expected an (H, W, 3) uint8 array, got {rgb.dtype} {rgb.shape}")
-    return _atomic(path, ".png", lambda tmp: Image.fromarray(rgb).save(tmp, format="png", compress_level=1))
+    return write_atomic(path, ".png", lambda tmp: Image.fromarray(rgb).save(tmp, format="png", compress_level=1))
 
 
 def save_figure(fig, path, dpi: int = 100) -> str:
     """Save a matplotlib figure as PNG atomically (zlib level 1, as :func:`write_rgb_png`); returns ``path``."""
-    return _atomic(path, ".png", lambda tmp: fig.savefig(tmp, format="png", dpi=dpi,
+    return write_atomic(path, ".png", lambda tmp: fig.savefig(tmp, format="png", dpi=dpi,
                                                           pil_kwargs={"compress_level": 1}))
 
 

@@ -29,11 +29,11 @@ def ssr_response(scene: str = "fence", thicknesses: Sequence[float] = (0.02, 0.1
     fall) and the DDA's ``pixel_stride`` with ``refinement="none"`` (misplaced hits rise)."""
     from .. import reference
     from ..evaluate import run_ssr
-    from ..evaluate._ssr import _reflections
+    from ..evaluate._ssr import reflections_module
     g = reference.gbuffer(scene, width, height, channels=("view_z", "normal", "mask", "color", "position",
                                                           "shape_id", "metallic", "roughness"),
                           spp=spp, use_cache=use_cache)
-    truth = _reflections()(scene, g, spp=spp, seed=0, use_cache=use_cache)
+    truth = reflections_module()(scene, g, spp=spp, seed=0, use_cache=use_cache)
     common = dict(width=width, height=height, spp=spp, repeats=1, warmup=False, gbuffer=g, truth=truth,
                   flip=False, use_cache=use_cache)
     lin = [run_ssr(scene, "linear", {"thickness": t, "jitter": 0.0}, **common).row for t in thicknesses]

@@ -40,7 +40,7 @@ from typing import Any, Mapping, Optional
 from ..scenes.files import read_text, read_toml, read_yaml
 from ..scenes.model import SceneError
 from .effects import EFFECTS, Effect, get_effect
-from .grids import (SweepError, _coerce, _dedupe, _field_kinds, _grid, _names_hint, _SweepCtx, expand_logrange,
+from .grids import (SweepError, coerce_value, dedupe, field_kinds, grid_values, names_hint, SweepCtx, expand_logrange,
                     expand_range)
 from .timing import TimingSpec
 
@@ -112,11 +112,11 @@ class Sweep:
         return [c.config_id for c in self.configs]
 
 
-def _method_grids(c: _SweepCtx, effect: Effect, name: str, v: Any) -> list[dict]:
+def _method_grids(c: SweepCtx, effect: Effect, name: str, v: Any) -> list[dict]:
     """The method's parameter combinations (dicts of coerced overrides), each checked by its params class."""
     path = ("methods", name)
     fn, params_cls, _ = effect.method(name)
-    kinds = _field_kinds(params_cls)
+    kinds = field_kinds(params_cls)
     grids = v if isinstance(v, list) else [v]
     if not grids:
         raise c.fail(path, "empty list of grids")
@@ -128,15 +128,15 @@ def _method_grids(c: _SweepCtx, effect: Effect, name: str, v: Any) -> list[dict]
         for pname, pv in grid.items():
             if pname not in kinds:
                 raise c.fail(gpath + (pname,), f"unknown parameter {pname!r} for {effect.name} method {name!r}"
-                             f"{_names_hint(pname, kinds)}; valid: {', '.join(kinds)}")
+                             f"{names_hint(pname, kinds)}; valid: {', '.join(kinds)}")
             where[pname] = {}
 
             def check(x, p, kind=kinds[pname], seen=where[pname]):
-                v = _coerce(c, x, kind, p)
+                v = coerce_value(c, x, kind, p)
                 seen.setdefault(json.dumps(v, sort_keys=True), p)
                 return v
             check.integer = kinds[pname][0] is int
-            axes.append([(pname, x) for x in _grid(c, pv, gpath + (pname,), check)])
+            axes.append([(pname, x) for x in grid_values(c, pv, gpath + (pname,), check)])
         for combo in itertools.product(*axes):
             overrides = dict(sorted(combo))
             try:
@@ -150,13 +150,13 @@ def _method_grids(c: _SweepCtx, effect: Effect, name: str, v: Any) -> list[dict]
     return combos
 
 
-def _scenes(c: _SweepCtx, effect: Effect, v: Any,
+def _scenes(c: SweepCtx, effect: Effect, v: Any,
             base_dir: Optional[str]) -> list[tuple[str, Optional[str], Optional[str]]]:
     """``(as written, absolute file or None, file sha256 or None)`` per scene; each file is loaded once to
     check it (with the effect's loader)."""
-    from ..scenes.schema import _file_sha256
+    from ..scenes.schema import file_sha256
     builtin = effect.builtin_scenes()
-    names = _grid(c, v, ("scenes",), lambda x, p: c.text(x, p))
+    names = grid_values(c, v, ("scenes",), lambda x, p: c.text(x, p))
     out = []
     for s in names:
         path = ("scenes", v.index(s)) if isinstance(v, list) else ("scenes",)
@@ -165,17 +165,17 @@ def _scenes(c: _SweepCtx, effect: Effect, v: Any,
             continue
         full = s if os.path.isabs(s) else os.path.join(base_dir or os.getcwd(), s)
         if not os.path.isfile(full):
-            raise c.fail(path, f"unknown scene {s!r}{_names_hint(s, builtin)}; built-in: {', '.join(builtin)}; "
+            raise c.fail(path, f"unknown scene {s!r}{names_hint(s, builtin)}; built-in: {', '.join(builtin)}; "
                          f"or a scene file")
         try:
             effect.check_scene_file(full)
         except (ValueError, KeyError) as e:               # SceneError is a ValueError
             raise c.fail(path, f"invalid scene file: {e}") from None
-        out.append((s, os.path.abspath(full), _file_sha256(full)))
+        out.append((s, os.path.abspath(full), file_sha256(full)))
     return out
 
 
-def _resolutions(c: _SweepCtx, v: Any) -> list[tuple[int, int]]:
+def _resolutions(c: SweepCtx, v: Any) -> list[tuple[int, int]]:
     path = ("resolution",)
     pairs = v if isinstance(v, list) and v and all(isinstance(x, list) for x in v) else [v]
     out = []
@@ -184,10 +184,10 @@ def _resolutions(c: _SweepCtx, v: Any) -> list[tuple[int, int]]:
         if not isinstance(r, list) or len(r) != 2:
             raise c.fail(p, f"expected [width, height] or a list of them, got {r!r}")
         out.append((c.integer(r[0], p + (0,), 1), c.integer(r[1], p + (1,), 1)))
-    return _dedupe(out)
+    return dedupe(out)
 
 
-def _timing(c: _SweepCtx, v: Any) -> Optional[TimingSpec]:
+def _timing(c: SweepCtx, v: Any) -> Optional[TimingSpec]:
     if v is None or v is False:
         return None
     if v is True:
@@ -205,7 +205,7 @@ def _timing(c: _SweepCtx, v: Any) -> Optional[TimingSpec]:
 def sweep_from_dict(data: Any, locate=None, source: str = "<dict>", base_dir: Optional[str] = None,
                     sha256: Optional[str] = None) -> Sweep:
     """Validate plain data into a :class:`Sweep`; errors name ``file:line`` (via ``locate``) and the field."""
-    c = _SweepCtx(locate or (lambda path: source), base_dir)
+    c = SweepCtx(locate or (lambda path: source), base_dir)
     d = c.mapping(data, ())
     if "effect" not in d:
         raise c.fail(("effect",), f"missing required field (one of: {', '.join(EFFECTS)})")
@@ -235,10 +235,10 @@ def sweep_from_dict(data: Any, locate=None, source: str = "<dict>", base_dir: Op
     grids = {}
     for m, mv in methods.items():
         if m not in valid:
-            raise c.fail(("methods", m), f"unknown {effect.name} method {m!r}{_names_hint(m, valid)}; "
+            raise c.fail(("methods", m), f"unknown {effect.name} method {m!r}{names_hint(m, valid)}; "
                          f"valid: {', '.join(valid)}")
         grids[m] = _method_grids(c, effect, m, mv)
-    seeds = _grid(c, d.get("seeds", [0]), ("seeds",), lambda x, p: c.integer(x, p, 0))
+    seeds = grid_values(c, d.get("seeds", [0]), ("seeds",), lambda x, p: c.integer(x, p, 0))
     resolutions = _resolutions(c, d.get("resolution", [320, 240]))
     axes = []
     for key, spec in settings_spec.items():
@@ -248,7 +248,7 @@ def sweep_from_dict(data: Any, locate=None, source: str = "<dict>", base_dir: Op
             except ValueError as e:
                 raise c.fail(p, str(e)) from None
         check.integer = spec.types == (int,)
-        axes.append([(key, x) for x in _grid(c, d.get(key, spec.default), (key,), check)])
+        axes.append([(key, x) for x in grid_values(c, d.get(key, spec.default), (key,), check)])
     timing = _timing(c, d.get("timing"))
     configs, seen = [], set()
     for (scene, sfile, ssha), (method, combos) in itertools.product(scenes, grids.items()):

@@ -203,14 +203,14 @@ def ssr_bench(evaluation, method: str, params: Mapping, seed: int) -> BenchInput
     """:class:`BenchInputs` of an SSR evaluation; the sample count is the mean ``steps`` of its hit buffer
     over all pixels (total depth reads / pixels, at least 1)."""
     from ..evaluate import pass_channels, resolve_params
-    from ..evaluate._ssr import _kwargs
+    from ..evaluate._ssr import accepted_kwargs
     from ..passes import ssr_method
     fn, params_cls, _ = ssr_method(method)
     p = resolve_params(params_cls, params, method)
     g = evaluation.gbuffer.select(pass_channels(importlib.import_module(fn.__module__), p))
 
     def call():
-        return fn(g, p, **_kwargs(fn, generator=torch.Generator().manual_seed(seed)))
+        return fn(g, p, **accepted_kwargs(fn, generator=torch.Generator().manual_seed(seed)))
 
     steps = evaluation.result.steps.float()
     return BenchInputs(call, evaluation.result.color.detach().cpu(), evaluation.gbuffer.mask.cpu(),

@@ -1,5 +1,5 @@
 """Grid values of a sweep file: ranges, log ranges, lists; type coercion to a parameter's field type; the
-:class:`SweepError` and its ``file:line: field: message`` context (the scene files' ``_Ctx``, reused)."""
+:class:`SweepError` and its ``file:line: field: message`` context (the scene files' ``Ctx``, reused)."""
 from __future__ import annotations
 
 import dataclasses
@@ -9,7 +9,7 @@ import math
 import typing
 from typing import Any, Optional
 
-from ..scenes.schema import _Ctx, _path_str
+from ..scenes.schema import Ctx, path_str
 
 __all__ = ["SweepError", "expand_range", "expand_logrange", "MAX_GRID"]
 
@@ -21,9 +21,9 @@ class SweepError(ValueError):
     """A sweep file is invalid; the message starts with ``file:line:``."""
 
 
-class _SweepCtx(_Ctx):
+class SweepCtx(Ctx):
     def fail(self, path: tuple, msg: str) -> SweepError:  # type: ignore[override]
-        return SweepError(f"{self.locate(path)}: {_path_str(path)}: {msg}")
+        return SweepError(f"{self.locate(path)}: {path_str(path)}: {msg}")
 
 
 def _g12(x: float) -> float:
@@ -66,7 +66,7 @@ def expand_logrange(lo, hi, n: int) -> list[float]:
 
 
 # ------------------------------------------------------------------------------------------ grids
-def _field_kinds(params_cls: type) -> dict[str, tuple[Optional[type], bool]]:
+def field_kinds(params_cls: type) -> dict[str, tuple[Optional[type], bool]]:
     """``name -> (base type or None for 'anything', nullable)`` from the dataclass's type hints."""
     try:
         hints = typing.get_type_hints(params_cls)
@@ -84,7 +84,7 @@ def _field_kinds(params_cls: type) -> dict[str, tuple[Optional[type], bool]]:
     return out
 
 
-def _coerce(c: _SweepCtx, v: Any, kind: tuple, path: tuple) -> Any:
+def coerce_value(c: SweepCtx, v: Any, kind: tuple, path: tuple) -> Any:
     base, nullable = kind
     if v is None:
         if nullable or base is None:
@@ -108,7 +108,7 @@ def _coerce(c: _SweepCtx, v: Any, kind: tuple, path: tuple) -> Any:
     return v
 
 
-def _grid(c: _SweepCtx, v: Any, path: tuple, check) -> list:
+def grid_values(c: SweepCtx, v: Any, path: tuple, check) -> list:
     """Values of a grid: a scalar, a list, ``{range: [a, b, step]}``, ``{logrange: [lo, hi, n]}`` or
     ``{values: [...]}``; ``check(value, path)`` validates and coerces each value."""
     if isinstance(v, dict):
@@ -138,10 +138,10 @@ def _grid(c: _SweepCtx, v: Any, path: tuple, check) -> list:
         vals = [check(v, path)]
     if not vals:
         raise c.fail(path, "empty grid (give at least one value)")
-    return _dedupe(vals)
+    return dedupe(vals)
 
 
-def _dedupe(vals: list) -> list:
+def dedupe(vals: list) -> list:
     seen, out = set(), []
     for x in vals:
         key = json.dumps(x, sort_keys=True)
@@ -151,6 +151,6 @@ def _dedupe(vals: list) -> list:
     return out
 
 
-def _names_hint(name: str, valid) -> str:
+def names_hint(name: str, valid) -> str:
     close = difflib.get_close_matches(str(name), list(valid), n=1)
     return f" (did you mean {close[0]!r}?)" if close else ""

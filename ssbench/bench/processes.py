@@ -124,12 +124,12 @@ def watch_parent(parent: int, *, interval: float = 0.5, getppid: Callable[[], in
 def _child_main(stream) -> list[dict]:
     """What a child prints: evaluate the configurations, time them, return their rounds."""
     from ..reference import backend
-    from .sweep import _evaluate
+    from .sweep import evaluate_config
     req = json.load(stream)
     backend.adopt(backend.BackendChoice(**dict(req["backend"], reason="chosen by the sweep's process")))
     timing = T.TimingSpec(**req["timing"])
     configs = [config_from_json(d) for d in req["configs"]]
-    done = [_evaluate(c, timing) for c in configs]
+    done = [evaluate_config(c, timing) for c in configs]
     live = [k for k, d in enumerate(done) if d[1] is not None]
     _, rounds = interleaved_rounds([(done[k][1], done[k][2], configs[k].seed) for k in live], timing,
                                    order_seed=int(req["order_seed"]))

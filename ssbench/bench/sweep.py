@@ -81,7 +81,7 @@ def error_row(config: Config, exc: BaseException, timing: Optional[TimingSpec] =
     return row
 
 
-def _evaluate(config: Config, timing: Optional[TimingSpec]) -> tuple[dict, Any, int, float]:
+def evaluate_config(config: Config, timing: Optional[TimingSpec]) -> tuple[dict, Any, int, float]:
     """``(row, bench inputs or None, threads, seconds)``: the configuration's row without timing fields (an error
     row when it fails), the inputs to time (``None`` when nothing is to be timed) and its wall time."""
     import torch
@@ -136,7 +136,7 @@ def run_group(configs: list, timing: Optional[TimingSpec] = None) -> list:
     ``elapsed_s`` is each configuration's evaluation plus an equal share of the group's timing.
     """
     from .processes import time_group
-    done = [_evaluate(c, timing) for c in configs]
+    done = [evaluate_config(c, timing) for c in configs]
     live = [k for k, d in enumerate(done) if d[1] is not None]
     share = 0.0
     if live:

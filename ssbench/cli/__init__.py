@@ -13,18 +13,18 @@ import sys
 from typing import Optional, Sequence
 
 from ..gbuffer import CHANNELS
-from ._args import (_UsageError, _Parser, _channels, _non_negative, _non_negative_float, _param, _positive,
-                    _positive_float, _rays, _scene_list, _size, coerce_params, parse_value)  # noqa: F401
-from ._effect_cmds import _cmd_ao, _cmd_ssr
-from ._implicit_cmd import _cmd_implicit
-from ._scene_cmds import _cmd_info, _cmd_render, _cmd_report, _cmd_scenes
+from ._args import (UsageError, Parser, channels_arg, non_negative, non_negative_float, param_arg, positive,
+                    positive_float, gt_rays, scene_list, size_arg, coerce_params, parse_value)  # noqa: F401
+from ._effect_cmds import cmd_ao, cmd_ssr
+from ._implicit_cmd import cmd_implicit
+from ._scene_cmds import cmd_info, cmd_render, cmd_report, cmd_scenes
 
 
-def _parser() -> _Parser:
+def _parser() -> Parser:
     from .. import __version__
-    p = _Parser(prog="ssbench", description="Screen-space rendering passes vs Mitsuba 3 ground truth.")
+    p = Parser(prog="ssbench", description="Screen-space rendering passes vs Mitsuba 3 ground truth.")
     p.add_argument("--version", action="version", version=f"ssbench {__version__}")
-    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
     sub.required = True
     q = sub.add_parser("info", help="versions, threads and the chosen Mitsuba variant / libLLVM")
     q.add_argument("--json", action="store_true", help="print JSON")
@@ -33,11 +33,11 @@ def _parser() -> _Parser:
     q = sub.add_parser("render", help="render a scene's reference G-buffer to EXR + PNG files")
     q.add_argument("scene", metavar="SCENE", help="catalog name or scene file (.yaml, .toml, .xml)")
     q.add_argument("--out", required=True, metavar="DIR", help="output directory")
-    q.add_argument("--width", type=_positive("width"), help="image width (default: the scene camera's)")
-    q.add_argument("--height", type=_positive("height"), help="image height (default: the scene camera's)")
-    q.add_argument("--spp", type=_positive("spp"), default=64, help="colour samples per pixel (default 64)")
-    q.add_argument("--seed", type=_non_negative, default=0, help="colour seed (default 0)")
-    q.add_argument("--channels", type=_channels, default=tuple(CHANNELS),
+    q.add_argument("--width", type=positive("width"), help="image width (default: the scene camera's)")
+    q.add_argument("--height", type=positive("height"), help="image height (default: the scene camera's)")
+    q.add_argument("--spp", type=positive("spp"), default=64, help="colour samples per pixel (default 64)")
+    q.add_argument("--seed", type=non_negative, default=0, help="colour seed (default 0)")
+    q.add_argument("--channels", type=channels_arg, default=tuple(CHANNELS),
                    help=f"comma-separated channels (default: all of {','.join(CHANNELS)})")
     q.add_argument("--no-cache", action="store_true", help="do not read or write the render cache")
     q.add_argument("--force", action="store_true", help="run work above the size limits (ssbench/RELIABILITY.md)")
@@ -46,18 +46,18 @@ def _parser() -> _Parser:
     q = sub.add_parser("ao", help="run one AO method on a scene and score it against the ray-traced GT")
     q.add_argument("scene", metavar="SCENE", help="catalog name or scene file (.yaml, .toml, .xml)")
     q.add_argument("--method", required=True, choices=list(AO_METHODS), help="AO method")
-    q.add_argument("--param", type=_param, action="append", default=[], metavar="NAME=VALUE",
+    q.add_argument("--param", type=param_arg, action="append", default=[], metavar="NAME=VALUE",
                    help="override a pass parameter (repeatable), e.g. --param num_steps=8")
-    q.add_argument("--radius", type=_positive_float, help="radius of the pass and the GT (default: the pass's)")
+    q.add_argument("--radius", type=positive_float, help="radius of the pass and the GT (default: the pass's)")
     q.add_argument("--weighting", choices=AO_WEIGHTINGS,
                    help="GT flavour to score against (default: the one the pass approximates)")
     q.add_argument("--blur", choices=("box", "cross_bilateral", "joint_bilateral"),
                    help="blur the pass output before scoring (noise_raw/banding_raw keep the raw AO)")
-    q.add_argument("--width", type=_positive("width"), default=320)
-    q.add_argument("--height", type=_positive("height"), default=240)
-    q.add_argument("--rays", type=_rays, default=256, help="GT rays per pixel, >= 2 (default 256)")
-    q.add_argument("--seed", type=_non_negative, default=0)
-    q.add_argument("--repeats", type=_positive("repeats"), default=3, help="timed runs after a warm-up")
+    q.add_argument("--width", type=positive("width"), default=320)
+    q.add_argument("--height", type=positive("height"), default=240)
+    q.add_argument("--rays", type=gt_rays, default=256, help="GT rays per pixel, >= 2 (default 256)")
+    q.add_argument("--seed", type=non_negative, default=0)
+    q.add_argument("--repeats", type=positive("repeats"), default=3, help="timed runs after a warm-up")
     q.add_argument("--out", metavar="DIR", help="write ao.png, gt.png, error maps and row.json here")
     q.add_argument("--json", action="store_true", help="print the row as JSON")
     q.add_argument("--no-cache", action="store_true", help="do not read or write the render cache")
@@ -66,16 +66,16 @@ def _parser() -> _Parser:
     q = sub.add_parser("ssr", help="run one SSR method on a scene and classify it against the exact reflections")
     q.add_argument("scene", metavar="SCENE", help="catalog name or scene file (.yaml, .toml, .xml)")
     q.add_argument("--method", required=True, choices=list(SSR_METHODS), help="SSR method")
-    q.add_argument("--param", type=_param, action="append", default=[], metavar="NAME=VALUE",
+    q.add_argument("--param", type=param_arg, action="append", default=[], metavar="NAME=VALUE",
                    help="override a pass parameter (repeatable), e.g. --param pixel_stride=4")
-    q.add_argument("--width", type=_positive("width"), default=320)
-    q.add_argument("--height", type=_positive("height"), default=240)
-    q.add_argument("--spp", type=_positive("spp"), default=16,
+    q.add_argument("--width", type=positive("width"), default=320)
+    q.add_argument("--height", type=positive("height"), default=240)
+    q.add_argument("--spp", type=positive("spp"), default=16,
                    help="samples per pixel of the colour buffer and the mirror radiance (default 16)")
-    q.add_argument("--k-px", type=_positive_float, default=1.5, dest="k_px",
+    q.add_argument("--k-px", type=positive_float, default=1.5, dest="k_px",
                    help="hit tolerance in pixels for a correct hit (default 1.5)")
-    q.add_argument("--seed", type=_non_negative, default=0)
-    q.add_argument("--repeats", type=_positive("repeats"), default=3, help="timed runs after a warm-up")
+    q.add_argument("--seed", type=non_negative, default=0)
+    q.add_argument("--repeats", type=positive("repeats"), default=3, help="timed runs after a warm-up")
     q.add_argument("--out", metavar="DIR", help="write colour, class, visit and error maps and row.json here")
     q.add_argument("--json", action="store_true", help="print the row as JSON")
     q.add_argument("--no-cache", action="store_true", help="do not read or write the render cache")
@@ -86,17 +86,17 @@ def _parser() -> _Parser:
     q.add_argument("scene", metavar="SCENE", help="implicit catalog name or scene file (.yaml, .toml)")
     q.add_argument("--method", choices=list(IMPLICIT_METHODS), default="progressive",
                    help="ray caster (default progressive)")
-    q.add_argument("--frames", type=_positive("frames"), default=60, help="frames to cast (default 60)")
-    q.add_argument("--steps", type=_positive("steps"), help="marching steps N (sphere: max_steps)")
-    q.add_argument("--param", type=_param, action="append", default=[], metavar="NAME=VALUE",
+    q.add_argument("--frames", type=positive("frames"), default=60, help="frames to cast (default 60)")
+    q.add_argument("--steps", type=positive("steps"), help="marching steps N (sphere: max_steps)")
+    q.add_argument("--param", type=param_arg, action="append", default=[], metavar="NAME=VALUE",
                    help="override a method parameter (repeatable), e.g. --param epsilon=0.002")
-    q.add_argument("--size", type=_size, metavar="WxH", help="image size (default: the scene camera's)")
-    q.add_argument("--seed", type=_non_negative, default=0)
+    q.add_argument("--size", type=size_arg, metavar="WxH", help="image size (default: the scene camera's)")
+    q.add_argument("--seed", type=non_negative, default=0)
     q.add_argument("--truth", choices=("all", "last", "none"), default="all",
                    help="frames scored against the reference (default all; 'last' for long animations)")
     q.add_argument("--out", metavar="DIR", help="write colour, t, evaluations and class-map PNGs and row.json")
     q.add_argument("--gif", action="store_true", help="with --out: also write the frames as frames.gif")
-    q.add_argument("--fps", type=_positive("fps"), default=10, help="frames per second of the GIF (10)")
+    q.add_argument("--fps", type=positive("fps"), default=10, help="frames per second of the GIF (10)")
     q.add_argument("--json", action="store_true", help="print the row as JSON")
     q.add_argument("--no-cache", action="store_true", help="do not read or write the reference cache")
     q.add_argument("--force", action="store_true", help="run work above the size limits (ssbench/RELIABILITY.md)")
@@ -106,20 +106,20 @@ def _parser() -> _Parser:
     add_tune_parser(sub)
     q = sub.add_parser("report", help="render the built-in scenes into an HTML report")
     q.add_argument("--out", default="reports", metavar="DIR", help="reports root (default: reports)")
-    q.add_argument("--width", type=_positive("width"), default=320)
-    q.add_argument("--height", type=_positive("height"), default=240)
-    q.add_argument("--spp", type=_positive("spp"), default=64)
-    q.add_argument("--seed", type=_non_negative, default=0)
-    q.add_argument("--scenes", type=_scene_list, default=None, help="comma-separated subset of the catalog")
+    q.add_argument("--width", type=positive("width"), default=320)
+    q.add_argument("--height", type=positive("height"), default=240)
+    q.add_argument("--spp", type=positive("spp"), default=64)
+    q.add_argument("--seed", type=non_negative, default=0)
+    q.add_argument("--scenes", type=scene_list, default=None, help="comma-separated subset of the catalog")
     q.add_argument("--fresh-previews", action="store_true", help="render and time the scene previews afresh (by "
                    "default they come from the render cache when there, with the times recorded when rendered)")
     q.add_argument("--no-gt-cache", action="store_true", help="trace every section's ground truth afresh (by "
                    "default the reference cache is read and written)")
     q.add_argument("--no-ao", action="store_true", help="leave out the ambient-occlusion section")
-    q.add_argument("--ao-radius", type=_positive_float, default=0.5, help="AO radius of the report (0.5)")
-    q.add_argument("--ao-rays", type=_rays, default=128, help="AO GT rays per pixel (128)")
+    q.add_argument("--ao-radius", type=positive_float, default=0.5, help="AO radius of the report (0.5)")
+    q.add_argument("--ao-rays", type=gt_rays, default=128, help="AO GT rays per pixel (128)")
     q.add_argument("--no-ssr", action="store_true", help="leave out the screen-space reflections section")
-    q.add_argument("--ssr-spp", type=_positive("ssr-spp"), default=16,
+    q.add_argument("--ssr-spp", type=positive("ssr-spp"), default=16,
                    help="samples per pixel of the SSR mirror radiance (16)")
     q.add_argument("--no-implicit", action="store_true", help="leave out the implicit-surface section")
     q.add_argument("--no-speed", action="store_true", help="leave out the speed section")
@@ -131,17 +131,17 @@ def _parser() -> _Parser:
                         "computing nothing (a folder, a name under --out, or 'latest')")
     q.add_argument("--compare", nargs=2, metavar=("RUN_A", "RUN_B"),
                    help="instead of building: compare two runs (folders, names under --out, or 'latest')")
-    q.add_argument("--rtol", type=_non_negative_float, default=1e-3,
+    q.add_argument("--rtol", type=non_negative_float, default=1e-3,
                    help="with --compare: relative tolerance of result changes (0.001)")
-    q.add_argument("--time-rtol", type=_non_negative_float, default=0.25,
+    q.add_argument("--time-rtol", type=non_negative_float, default=0.25,
                    help="with --compare: relative change of a time worth listing (0.25)")
     q.set_defaults(report_parser=q)
     return p
 
 
 
-_COMMANDS = {"info": _cmd_info, "scenes": _cmd_scenes, "render": _cmd_render, "ao": _cmd_ao,
-             "ssr": _cmd_ssr, "implicit": _cmd_implicit, "report": _cmd_report}
+_COMMANDS = {"info": cmd_info, "scenes": cmd_scenes, "render": cmd_render, "ao": cmd_ao,
+             "ssr": cmd_ssr, "implicit": cmd_implicit, "report": cmd_report}
 
 
 def _cmd_sweep(args) -> int:
@@ -168,7 +168,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         return _COMMANDS[args.command](args)
     except SystemExit as e:                                  # --help / --version
         return e.code if isinstance(e.code, int) else (0 if e.code is None else 1)
-    except _UsageError as e:
+    except UsageError as e:
         print(f"ssbench: error: {e}", file=sys.stderr)
         return e.status
     except (ValueError, KeyError) as e:                      # SceneError is a ValueError

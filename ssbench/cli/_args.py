@@ -8,18 +8,18 @@ import sys
 from ..gbuffer import CHANNELS
 
 
-class _UsageError(Exception):
+class UsageError(Exception):
     def __init__(self, message: str, status: int = 2):
         super().__init__(message)
         self.status = status
 
 
-class _Parser(argparse.ArgumentParser):
+class Parser(argparse.ArgumentParser):
     """argparse that reports errors as ``ssbench: error: ...`` and raises instead of exiting."""
 
     def error(self, message: str):  # type: ignore[override]
         self.print_usage(sys.stderr)
-        raise _UsageError(message)
+        raise UsageError(message)
 
 
 def _int_at_least(lo: int, what: str, why: str = "", name: str = "int"):
@@ -36,15 +36,15 @@ def _int_at_least(lo: int, what: str, why: str = "", name: str = "int"):
     return parse
 
 
-def _positive(name: str):
+def positive(name: str):
     return _int_at_least(1, "a positive integer", name=name)
 
 
-_non_negative = _int_at_least(0, "a non-negative integer", name="non_negative")
-_rays = _int_at_least(2, "an integer >= 2", " (for a standard error)", name="rays")
+non_negative = _int_at_least(0, "a non-negative integer", name="non_negative")
+gt_rays = _int_at_least(2, "an integer >= 2", " (for a standard error)", name="rays")
 
 
-def _channels(s: str) -> tuple[str, ...]:
+def channels_arg(s: str) -> tuple[str, ...]:
     chans = tuple(dict.fromkeys(c.strip() for c in s.split(",") if c.strip()))
     unknown = [c for c in chans if c not in CHANNELS]
     if unknown or not chans:
@@ -53,7 +53,7 @@ def _channels(s: str) -> tuple[str, ...]:
     return chans
 
 
-def _scene_list(s: str) -> list[str]:
+def scene_list(s: str) -> list[str]:
     from ..scenes import catalog
     names = [n.strip() for n in s.split(",") if n.strip()]
     unknown = [n for n in names if n not in catalog.CATALOG]
@@ -63,7 +63,7 @@ def _scene_list(s: str) -> list[str]:
     return names
 
 
-def _positive_float(s: str) -> float:
+def positive_float(s: str) -> float:
     try:
         v = float(s)
     except ValueError:
@@ -73,7 +73,7 @@ def _positive_float(s: str) -> float:
     return v
 
 
-def _non_negative_float(s: str) -> float:
+def non_negative_float(s: str) -> float:
     try:
         v = float(s)
     except ValueError:
@@ -83,7 +83,7 @@ def _non_negative_float(s: str) -> float:
     return v
 
 
-def _size(s: str) -> tuple[int, int]:
+def size_arg(s: str) -> tuple[int, int]:
     w, sep, h = s.lower().partition("x")
     try:
         size = (int(w), int(h))
@@ -115,7 +115,7 @@ def parse_value(text: str):
     return v
 
 
-def _param(s: str) -> tuple[str, object]:
+def param_arg(s: str) -> tuple[str, object]:
     name, sep, value = s.partition("=")
     name = name.strip()
     if not sep or not name.isidentifier() or not value.strip():
@@ -132,10 +132,10 @@ def coerce_params(params_cls, pairs, method: str) -> dict:
     out: dict = {}
     for name, value in pairs:
         if name not in known:
-            raise _UsageError(f"argument --param: unknown parameter {name!r} for {method}; "
+            raise UsageError(f"argument --param: unknown parameter {name!r} for {method}; "
                               f"known: {', '.join(known)}")
         if name in out:
-            raise _UsageError(f"argument --param: {name} given twice")
+            raise UsageError(f"argument --param: {name} given twice")
         d = known[name]
         if isinstance(d, bool):
             ok = isinstance(value, bool)
@@ -149,24 +149,24 @@ def coerce_params(params_cls, pairs, method: str) -> dict:
         else:
             ok = d is None or isinstance(value, type(d))
         if not ok:
-            raise _UsageError(f"argument --param: {name} expects {type(d).__name__} (default {d!r}), "
+            raise UsageError(f"argument --param: {name} expects {type(d).__name__} (default {d!r}), "
                               f"got {value!r}")
         out[name] = value
     return out
 
 
 def write_row_json(out_dir: str, row: dict) -> str:
-    """``out_dir/row.json`` of an evaluation row, written atomically (:func:`ssbench.io._atomic`)."""
+    """``out_dir/row.json`` of an evaluation row, written atomically (:func:`ssbench.io.write_atomic`)."""
     import json
     import os
 
-    from ..io import _atomic
+    from ..io import write_atomic
 
     def write(tmp: str) -> None:
         with open(tmp, "w", encoding="utf-8") as f:
             json.dump(row, f, indent=2, default=str)
             f.write("\n")
-    return _atomic(os.path.join(out_dir, "row.json"), ".json", write)
+    return write_atomic(os.path.join(out_dir, "row.json"), ".json", write)
 
 
 #: work above these limits is refused unless ``--force`` (documented in ``ssbench/RELIABILITY.md``): an image
@@ -182,13 +182,13 @@ def guard_work(*, force: bool, width: int, height: int, rays: int = 1, frames: i
         return
     px = int(width) * int(height)
     if px > LIMITS["pixels"]:
-        raise _UsageError(f"argument {size_args}: {width}x{height} = {px:.3g} pixels exceeds the limit of "
+        raise UsageError(f"argument {size_args}: {width}x{height} = {px:.3g} pixels exceeds the limit of "
                           f"{LIMITS['pixels']:.3g} (8192x8192); pass --force to try anyway")
     if px * int(rays) > LIMITS["rays"]:
-        raise _UsageError(f"argument {rays_arg}: {rays} rays x {px} pixels = {px * int(rays):.3g} exceeds the "
+        raise UsageError(f"argument {rays_arg}: {rays} rays x {px} pixels = {px * int(rays):.3g} exceeds the "
                           f"limit of {LIMITS['rays']:.3g} rays; lower it or pass --force")
     if int(frames) > LIMITS["frames"]:
-        raise _UsageError(f"argument --frames: {frames} exceeds the limit of {LIMITS['frames']}; "
+        raise UsageError(f"argument --frames: {frames} exceeds the limit of {LIMITS['frames']}; "
                           f"pass --force to run them anyway")
 
 
@@ -196,11 +196,11 @@ def out_dir(path: str, arg: str = "--out") -> str:
     """Create the output folder ``path`` up front (before any work), or raise a usage error naming ``arg``."""
     import os
     if os.path.exists(path) and not os.path.isdir(path):
-        raise _UsageError(f"argument {arg}: {path!r} exists and is not a folder")
+        raise UsageError(f"argument {arg}: {path!r} exists and is not a folder")
     try:
         os.makedirs(path, exist_ok=True)
     except OSError as e:
-        raise _UsageError(f"argument {arg}: cannot create {path!r}: {e.strerror or e}") from None
+        raise UsageError(f"argument {arg}: cannot create {path!r}: {e.strerror or e}") from None
     if not os.access(path, os.W_OK):
-        raise _UsageError(f"argument {arg}: {path!r} is not writable")
+        raise UsageError(f"argument {arg}: {path!r} is not writable")
     return path

@@ -5,8 +5,8 @@ import json
 import os
 import sys
 
-from ._args import _UsageError, coerce_params, guard_work, out_dir, write_row_json
-from ._scene_cmds import _load_scene
+from ._args import UsageError, coerce_params, guard_work, out_dir, write_row_json
+from ._scene_cmds import load_scene
 
 
 def _ao_table(row: dict) -> str:
@@ -33,31 +33,31 @@ def _ao_table(row: dict) -> str:
 
 def _scene_and_params(args, resolve):
     """Scene, parameter class and ``--param`` overrides of an ``ao``/``ssr`` command."""
-    sc = _load_scene(args.scene)
+    sc = load_scene(args.scene)
     try:
         _, params_cls, _ = resolve(args.method)
     except (ImportError, AttributeError) as e:
-        raise _UsageError(f"argument --method: {args.method} is not importable ({type(e).__name__}: {e})", 1)
+        raise UsageError(f"argument --method: {args.method} is not importable ({type(e).__name__}: {e})", 1)
     return sc, params_cls, coerce_params(params_cls, args.param, args.method)
 
 
-def _check_params(params_cls, params, method) -> None:
+def check_params(params_cls, params, method) -> None:
     """The parameter dataclass's own checks, up front, as a usage error."""
     from .. import evaluate
     try:
         evaluate.resolve_params(params_cls, params, method)
     except (ValueError, TypeError) as e:
-        raise _UsageError(f"argument --param: {e}") from None
+        raise UsageError(f"argument --param: {e}") from None
 
 
-def _cmd_ao(args) -> int:
+def cmd_ao(args) -> int:
     from .. import evaluate
     from ..passes import ao_method
     sc, params_cls, params = _scene_and_params(args, ao_method)
     rname = evaluate.radius_param(params_cls, sys.modules.get(params_cls.__module__))
     if args.radius is not None and rname in params:
-        raise _UsageError(f"argument --radius: conflicts with --param {rname}={params[rname]}; give one of them")
-    _check_params(params_cls, params, args.method)
+        raise UsageError(f"argument --radius: conflicts with --param {rname}={params[rname]}; give one of them")
+    check_params(params_cls, params, args.method)
     guard_work(force=args.force, width=args.width, height=args.height, rays=args.rays)
     if args.out:
         out_dir(args.out)
@@ -68,7 +68,7 @@ def _cmd_ao(args) -> int:
     except RuntimeError as e:                                # e.g. no vectorised Mitsuba variant for the GT
         if os.environ.get("SSBENCH_DEBUG"):
             raise
-        raise _UsageError(str(e), 1) from None
+        raise UsageError(str(e), 1) from None
     row = ev.row
     print(json.dumps(row, indent=2, default=str) if args.json else _ao_table(row))
     if args.out:
@@ -115,11 +115,11 @@ def _ssr_table(row: dict) -> str:
     return head + "\n".join(lines)
 
 
-def _cmd_ssr(args) -> int:
+def cmd_ssr(args) -> int:
     from .. import evaluate
     from ..passes import ssr_method
     sc, params_cls, params = _scene_and_params(args, ssr_method)
-    _check_params(params_cls, params, args.method)
+    check_params(params_cls, params, args.method)
     guard_work(force=args.force, width=args.width, height=args.height, rays=args.spp, rays_arg="--spp")
     if args.out:
         out_dir(args.out)
@@ -130,7 +130,7 @@ def _cmd_ssr(args) -> int:
     except (RuntimeError, ImportError) as e:                 # e.g. no vectorised Mitsuba variant for the truth
         if os.environ.get("SSBENCH_DEBUG"):
             raise
-        raise _UsageError(str(e), 1) from None
+        raise UsageError(str(e), 1) from None
     row = ev.row
     print(json.dumps(row, indent=2, default=str) if args.json else _ssr_table(row))
     if args.out:

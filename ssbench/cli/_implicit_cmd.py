@@ -4,8 +4,8 @@ from __future__ import annotations
 import json
 import os
 
-from ._args import _UsageError, coerce_params, guard_work, out_dir, write_row_json
-from ._effect_cmds import _check_params
+from ._args import UsageError, coerce_params, guard_work, out_dir, write_row_json
+from ._effect_cmds import check_params
 
 
 def _series(values, spec: str = "{:.2%}") -> str:
@@ -47,7 +47,7 @@ def _implicit_table(row: dict) -> str:
     return "\n".join(lines)
 
 
-def _cmd_implicit(args) -> int:
+def cmd_implicit(args) -> int:
     import numpy as np
     import torch
 
@@ -57,17 +57,17 @@ def _cmd_implicit(args) -> int:
     try:
         sc = load(args.scene)
     except (KeyError, ValueError, OSError) as e:
-        raise _UsageError(f"argument SCENE: {e.args[0] if isinstance(e, KeyError) and e.args else e}") from None
+        raise UsageError(f"argument SCENE: {e.args[0] if isinstance(e, KeyError) and e.args else e}") from None
     _, params_cls = implicit_method(args.method)
     params = coerce_params(params_cls, args.param, args.method)
     if args.steps is not None:
         name = evaluate.steps_param(args.method)
         if name in params:
-            raise _UsageError(f"argument --steps: conflicts with --param {name}={params[name]}; give one of them")
+            raise UsageError(f"argument --steps: conflicts with --param {name}={params[name]}; give one of them")
         params[name] = args.steps
-    _check_params(params_cls, params, args.method)
+    check_params(params_cls, params, args.method)
     if args.gif and not args.out:
-        raise _UsageError("argument --gif: needs --out DIR")
+        raise UsageError("argument --gif: needs --out DIR")
     w0, h0 = args.size or (sc.camera.width, sc.camera.height)
     guard_work(force=args.force, width=w0, height=h0, frames=args.frames, size_args="--size")
     if args.out:

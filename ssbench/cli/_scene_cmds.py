@@ -5,10 +5,10 @@ import json
 import os
 import time
 
-from ._args import _UsageError, guard_work, out_dir
+from ._args import UsageError, guard_work, out_dir
 
 
-def _cmd_info(args) -> int:
+def cmd_info(args) -> int:
     from ..report.build import environment
     env = environment()
     if args.json:
@@ -29,7 +29,7 @@ def _cmd_info(args) -> int:
     return 0
 
 
-def _cmd_scenes(args) -> int:
+def cmd_scenes(args) -> int:
     from ..scenes import catalog
     desc = catalog.describe()
     if args.json:
@@ -43,24 +43,24 @@ def _cmd_scenes(args) -> int:
     return 0
 
 
-def _load_scene(arg: str):
+def load_scene(arg: str):
     from ..scenes import SceneError, catalog, load
     try:
         return load(arg)
     except SceneError as e:
-        raise _UsageError(f"argument SCENE: {e}") from None
+        raise UsageError(f"argument SCENE: {e}") from None
     except (KeyError, ValueError, FileNotFoundError, OSError) as e:
         why = e.args[0] if e.args else str(e)
         if arg not in catalog.CATALOG and not os.path.exists(arg):
             why = f"{arg!r} is neither a built-in scene nor an existing scene file"
-        raise _UsageError(f"argument SCENE: {why}; built-in scenes: {', '.join(catalog.names())}") from None
+        raise UsageError(f"argument SCENE: {why}; built-in scenes: {', '.join(catalog.names())}") from None
 
 
-def _cmd_render(args) -> int:
+def cmd_render(args) -> int:
     from .. import io
     from ..reference import backend
     from ..report.build import render_scene
-    sc = _load_scene(args.scene)
+    sc = load_scene(args.scene)
     guard_work(force=args.force, width=args.width or sc.camera.width, height=args.height or sc.camera.height)
     out_dir(args.out)
     t_start = time.perf_counter()
@@ -96,7 +96,7 @@ def _cmd_render(args) -> int:
 
 
 
-def _cmd_report(args) -> int:
+def cmd_report(args) -> int:
     if args.compare:
         from ..report.compare import cmd_compare
         return cmd_compare(args, args.report_parser)

@@ -29,7 +29,7 @@ import torch
 
 from .. import metrics
 from ..gbuffer import GBuffer
-from ._common import _as_dict, _f, _timed, resolve_params
+from ._common import params_as_dict, as_float, timed_runs, resolve_params
 
 __all__ = ["ao", "run_ao", "AOEvaluation", "resolve_params", "radius_param", "flavour", "score", "blur_fn",
            "RADIUS_NAMES", "GT_CHANNELS", "BLUR_NAMES"]
@@ -93,7 +93,7 @@ def score(pred: torch.Tensor, target: torch.Tensor, mask: torch.Tensor, view_z: 
            "halo_band": h.band, "halo_elsewhere": h.elsewhere, "halo_ratio": h.ratio, "halo_bias": h.band_bias,
            "halo_dark": h.dark, "halo_missing": h.missing, "flat_bias": metrics.flat_bias(pred, target, mask),
            "over_darkening": metrics.over_darkening(pred, target, mask)}
-    return {f"{k}_{suffix}": _f(v) for k, v in row.items()}
+    return {f"{k}_{suffix}": as_float(v) for k, v in row.items()}
 
 
 def _nan_scores(suffix: str) -> dict:
@@ -191,7 +191,7 @@ def run_ao(scene, method: str, params=None, *, width: int = 320, height: int = 2
         gen = torch.Generator(device="cpu").manual_seed(seed)               # same bits on every repeat
         return fn(g_pass, p, generator=gen)
 
-    result, times = _timed(run_pass, repeats, device, warmup)
+    result, times = timed_runs(run_pass, repeats, device, warmup)
     raw = result.ao.detach().float().cpu()
     if tuple(raw.shape) != (1, 1, gbuffer.height, gbuffer.width):
         raise ValueError(f"method: {method!r} returned ao of shape {tuple(raw.shape)}, expected "
@@ -200,7 +200,7 @@ def run_ao(scene, method: str, params=None, *, width: int = 320, height: int = 2
     pred = raw
     if blur_call is not None:
         g_blur = gbuffer.to(device)
-        out, blur_times = _timed(lambda: blur_call(result.ao, g_blur), repeats, device, warmup)
+        out, blur_times = timed_runs(lambda: blur_call(result.ao, g_blur), repeats, device, warmup)
         pred = (out.ao if hasattr(out, "ao") else out).detach().float().cpu()
 
     memo = references if references is not None else {}
@@ -224,7 +224,7 @@ def run_ao(scene, method: str, params=None, *, width: int = 320, height: int = 2
     mask, view_z = gbuffer.mask.cpu(), gbuffer.view_z.float().cpu()
 
     row: dict[str, Any] = {
-        "scene": sc.name, "method": method, "params": _as_dict(p), "width": gbuffer.width,
+        "scene": sc.name, "method": method, "params": params_as_dict(p), "width": gbuffer.width,
         "height": gbuffer.height, "radius": gt_radius, "radius_param": rname, "weighting": flav,
         "blur": blur_name, "seconds": statistics.median(times), "seconds_runs": times,
         "blur_seconds": statistics.median(blur_times) if blur_times else None, "repeats": repeats,

@@ -31,7 +31,7 @@ def resolve_params(params_cls: type, params: Union[None, Mapping[str, Any], Any]
     raise TypeError(f"params: expected None, a dict or a {params_cls.__name__}, got {type(params).__name__}")
 
 
-def _as_dict(p) -> dict:
+def params_as_dict(p) -> dict:
     out = {}
     for f in dataclasses.fields(p):
         v = getattr(p, f.name)
@@ -39,25 +39,25 @@ def _as_dict(p) -> dict:
     return out
 
 
-def _f(x) -> float:
+def as_float(x) -> float:
     return float(x) if x is not None else math.nan
 
 
-def _sync(device) -> None:
+def sync_device(device) -> None:
     if torch.device(device).type == "cuda":
         torch.cuda.synchronize()
 
 
-def _timed(call: Callable[[], Any], repeats: int, device, warmup: bool = True) -> tuple[Any, list[float]]:
+def timed_runs(call: Callable[[], Any], repeats: int, device, warmup: bool = True) -> tuple[Any, list[float]]:
     """One untimed warm-up call (unless ``warmup=False``), then ``repeats`` timed calls; returns the last
     output and the times."""
     if warmup:
         call()
-        _sync(device)
+        sync_device(device)
     out, times = None, []
     for _ in range(repeats):
         t0 = time.perf_counter()
         out = call()
-        _sync(device)
+        sync_device(device)
         times.append(time.perf_counter() - t0)
     return out, times

@@ -38,7 +38,7 @@ from typing import Any, Callable, Mapping, Optional
 import numpy as np
 import torch
 
-from ._common import _as_dict, _sync, resolve_params
+from ._common import params_as_dict, sync_device, resolve_params
 
 __all__ = ["implicit", "run_implicit", "ImplicitEvaluation", "steps_param", "lipschitz_diagnostic"]
 
@@ -198,7 +198,7 @@ def run_implicit(scene, method: str, params=None, *, frames: int = 1, width: Opt
             res = fn(surf, cam, p, torch.Generator().manual_seed(p.seed * 1_000_003 + k), dtype=dtype, device=device)
         else:
             res = fn(surf, cam, p, dtype=dtype, device=device)
-        _sync(device)
+        sync_device(device)
         secs.append(time.perf_counter() - t0)
         res = _cpu(res)
         if stateful and n_steps and isinstance(res.debug.get("t_prime_before"), torch.Tensor):
@@ -234,7 +234,7 @@ def run_implicit(scene, method: str, params=None, *, frames: int = 1, width: Opt
     static = len(set(keys)) == 1
     ev, st = torch.cat(evals).double(), torch.cat(steps).double()
     row: dict[str, Any] = {
-        "scene": sc.name, "method": method, "params": _as_dict(p), "frames": frames, "width": cameras[0].width,
+        "scene": sc.name, "method": method, "params": params_as_dict(p), "frames": frames, "width": cameras[0].width,
         "height": cameras[0].height, "seed": seed, "dtype": str(dtype).replace("torch.", ""),
         "device": str(torch.device(device)), "threads": torch.get_num_threads(), "static": static,
         "truth_frames": truth_frames, "punch_through_per_frame": rates, "evaluations_mean_per_frame": ev_means,

@@ -33,7 +33,7 @@ from typing import Any, Optional, Union
 import torch
 
 from ..gbuffer import GBuffer
-from ._common import _as_dict, _timed, resolve_params
+from ._common import params_as_dict, timed_runs, resolve_params
 
 __all__ = ["ssr", "run_ssr", "SSREvaluation", "pass_channels", "SSR_GT_CHANNELS"]
 
@@ -123,7 +123,7 @@ def pass_channels(module, params) -> tuple[str, ...]:
     return tuple(dict.fromkeys(chans))
 
 
-def _kwargs(fn, **candidates) -> dict:
+def accepted_kwargs(fn, **candidates) -> dict:
     """The keyword arguments of ``candidates`` that ``fn`` accepts."""
     try:
         sig = inspect.signature(fn)
@@ -143,7 +143,7 @@ def _cpu(result):
     return dataclasses.replace(result, **out)
 
 
-def _reflections():
+def reflections_module():
     from .. import reference
     fn = getattr(reference, "reflections", None)
     if fn is not None and not callable(fn):                       # the submodule, not the function
@@ -191,7 +191,7 @@ def run_ssr(scene, method: str, params=None, *, width: int = 320, height: int = 
     _check_int(repeats, "repeats", 1)
     _check_int(seed, "seed", 0)
     _check_int(spp, "spp", 1)
-    M._k(k_px)
+    M.k_px_arg(k_px)
     if not (reflective is None or reflective in ("marched", "specular") or isinstance(reflective, torch.Tensor)):
         raise ValueError(f"reflective: expected None, 'marched', 'specular' or a bool mask, got {reflective!r}")
 
@@ -210,21 +210,21 @@ def run_ssr(scene, method: str, params=None, *, width: int = 320, height: int = 
 
     def run_pass(dbg: bool = False):
         gen = torch.Generator(device="cpu").manual_seed(seed)               # same bits on every repeat
-        extra = _kwargs(fn, generator=gen, **({"debug": True} if dbg else {}))
+        extra = accepted_kwargs(fn, generator=gen, **({"debug": True} if dbg else {}))
         return fn(g_pass, p, **extra)
 
-    result, times = _timed(run_pass, repeats, device, warmup)
+    result, times = timed_runs(run_pass, repeats, device, warmup)
     result = _cpu(result)
     if tuple(result.hit.shape) != (1, 1, H, W):
         raise ValueError(f"method: {method!r} returned hit of shape {tuple(result.hit.shape)}, expected "
                          f"(1, 1, {H}, {W})")
     dbg = dict(getattr(result, "debug", None) or {})
-    if debug and "debug" in _kwargs(fn, debug=True):
+    if debug and "debug" in accepted_kwargs(fn, debug=True):
         dbg = dict(_cpu(run_pass(True)).debug or {})
     dbg = {k: (v.detach().cpu() if isinstance(v, torch.Tensor) else v) for k, v in dbg.items()}
 
     if truth is None:
-        truth = _reflections()(sc, gbuffer, spp=spp, seed=seed, use_cache=use_cache)
+        truth = reflections_module()(sc, gbuffer, spp=spp, seed=seed, use_cache=use_cache)
     g_cpu = gbuffer.to("cpu")
     if reflective == "specular":
         refl = g_cpu.mask & ((g_cpu.metallic >= 0.5) | (g_cpu.roughness <= 0.5))
@@ -240,7 +240,7 @@ def run_ssr(scene, method: str, params=None, *, width: int = 320, height: int = 
     n = int(valid.sum())
 
     row: dict[str, Any] = {
-        "scene": sc.name, "method": method, "params": _as_dict(p), "width": W, "height": H, "seed": seed,
+        "scene": sc.name, "method": method, "params": params_as_dict(p), "width": W, "height": H, "seed": seed,
         "spp": spp, "k_px": float(k_px), "channels": list(needs), "back_face_depth": _back_face_on(p),
         "reflective": reflective if isinstance(reflective, str) or reflective is None else "mask",
         "seconds": statistics.median(times), "seconds_runs": times, "repeats": repeats, "warmup": bool(warmup),

@@ -43,7 +43,7 @@ class _Tok(NamedTuple):
     value: float = 0.0
 
 
-def _tokenize(text: str) -> list:
+def tokenize(text: str) -> list:
     toks, i, n = [], 0, len(text)
     while i < n:
         c, col = text[i], i + 1

@@ -39,7 +39,7 @@ import re
 from typing import Mapping, Optional
 
 from .ast import MAX_INT_POWER, VARIABLES, Binary, Node, Num, Param, PowI, Unary, Var, children
-from .lexer import ExpressionError, _tokenize
+from .lexer import ExpressionError, tokenize
 
 MAX_TEXT = 20_000
 MAX_DEPTH = 100
@@ -82,7 +82,7 @@ class _Parser:
             raise ExpressionError(f"expected a string, got {type(text).__name__}", where)
         if len(text) > MAX_TEXT:
             raise ExpressionError(f"expression too long ({len(text)} characters; the limit is {MAX_TEXT})", where)
-        self.toks = _tokenize(text)
+        self.toks = tokenize(text)
 
     # -- tokens and errors -------------------------------------------------------------------------------
     def err(self, col, what):

@@ -30,7 +30,7 @@ from typing import Any
 
 from ..scenes.files import read_data_file, read_toml, read_yaml
 from ..scenes.model import Material, SceneError
-from ..scenes.schema import _camera, _Ctx, _light, _material, _path_str
+from ..scenes.schema import camera_from, Ctx, light_from, material_from, path_str
 from .bounds import BoundsError
 from .expression import parse
 from .parser import ExpressionError
@@ -44,11 +44,11 @@ _IN_DEF = re.compile(r": definition '([A-Za-z_][A-Za-z0-9_]*)'$")
 MAX_FRAMES = 100_000
 
 
-def _where(c: _Ctx, path: tuple) -> str:
-    return f"{c.locate(path)}: {_path_str(path)}"
+def _where(c: Ctx, path: tuple) -> str:
+    return f"{c.locate(path)}: {path_str(path)}"
 
 
-def _parse(c: _Ctx, text: str, path: tuple, params: dict, defs: dict):
+def _parse(c: Ctx, text: str, path: tuple, params: dict, defs: dict):
     """Parse with ``where = "file:line: field.path"``; an error inside a definition points at its line."""
     where = _where(c, path)
     try:
@@ -61,7 +61,7 @@ def _parse(c: _Ctx, text: str, path: tuple, params: dict, defs: dict):
         raise (SceneError(msg) if msg.startswith(where) else c.fail(path, msg)) from None
 
 
-def _names(c: _Ctx, v: Any, path: tuple) -> dict:
+def _names(c: Ctx, v: Any, path: tuple) -> dict:
     d = c.mapping(v, path)
     for k in d:
         if not isinstance(k, str) or not _NAME.match(k):
@@ -69,7 +69,7 @@ def _names(c: _Ctx, v: Any, path: tuple) -> dict:
     return d
 
 
-def _object(c: _Ctx, v: Any, i: int, named: dict, params: dict, defs: dict, seen: set) -> ImplicitObject:
+def _object(c: Ctx, v: Any, i: int, named: dict, params: dict, defs: dict, seen: set) -> ImplicitObject:
     path = ("implicit", i)
     d = c.mapping(v, path)
     c.keys(d, _OBJECT_KEYS, path)
@@ -93,7 +93,7 @@ def _object(c: _Ctx, v: Any, i: int, named: dict, params: dict, defs: dict, seen
             raise c.fail(bp, f"lower corner must be < upper corner on every axis, got {axis}: {lo[k]:g} >= {hi[k]:g}")
     lam = d.get("lipschitz")
     lam = None if lam is None else c.number(lam, path + ("lipschitz",), 0.0, lo_open=True)
-    mat = _material(c, d.get("material", {}), path + ("material",), named)
+    mat = material_from(c, d.get("material", {}), path + ("material",), named)
     if isinstance(d.get("scale"), list):
         raise c.fail(path + ("scale",), "only a uniform scale (one number > 0) keeps f a distance bound")
     translate = c.vec(d.get("translate", [0, 0, 0]), path + ("translate",))
@@ -106,7 +106,7 @@ def _object(c: _Ctx, v: Any, i: int, named: dict, params: dict, defs: dict, seen
         raise c.fail(bp, str(e)) from None
 
 
-def _segment(c: _Ctx, v: Any, j: int, frames: int, ids: set) -> Segment:
+def _segment(c: Ctx, v: Any, j: int, frames: int, ids: set) -> Segment:
     path = ("animation", "segments", j)
     d = c.mapping(v, path)
     c.keys(d, {"frames", "object", "translate_per_frame", "camera"}, path)
@@ -134,7 +134,7 @@ def _segment(c: _Ctx, v: Any, j: int, frames: int, ids: set) -> Segment:
                    target_per_frame=c.vec(cam.get("target_per_frame", [0, 0, 0]), cp + ("target_per_frame",)))
 
 
-def _animation(c: _Ctx, v: Any, ids: set) -> Animation:
+def _animation(c: Ctx, v: Any, ids: set) -> Animation:
     path = ("animation",)
     d = c.mapping(v, path)
     c.keys(d, {"frames", "segments"}, path)
@@ -151,7 +151,7 @@ def _animation(c: _Ctx, v: Any, ids: set) -> Animation:
 
 def scene_from_dict(data: Any, locate=None, source: str = "<dict>") -> ImplicitScene:
     """Validate plain data into an :class:`ImplicitScene`; errors name ``file:line`` and the field."""
-    c = _Ctx(locate or (lambda path: source), None)
+    c = Ctx(locate or (lambda path: source), None)
     d = c.mapping(data, ())
     if "implicit" not in d and "shapes" in d:
         raise c.fail(("shapes",), "a mesh/analytic-shape scene; load it with ssbench.scenes.load")
@@ -162,10 +162,10 @@ def scene_from_dict(data: Any, locate=None, source: str = "<dict>") -> ImplicitS
         raise c.fail(("description",), "expected a string")
     if "camera" not in d:
         raise c.fail(("camera",), "missing required field")
-    camera = _camera(c, d["camera"])
+    camera = camera_from(c, d["camera"])
     named: dict[str, Material] = {}
     for k, mv in c.mapping(d.get("materials", {}), ("materials",)).items():
-        named[k] = _material(c, mv, ("materials", k), {})
+        named[k] = material_from(c, mv, ("materials", k), {})
     params = {k: c.number(x, ("params", k)) for k, x in _names(c, d.get("params", {}), ("params",)).items()}
     defs = {k: c.text(x, ("define", k)) for k, x in _names(c, d.get("define", {}), ("define",)).items()}
     for k in defs:
@@ -182,7 +182,7 @@ def scene_from_dict(data: Any, locate=None, source: str = "<dict>") -> ImplicitS
     lights_v = d.get("lights", [])
     if not isinstance(lights_v, list):
         raise c.fail(("lights",), "expected a list of lights")
-    lights = tuple(_light(c, lv, i) for i, lv in enumerate(lights_v))
+    lights = tuple(light_from(c, lv, i) for i, lv in enumerate(lights_v))
     animation = _animation(c, d["animation"], seen) if d.get("animation") is not None else None
     scene = ImplicitScene(name=name, description=description, objects=objects, lights=lights, camera=camera,
                           animation=animation, source=source)

@@ -12,11 +12,11 @@ import torch
 
 from .. import checks
 
-_RESULT_FIELDS = {"hit": 1, "hit_pixel": 2, "hit_view": 3}
-_TRUTH_FIELDS = {"valid": 1, "hit": 1, "hit_view": 3, "hit_pixel": 2, "on_screen": 1, "visible": 1, "back_face": 1}
+RESULT_FIELDS = {"hit": 1, "hit_pixel": 2, "hit_view": 3}
+TRUTH_FIELDS = {"valid": 1, "hit": 1, "hit_view": 3, "hit_pixel": 2, "on_screen": 1, "visible": 1, "back_face": 1}
 
 
-def _field(obj: Any, name: str, arg: str, channels: int, like: Optional[torch.Tensor] = None) -> torch.Tensor:
+def field_of(obj: Any, name: str, arg: str, channels: int, like: Optional[torch.Tensor] = None) -> torch.Tensor:
     t = getattr(obj, name, None)
     if not isinstance(t, torch.Tensor):
         raise TypeError(f"{arg}.{name}: expected a torch.Tensor, got {type(t).__name__}")
@@ -27,7 +27,7 @@ def _field(obj: Any, name: str, arg: str, channels: int, like: Optional[torch.Te
     return t
 
 
-def _mask_arg(m: Optional[torch.Tensor], like: torch.Tensor, name: str) -> Optional[torch.Tensor]:
+def mask_arg(m: Optional[torch.Tensor], like: torch.Tensor, name: str) -> Optional[torch.Tensor]:
     if m is None:
         return None
     if not isinstance(m, torch.Tensor):
@@ -40,22 +40,22 @@ def _mask_arg(m: Optional[torch.Tensor], like: torch.Tensor, name: str) -> Optio
     return m
 
 
-def _check_pair(result: Any, truth: Any) -> torch.Tensor:
-    hit = _field(result, "hit", "result", 1)
-    for n, c in _RESULT_FIELDS.items():
-        _field(result, n, "result", c, hit)
-    for n, c in _TRUTH_FIELDS.items():
-        _field(truth, n, "truth", c, hit)
+def check_pair(result: Any, truth: Any) -> torch.Tensor:
+    hit = field_of(result, "hit", "result", 1)
+    for n, c in RESULT_FIELDS.items():
+        field_of(result, n, "result", c, hit)
+    for n, c in TRUTH_FIELDS.items():
+        field_of(truth, n, "truth", c, hit)
     return hit
 
 
-def _k(k_px) -> float:
+def k_px_arg(k_px) -> float:
     if isinstance(k_px, bool) or not isinstance(k_px, (int, float)) or not (math.isfinite(k_px) and k_px > 0):
         raise ValueError(f"k_px: must be a finite number > 0, got {k_px!r}")
     return float(k_px)
 
 
-def _check_classes(classes: torch.Tensor) -> None:
+def check_classes(classes: torch.Tensor) -> None:
     checks.check_tensor(classes, "classes")
     checks.check_shape(classes, ["B", "1", "H", "W"], "classes")
     if classes.is_floating_point() or classes.dtype == torch.bool:

@@ -21,15 +21,15 @@ stubs). Bad input raises ``ValueError``/``TypeError`` naming the argument.
 """
 from __future__ import annotations
 
-# private helpers are re-exported too: callers reach some of them through this module (e.g. ``ssr._k``)
-from ._ssr_checks import (_RESULT_FIELDS, _TRUTH_FIELDS, _check_classes, _check_pair, _field, _k,  # noqa: F401
-                          _mask_arg)
+# private helpers are re-exported too: callers reach some of them through this module (e.g. ``ssr.k_px_arg``)
+from ._ssr_checks import (RESULT_FIELDS, TRUTH_FIELDS, check_classes, check_pair, field_of, k_px_arg,  # noqa: F401
+                          mask_arg)
 from .ssr_classes import (BACK_FACE_TARGET, CLASS_COLORS, CLASS_DESCRIPTIONS, CLASS_LABELS, CLASS_NAMES, CORRECT,
                           FALSE_HIT, MISSED, NOT_REFLECTIVE, OCCLUDED_TARGET, OFF_SCREEN_TARGET, PUNCH_THROUGH,
-                          TRUE_MISS, UNFIXABLE, MISPLACED_HIT, UNFIXABLE_HIT, WRONG_OUTPUT, _hex,  # noqa: F401
+                          TRUE_MISS, UNFIXABLE, MISPLACED_HIT, UNFIXABLE_HIT, WRONG_OUTPUT, hex_colour,  # noqa: F401
                           class_rgb, legend_entries, legend_handles)
-from .ssr_classify import _behind, _origin, _shape_at, _target_masks, _valid, classify, truth_classes  # noqa: F401
-from .ssr_scores import (_stats, class_counts, class_fractions, color_error, color_error_map,  # noqa: F401
+from .ssr_classify import behind_origin, ray_origin, shape_at, target_masks, valid_pixels, classify, truth_classes  # noqa: F401
+from .ssr_scores import (summary_stats, class_counts, class_fractions, color_error, color_error_map,  # noqa: F401
                          hit_error, hit_error_maps, termination_fractions)
 
 __all__ = ["classify", "truth_classes", "class_fractions", "class_counts", "hit_error", "hit_error_maps",

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from ._ssr_checks import _check_classes
+from ._ssr_checks import check_classes
 
 __all__ = ["NOT_REFLECTIVE", "CORRECT", "MISSED", "FALSE_HIT", "PUNCH_THROUGH", "OFF_SCREEN_TARGET",
            "OCCLUDED_TARGET", "BACK_FACE_TARGET", "TRUE_MISS", "MISPLACED_HIT", "UNFIXABLE_HIT", "WRONG_OUTPUT",
@@ -67,13 +67,13 @@ WRONG_OUTPUT = (FALSE_HIT, MISPLACED_HIT, PUNCH_THROUGH, UNFIXABLE_HIT)
 
 
 # ------------------------------------------------------------------------------------------ pictures
-def _hex(rgb) -> str:
+def hex_colour(rgb) -> str:
     return "#" + "".join(f"{int(round(255 * c)):02x}" for c in rgb)
 
 
 def class_rgb(classes: torch.Tensor, index: int = 0) -> np.ndarray:
     """``(H, W, 3)`` uint8 class map of batch item ``index`` in :data:`CLASS_COLORS`."""
-    _check_classes(classes)
+    check_classes(classes)
     c = classes[index, 0].cpu().numpy().astype(np.int64)
     lut = np.zeros((max(CLASS_COLORS) + 1, 3))
     for code, rgb in CLASS_COLORS.items():
@@ -88,7 +88,7 @@ def legend_entries(codes=None) -> list[dict]:
     unknown = [c for c in codes if c not in CLASS_NAMES]
     if unknown:
         raise ValueError(f"codes: unknown class code(s) {unknown}; known: {sorted(CLASS_NAMES)}")
-    return [{"code": c, "key": CLASS_NAMES[c], "label": CLASS_LABELS[c], "color": _hex(CLASS_COLORS[c]),
+    return [{"code": c, "key": CLASS_NAMES[c], "label": CLASS_LABELS[c], "color": hex_colour(CLASS_COLORS[c]),
              "description": CLASS_DESCRIPTIONS[c]} for c in codes]
 
 

@@ -55,7 +55,7 @@ from typing import Any, Optional
 import torch
 
 from ..rays import length
-from ._ssr_checks import _check_pair, _field, _k, _mask_arg
+from ._ssr_checks import check_pair, field_of, k_px_arg, mask_arg
 from .ssr_classes import (BACK_FACE_TARGET, CLASS_NAMES, CORRECT, FALSE_HIT, MISPLACED_HIT, MISSED,
                           OCCLUDED_TARGET, OFF_SCREEN_TARGET, PUNCH_THROUGH, TRUE_MISS, UNFIXABLE_HIT)
 
@@ -63,7 +63,7 @@ __all__ = ["classify", "truth_classes"]
 
 
 # ------------------------------------------------------------------------------------------ geometry
-def _origin(gbuffer, like: torch.Tensor) -> torch.Tensor:
+def ray_origin(gbuffer, like: torch.Tensor) -> torch.Tensor:
     """View-space ray origins ``(B, 3, H, W)`` float64 from ``gbuffer.position`` (or ``view_z``)."""
     if gbuffer is None:
         raise ValueError("gbuffer: classify needs the G-buffer (position or view_z) to tell a punch-through "
@@ -80,7 +80,7 @@ def _origin(gbuffer, like: torch.Tensor) -> torch.Tensor:
     return pos.double()
 
 
-def _shape_at(shape_id: torch.Tensor, pixel: torch.Tensor) -> torch.Tensor:
+def shape_at(shape_id: torch.Tensor, pixel: torch.Tensor) -> torch.Tensor:
     """``shape_id`` at the pixel containing ``pixel`` (continuous ``(px, py)``, clamped to the image)."""
     B, _, H, W = shape_id.shape
     px = torch.nan_to_num(pixel[:, 0].double(), nan=-1.0).floor().clamp(0, W - 1).long()
@@ -90,7 +90,7 @@ def _shape_at(shape_id: torch.Tensor, pixel: torch.Tensor) -> torch.Tensor:
 
 
 # ------------------------------------------------------------------------------------------ classes
-def _target_masks(truth: Any, valid: torch.Tensor) -> dict[int, torch.Tensor]:
+def target_masks(truth: Any, valid: torch.Tensor) -> dict[int, torch.Tensor]:
     th = truth.hit.bool() & valid
     on = truth.on_screen.bool()
     back = truth.back_face.bool()
@@ -99,13 +99,13 @@ def _target_masks(truth: Any, valid: torch.Tensor) -> dict[int, torch.Tensor]:
             OCCLUDED_TARGET: th & on & ~back & ~vis, -1: th & on & ~back & vis, -2: valid & ~th}
 
 
-def _valid(truth: Any, gbuffer, reflective: Optional[torch.Tensor], like: torch.Tensor) -> torch.Tensor:
+def valid_pixels(truth: Any, gbuffer, reflective: Optional[torch.Tensor], like: torch.Tensor) -> torch.Tensor:
     valid = truth.valid.bool()
     mask = getattr(gbuffer, "mask", None) if gbuffer is not None else None
     if mask is not None:
-        valid = valid & _mask_arg(mask, like, "gbuffer.mask")
+        valid = valid & mask_arg(mask, like, "gbuffer.mask")
     if reflective is not None:
-        valid = valid & _mask_arg(reflective, like, "reflective")
+        valid = valid & mask_arg(reflective, like, "reflective")
     return valid
 
 
@@ -141,16 +141,16 @@ def classify(result: Any, truth: Any, gbuffer=None, k_px: float = 1.5, *,
         >>> [names[int(c)] for c in classes.flatten()]
         ['correct', 'missed', 'false_hit']
     """
-    hit = _check_pair(result, truth)
-    k = _k(k_px)
-    valid = _valid(truth, gbuffer, reflective, hit)
-    t = _target_masks(truth, valid)
+    hit = check_pair(result, truth)
+    k = k_px_arg(k_px)
+    valid = valid_pixels(truth, gbuffer, reflective, hit)
+    t = target_masks(truth, valid)
     target, truth_miss = t[-1], t[-2]
     ph = result.hit.bool() & valid
     d_px = length(result.hit_pixel.double() - truth.hit_pixel.double())
     near = torch.nan_to_num(d_px, nan=math.inf) <= k                       # NaN never counts as close
     wrong = target & ph & ~near
-    punch = wrong & _behind(result, truth, gbuffer, hit, wrong)
+    punch = wrong & behind_origin(result, truth, gbuffer, hit, wrong)
     misplaced = wrong & ~punch & _same_shape(result, truth, gbuffer, wrong & ~punch)
     unfixable = t[OFF_SCREEN_TARGET] | t[OCCLUDED_TARGET] | t[BACK_FACE_TARGET]
 
@@ -164,7 +164,7 @@ def classify(result: Any, truth: Any, gbuffer=None, k_px: float = 1.5, *,
     return classes, dict(CLASS_NAMES)
 
 
-def _behind(result: Any, truth: Any, gbuffer, like: torch.Tensor, where: torch.Tensor) -> torch.Tensor:
+def behind_origin(result: Any, truth: Any, gbuffer, like: torch.Tensor, where: torch.Tensor) -> torch.Tensor:
     r"""The pass's hit lies farther along the true ray than the true hit (and on another shape, when known).
 
     With origin :math:`P`, true hit :math:`X` and pass hit :math:`\hat X`:
@@ -172,7 +172,7 @@ def _behind(result: Any, truth: Any, gbuffer, like: torch.Tensor, where: torch.T
     """
     if not bool(where.any()):
         return torch.zeros_like(where)
-    P = _origin(gbuffer, like)
+    P = ray_origin(gbuffer, like)
     X, Xh = truth.hit_view.double(), result.hit_view.double()
     t = length(X - P)
     d = (X - P) / t.clamp_min(1e-300)
@@ -181,7 +181,7 @@ def _behind(result: Any, truth: Any, gbuffer, like: torch.Tensor, where: torch.T
     sid = getattr(gbuffer, "shape_id", None)
     tshape = getattr(truth, "hit_shape", None)
     if sid is not None and isinstance(tshape, torch.Tensor):
-        behind = behind & (_shape_at(sid, result.hit_pixel) != tshape.long())
+        behind = behind & (shape_at(sid, result.hit_pixel) != tshape.long())
     return behind
 
 
@@ -192,7 +192,7 @@ def _same_shape(result: Any, truth: Any, gbuffer, where: torch.Tensor) -> torch.
     if sid is None or not isinstance(tshape, torch.Tensor) or not bool(where.any()):
         return torch.zeros_like(where)
     finite = torch.isfinite(result.hit_pixel.double()).all(1, keepdim=True)
-    return where & finite & (_shape_at(sid, result.hit_pixel) == tshape.long())
+    return where & finite & (shape_at(sid, result.hit_pixel) == tshape.long())
 
 
 def truth_classes(truth: Any, gbuffer=None, *, reflective: Optional[torch.Tensor] = None) -> torch.Tensor:
@@ -209,9 +209,9 @@ def truth_classes(truth: Any, gbuffer=None, *, reflective: Optional[torch.Tensor
         ['correct', 'off_screen_target', 'true_miss', 'not_reflective']
     """
     for n in ("valid", "hit", "on_screen", "visible", "back_face"):
-        _field(truth, n, "truth", 1, truth.valid)
-    valid = _valid(truth, gbuffer, reflective, truth.valid)
-    t = _target_masks(truth, valid)
+        field_of(truth, n, "truth", 1, truth.valid)
+    valid = valid_pixels(truth, gbuffer, reflective, truth.valid)
+    t = target_masks(truth, valid)
     classes = torch.zeros_like(truth.valid, dtype=torch.int8)
     for code, m in ((TRUE_MISS, t[-2]), (CORRECT, t[-1]), (OFF_SCREEN_TARGET, t[OFF_SCREEN_TARGET]),
                     (OCCLUDED_TARGET, t[OCCLUDED_TARGET]), (BACK_FACE_TARGET, t[BACK_FACE_TARGET])):

@@ -20,7 +20,7 @@ import torch
 
 from .. import checks
 from ..rays import length
-from ._ssr_checks import _check_classes, _check_pair, _mask_arg
+from ._ssr_checks import check_classes, check_pair, mask_arg
 from .ssr_classes import CLASS_NAMES, NOT_REFLECTIVE, UNFIXABLE, UNFIXABLE_HIT, WRONG_OUTPUT
 
 __all__ = ["class_counts", "class_fractions", "termination_fractions", "hit_error_maps", "hit_error",
@@ -30,7 +30,7 @@ __all__ = ["class_counts", "class_fractions", "termination_fractions", "hit_erro
 # ------------------------------------------------------------------------------------------ fractions
 def class_counts(classes: torch.Tensor) -> dict[str, int]:
     """Pixel count of every class, by key (all batch items pooled)."""
-    _check_classes(classes)
+    check_classes(classes)
     return {key: int((classes == code).sum()) for code, key in CLASS_NAMES.items()}
 
 
@@ -52,9 +52,9 @@ def class_fractions(classes: torch.Tensor, targets: Optional[torch.Tensor] = Non
         >>> f["correct"], f["unfixable_hit"], f["unfixable"], f["off_screen_target_pass_hit"], f["reflective"]
         (0.4, 0.2, 0.2, 0.2, 0.8333333333333334)
     """
-    _check_classes(classes)
+    check_classes(classes)
     if targets is not None:
-        _check_classes(targets)
+        check_classes(targets)
         if targets.shape != classes.shape:
             raise ValueError(f"targets: shape must match classes {tuple(classes.shape)}, got {tuple(targets.shape)}")
     refl = classes != NOT_REFLECTIVE
@@ -77,7 +77,7 @@ def termination_fractions(termination: torch.Tensor, mask: Optional[torch.Tensor
     """Share of each termination reason (``ssr_common.TERMINATION_NAMES``, spaces → ``_``) over ``mask``."""
     from ..passes.ssr_common import TERMINATION_NAMES
     checks.check_shape(termination, ["B", "1", "H", "W"], "termination")
-    m = torch.ones_like(termination, dtype=torch.bool) if mask is None else _mask_arg(mask, termination, "mask")
+    m = torch.ones_like(termination, dtype=torch.bool) if mask is None else mask_arg(mask, termination, "mask")
     n = int(m.sum())
     return {name.replace(" ", "_"): (int(((termination == code) & m).sum()) / n if n else math.nan)
             for code, name in TERMINATION_NAMES.items()}
@@ -90,7 +90,7 @@ def hit_error_maps(result: Any, truth: Any) -> tuple[torch.Tensor, torch.Tensor]
     Returns ``(pixels, view)``, each :math:`(B, 1, H, W)` float64:
     :math:`\lVert \hat p - p\rVert_2` in pixels and :math:`\lVert \hat X - X\rVert_2` in view (scene) units.
     """
-    _check_pair(result, truth)
+    check_pair(result, truth)
     both = result.hit.bool() & truth.hit.bool()
     px = length(result.hit_pixel.double() - truth.hit_pixel.double())
     vw = length(result.hit_view.double() - truth.hit_view.double())
@@ -98,7 +98,7 @@ def hit_error_maps(result: Any, truth: Any) -> tuple[torch.Tensor, torch.Tensor]
     return torch.where(both, px, nan), torch.where(both, vw, nan)
 
 
-def _stats(x: torch.Tensor, prefix: str) -> dict[str, float]:
+def summary_stats(x: torch.Tensor, prefix: str) -> dict[str, float]:
     x = x[torch.isfinite(x)]
     if x.numel() == 0:
         return {f"{prefix}_{s}": math.nan for s in ("mean", "median", "p95", "max")}
@@ -130,10 +130,10 @@ def hit_error(result: Any, truth: Any, mask: Optional[torch.Tensor] = None) -> d
     px, vw = hit_error_maps(result, truth)
     m = torch.isfinite(px)
     if mask is not None:
-        m = m & _mask_arg(mask, px, "mask")
+        m = m & mask_arg(mask, px, "mask")
     out = {"n": float(m.sum())}
-    out.update(_stats(px[m], "px"))
-    out.update(_stats(vw[m], "view"))
+    out.update(summary_stats(px[m], "px"))
+    out.update(summary_stats(vw[m], "view"))
     return out
 
 
@@ -159,7 +159,7 @@ def color_error(result: Any, truth: Any, mask: Optional[torch.Tensor] = None, *,
         checks.check_shape(t, ["B", "3", "H", "W"], name)
     if mask is None:
         mask = truth.valid.bool()
-    mask = _mask_arg(mask, rad, "mask")
+    mask = mask_arg(mask, rad, "mask")
     target = rad.float()
     out: dict[str, float] = {}
     for suffix, pred in (("faded", col), ("raw", raw)):

@@ -111,8 +111,8 @@ def check_gbuffer(gbuffer: GBuffer, requires: Iterable[str], *, finite: Iterable
         elif z is not None and t.dtype != z.dtype:
             raise ValueError(f"{name}: dtype {t.dtype} must match view_z's {z.dtype}")
     if z is not None and not has_values(z) and not meta_ok:
-        raise ValueError(f"view_z: on the meta device, which holds no values; this pass's work depends on them "
-                         f"(it compacts rays by value), so run it on cpu or cuda tensors")
+        raise ValueError("view_z: on the meta device, which holds no values; this pass's work depends on them "
+                         "(it compacts rays by value), so run it on cpu or cuda tensors")
     if z is None or m is None or not has_values(z):
         return
     bad = ~torch.isfinite(z)

@@ -35,7 +35,7 @@ from torch import nn
 from ..gbuffer import GBuffer
 from .common import AOResult, check_count, check_radius, fetch, make_generator
 from .gbuffer_checks import check_gbuffer, half_in_float32
-from .gtao_parts import _cross, _dot, _hilbert_index, _unit, noise_buffer, slice_visibility  # noqa: F401
+from .gtao_parts import cross3, dot3, hilbert_index, unit3, noise_buffer, slice_visibility  # noqa: F401
 
 FLAVOUR = "cosine"  # the ground-truth weighting this pass estimates (ssbench.reference.ao)
 REQUIRES = ("view_z", "normal", "mask")
@@ -201,7 +201,7 @@ def gtao(gbuffer: GBuffer, params: GTAOParams = GTAOParams(), *, generator: Opti
     ray_x = lambda c: (2.0 * (c + 0.5) / W - 1.0) * cam.aspect / cam.focal          # view x at z = -1
     ray_y = lambda r: (1.0 - 2.0 * (r + 0.5) / H) / cam.focal                       # (uv_to_view, v up)
     P = (ray_x(col) * -zc, ray_y(row) * -zc, zc)
-    v = _unit(tuple(-c for c in P))                                                  # toward the camera
+    v = unit3(tuple(-c for c in P))                                                  # toward the camera
     N = tuple(torch.where(mask, gbuffer.normal[:, i:i + 1], v[i]) for i in range(3))
     R = params.radius * params.radius_multiplier                                     # effect radius
     r_px = R * cam.focal * H / (2.0 * -zc)                                           # (B, 1, H, W) pixels
@@ -218,12 +218,12 @@ def gtao(gbuffer: GBuffer, params: GTAOParams = GTAOParams(), *, generator: Opti
         cos_phi, sin_phi = torch.cos(phi), torch.sin(phi)
         dv = cos_phi * v[0] + sin_phi * v[1]
         o = (cos_phi - dv * v[0], sin_phi - dv * v[1], -dv * v[2])                  # orthoDirectionVec
-        axis = _unit(_cross(o, v))
-        na = _dot(N, axis)
+        axis = unit3(cross3(o, v))
+        na = dot3(N, axis)
         proj_n = tuple(N[i] - axis[i] * na for i in range(3))
-        proj_len = _dot(proj_n, proj_n).sqrt()
-        cos_n = (_dot(proj_n, v) / proj_len.clamp_min(tiny)).clamp(0.0, 1.0)
-        n = torch.sign(_dot(o, proj_n)) * torch.acos(cos_n)
+        proj_len = dot3(proj_n, proj_n).sqrt()
+        cos_n = (dot3(proj_n, v) / proj_len.clamp_min(tiny)).clamp(0.0, 1.0)
+        n = torch.sign(dot3(o, proj_n)) * torch.acos(cos_n)
         low0, low1 = torch.cos(n + math.pi / 2), torch.cos(n - math.pi / 2)        # lowHorizonCos0/1
         # ---- Horizon search: K steps x 2 sides at once, samples on dim 1 (lines 17-26) ----
         step_noise = torch.frac(noise[:, 1:] + (k + j * K) * _R1)                   # (B, K, H, W)
@@ -235,8 +235,8 @@ def gtao(gbuffer: GBuffer, params: GTAOParams = GTAOParams(), *, generator: Opti
         cx, cy = torch.where(on, cx, col), torch.where(on, cy, row)      # (weight 0; huge r_px overflowed delta)
         zs = fetch(z, cx.clamp(0, W - 1).long(), cy.clamp(0, H - 1).long())[:, 0]     # (B, 2K, H, W)
         delta = (ray_x(cx) * -zs - P[0], ray_y(cy) * -zs - P[1], zs - P[2])
-        dist = _dot(delta, delta).sqrt().clamp_min(tiny)
-        shc = _dot(delta, v) / dist                                                  # sample horizon cos
+        dist = dot3(delta, delta).sqrt().clamp_min(tiny)
+        shc = dot3(delta, v) / dist                                                  # sample horizon cos
         if toc:
             dist = (delta[0] ** 2 + delta[1] ** 2 + (delta[2] * (1.0 + toc)) ** 2).sqrt()
         w = ((dist * (-1.0 / (fr * R)) + ((1.0 - fr) / fr + 1.0)).clamp(0.0, 1.0) if fr > 0
@@ -253,7 +253,7 @@ def gtao(gbuffer: GBuffer, params: GTAOParams = GTAOParams(), *, generator: Opti
                   + 16 * torch.sin(n) - 3 * (torch.sin(h0 + n) + torch.sin(h1 + n))) / 12
             t1 = (-torch.cos(3 * h0 - n) - torch.cos(3 * h1 - n) + 8 * torch.cos(n)
                   - 3 * (torch.cos(h0 + n) + torch.cos(h1 + n))) / 12
-            o_hat = _unit(o)
+            o_hat = unit3(o)
             bent = [bent[i] + proj_len * (t0 * o_hat[i] + t1 * v[i]) for i in range(3)]
         if debug:
             dbg_h.append(torch.stack([hc0, hc1], 2))                                 # (B, 1, 2, H, W)
@@ -269,7 +269,7 @@ def gtao(gbuffer: GBuffer, params: GTAOParams = GTAOParams(), *, generator: Opti
     vis = vis.clamp(0.03, 1.0)
     ao = torch.where(mask, vis, torch.ones_like(vis))
     out_bent = (None if bent is None else
-                torch.where(mask, torch.cat(_unit(tuple(bent)), 1), torch.zeros_like(gbuffer.normal)))
+                torch.where(mask, torch.cat(unit3(tuple(bent)), 1), torch.zeros_like(gbuffer.normal)))
     extra = {"horizon_cos": torch.cat(dbg_h, 1), "normal_angle": torch.cat(dbg_n, 1),
              "slice_visibility": torch.cat(dbg_v, 1), "screen_radius": r_px} if debug else {}
     return AOResult(ao=ao, bent_normal=out_bent, debug=extra)

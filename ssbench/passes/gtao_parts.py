@@ -35,7 +35,7 @@ def slice_visibility(h0: torch.Tensor, h1: torch.Tensor, n: torch.Tensor) -> tor
     return arc(h0) + arc(h1)
 
 
-def _hilbert_index(x: torch.Tensor, y: torch.Tensor, width: int = 64) -> torch.Tensor:
+def hilbert_index(x: torch.Tensor, y: torch.Tensor, width: int = 64) -> torch.Tensor:
     """XeGTAO's ``HilbertIndex`` of integer pixel coordinates (taken modulo ``width``)."""
     x, y, index, level = x % width, y % width, torch.zeros_like(x), width // 2
     while level > 0:
@@ -60,21 +60,21 @@ def noise_buffer(params: GTAOParams, batch: int, height: int, width: int,
     row = torch.arange(height).view(height, 1).expand(height, width)
     col = torch.arange(width).view(1, width).expand(height, width)
     if kind == "hilbert":
-        idx = _hilbert_index(col, row).to(torch.float64) + 288 * (params.frame % 64)   # (H, W), XeGTAO
+        idx = hilbert_index(col, row).to(torch.float64) + 288 * (params.frame % 64)   # (H, W), XeGTAO
         r2 = torch.tensor(_R2, dtype=torch.float64).view(2, 1, 1)
         return torch.frac(0.5 + idx * r2).expand(shape)
     tile = torch.as_tensor(params.noise, dtype=torch.float64).expand(2, 4, 4)     # (2, 4, 4)
     return tile[:, row % 4, col % 4].expand(shape)
 
 
-def _dot(a: tuple, b: tuple) -> torch.Tensor:                 # 3-vectors are (x, y, z) tuples of tensors
+def dot3(a: tuple, b: tuple) -> torch.Tensor:                 # 3-vectors are (x, y, z) tuples of tensors
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-def _cross(a: tuple, b: tuple) -> tuple:
+def cross3(a: tuple, b: tuple) -> tuple:
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
-def _unit(a: tuple) -> tuple:
-    inv = 1.0 / _dot(a, a).sqrt().clamp_min(torch.finfo(a[0].dtype).tiny)
+def unit3(a: tuple) -> tuple:
+    inv = 1.0 / dot3(a, a).sqrt().clamp_min(torch.finfo(a[0].dtype).tiny)
     return tuple(c * inv for c in a)

@@ -40,7 +40,7 @@ Fixes and choices (against McGuire & Mara 2014, G3D's ``screenSpaceRayTrace.glsl
   caught depended on the stride's phase (K = 64 missed more than K = 32 under ``fit_stride_to_steps``).
 * Refinement only where the stride exceeds 1 px (as both anchors): ``"binary"`` is the article's ±stride walk
   over the hit sample's footprint (the article backs off a whole step and misses crossings in the far half, which
-  the coarse test accepts) with the predicate "ray at or behind the probe's texel" (:func:`_refine`);
+  the coarse test accepts) with the predicate "ray at or behind the probe's texel" (:func:`refine_hits`);
   ``"remarch"`` is G3D's: back off one stride, walk single pixels up to ``1.4·stride`` until ``rayZMin ≤
   sceneZMax``.
 * Jitter: every pixel draws ``U[0, 1)·jitter`` strides from the seeded generator (the article dithers
@@ -65,7 +65,7 @@ from .common import check_count, fetch, length, make_generator
 from .gbuffer_checks import check_gbuffer, half_in_float32
 from .ssr_common import (BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult,
                          clip_ray_length, reflection_rays)
-from .ssr_dda_refine import _count, _fetch, _refine, _z
+from .ssr_dda_refine import count_visits, fetch_cell, refine_hits, ray_view_z
 from .ssr_fade import EDGE_FADE_MODES, distance_fade, edge_fade
 
 REQUIRES = ("view_z", "normal", "mask", "color")
@@ -149,7 +149,7 @@ def check_inputs(gbuffer: GBuffer, params: DDASSRParams) -> None:
     check_gbuffer(gbuffer, REQUIRES, finite=("color",), meta_ok=False)
 
 
-def _rays(gbuffer: GBuffer, params: DDASSRParams, jitter: torch.Tensor):
+def dda_rays(gbuffer: GBuffer, params: DDASSRParams, jitter: torch.Tensor):
     """Per-ray set-up (article §2.2 up to the loop) of every ``mask`` pixel as flat tensors; also ``sel``, P0, P1."""
     cam, vz = gbuffer.camera, gbuffer.view_z
     B, _, H, W = vz.shape
@@ -194,11 +194,11 @@ def _rays(gbuffer: GBuffer, params: DDASSRParams, jitter: torch.Tensor):
              stepDir=stepDir, permute=permute, zlo=zlo, zhi=zhi, stride=pixelStride, Q0x=Q0[:, 0], Q0y=Q0[:, 1],
              dQx=dQ[:, 0], dQy=dQ[:, 1], clipped=o[:, 2] + d[:, 2] * params.max_ray_distance > -cam.near)
     s["stop"] = torch.minimum(s["end"], exit_)                                      # P1 or the viewport edge
-    s["prevZ"] = _z(Q0[:, 2] + 0.5 * dQ[:, 2], k0 + 0.5 * dk, zlo, zhi)          # footprint edge of sample 1
+    s["prevZ"] = ray_view_z(Q0[:, 2] + 0.5 * dQ[:, 2], k0 + 0.5 * dk, zlo, zhi)          # footprint edge of sample 1
     return s, sel, P0, P1
 
 
-def _march(s: dict, tex, params: DDASSRParams, H: int, W: int, visits: Optional[torch.Tensor]) -> dict:
+def dda_march(s: dict, tex, params: DDASSRParams, H: int, W: int, visits: Optional[torch.Tensor]) -> dict:
     """The DDA loop; per-ray outputs by ``s["i"]``. Finished rays freeze (``alive``), dropped when 1/8 of ``s``."""
     N, f = s["i"].numel(), dict(dtype=s["k"].dtype, device=s["k"].device)
     out = dict(term=torch.full((N,), OUT_OF_STEPS, dtype=torch.int8, device=f["device"]),
@@ -220,18 +220,18 @@ def _march(s: dict, tex, params: DDASSRParams, H: int, W: int, visits: Optional[
                                              s["Qz"] - s["dQz"] * back, s["k"] - s["dk"] * back)
         s["n"] = s["n"] - back
         half = torch.where(partial, 0.5 * f, 0.5)
-        on, t, sceneZMax, m = _fetch(s, s, tex, H, W)
+        on, t, sceneZMax, m = fetch_cell(s, s, tex, H, W)
         off, live = s["alive"] & ~past & ~on, s["alive"] & ~past & on             # live: this sample is fetched
         rayZMin = s["prevZ"]
-        rayZMax = _z(s["dQz"] * half + s["Qz"], s["dk"] * half + s["k"], s["zlo"], s["zhi"])   # footprint end
+        rayZMax = ray_view_z(s["dQz"] * half + s["Qz"], s["dk"] * half + s["k"], s["zlo"], s["zhi"])   # footprint end
         s["prevZ"] = rayZMax
         rayZMin, rayZMax = torch.minimum(rayZMin, rayZMax), torch.maximum(rayZMin, rayZMax)   # swap
         hit = live & m & (rayZMax >= sceneZMax - params.z_thickness) & (rayZMin <= sceneZMax)
-        _count(out, visits, s["i"], t, live)
+        count_visits(out, visits, s["i"], t, live)
         hi = hit.nonzero().squeeze(1)
         if hi.numel():
             h = {key: v.index_select(0, hi) for key, v in s.items()}
-            _refine(h, tex, params, H, W, out, visits)
+            refine_hits(h, tex, params, H, W, out, visits)
             out["P"][h["i"]] = torch.where(h["permute"][:, None], torch.stack([h["Py"], h["Px"]], 1),
                                            torch.stack([h["Px"], h["Py"]], 1))
             out["Q"][h["i"]] = torch.stack([h["Q0x"] + h["dQx"] * h["n"], h["Q0y"] + h["dQy"] * h["n"], h["Qz"]], 1)
@@ -283,9 +283,9 @@ def ssr_dda(gbuffer: GBuffer, params: DDASSRParams = DDASSRParams(), *, generato
     check_inputs(gbuffer, params)
     B, _, H, W = gbuffer.view_z.shape
     jitter = jitter_fractions(params, (B, 1, H, W), make_generator(params.seed, generator))
-    s, sel, P0, P1 = _rays(gbuffer, params, jitter)
+    s, sel, P0, P1 = dda_rays(gbuffer, params, jitter)
     visits = torch.zeros(B * H * W, dtype=torch.int32, device=gbuffer.view_z.device) if debug else None
-    o = _march(s, (gbuffer.view_z.reshape(-1), gbuffer.mask.reshape(-1)), params, H, W, visits)
+    o = dda_march(s, (gbuffer.view_z.reshape(-1), gbuffer.mask.reshape(-1)), params, H, W, visits)
     return assemble(gbuffer, params, sel, P1, o, visits)
 
 

@@ -11,7 +11,7 @@ interior. So it fetches exactly the pixels :func:`~ssbench.passes.ssr_visits.cro
 up to where the ray stops (the origin pixel excepted, as in the DDA).
 
 Everything else is the DDA's: the same near-plane clipping, homogeneous pixel-space endpoints and degenerate-line
-nudge (``ssr_dda._rays`` at stride 1, no jitter), ``Q`` and ``k = 1/w`` linear in screen space (appendix A), the
+nudge (``ssr_dda.dda_rays`` at stride 1, no jitter), ``Q`` and ``k = 1/w`` linear in screen space (appendix A), the
 same box test per texel. Only the z interval is exact: the ray enters the cell at ``nA`` and leaves at ``nB``
 (or at ``P1``), so
 
@@ -39,7 +39,7 @@ from ..gbuffer import GBuffer
 from .common import check_count
 from .ssr_common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS, SSRResult
 from .gbuffer_checks import half_in_float32
-from .ssr_dda import (DEFAULTS_SOURCE, EQUAL_SETTINGS, REQUIRES, DDASSRParams, _count, _rays, _z, check_inputs,
+from .ssr_dda import (DEFAULTS_SOURCE, EQUAL_SETTINGS, REQUIRES, DDASSRParams, count_visits, dda_rays, ray_view_z, check_inputs,
                       assemble)
 from .ssr_fade import EDGE_FADE_MODES
 
@@ -84,7 +84,7 @@ class SupercoverDDASSRParams:
 
 
 def cell_setup(s: dict) -> dict:
-    """Per-ray traversal state from ``ssr_dda._rays`` (permuted frame, ``n`` in major-axis pixels from ``P0``):
+    """Per-ray traversal state from ``ssr_dda.dda_rays`` (permuted frame, ``n`` in major-axis pixels from ``P0``):
     cell ``cx, cy``, edge parameters ``tx, ty`` (``tMaxX/Y``), ``ddy`` (``tDeltaY``; ``tDeltaX = 1``), ``sy``
     (``stepY``; ``stepX = stepDir``), ``nEnd`` (``P1``)."""
     sd, dPy = s["stepDir"], s["dPy"]
@@ -105,7 +105,7 @@ def hit_at(h: dict, nA, nB, zA, sceneZMax):
     return torch.where(zA <= sceneZMax, nA, torch.minimum(torch.maximum(n_star, nA), nB))
 
 
-def _march(s: dict, tex, z_thickness: float, max_steps: int, H: int, W: int,
+def supercover_march(s: dict, tex, z_thickness: float, max_steps: int, H: int, W: int,
            visits: Optional[torch.Tensor]) -> dict:
     """The cell walk; per-ray outputs by ``s["i"]``. Finished rays freeze, dropped when 1/8 of ``s``."""
     N, f = s["i"].numel(), dict(dtype=s["k"].dtype, device=s["k"].device)
@@ -129,11 +129,11 @@ def _march(s: dict, tex, z_thickness: float, max_steps: int, H: int, W: int,
         px, py = torch.where(s["permute"], s["cy"], s["cx"]), torch.where(s["permute"], s["cx"], s["cy"])
         t = s["b"] * (H * W) + py.clamp(0, H - 1).long() * W + px.clamp(0, W - 1).long()
         sceneZMax, m = tex[0][t], tex[1][t]
-        zA = _z(s["Qz"] + s["dQz"] * nA, s["k"] + s["dk"] * nA, s["zlo"], s["zhi"])
-        zB = _z(s["Qz"] + s["dQz"] * nB, s["k"] + s["dk"] * nB, s["zlo"], s["zhi"])
+        zA = ray_view_z(s["Qz"] + s["dQz"] * nA, s["k"] + s["dk"] * nA, s["zlo"], s["zhi"])
+        zB = ray_view_z(s["Qz"] + s["dQz"] * nB, s["k"] + s["dk"] * nB, s["zlo"], s["zhi"])
         rayZMin, rayZMax = torch.minimum(zA, zB), torch.maximum(zA, zB)
         hit = live & m & (rayZMax >= sceneZMax - z_thickness) & (rayZMin <= sceneZMax)
-        _count(out, visits, s["i"], t, live)
+        count_visits(out, visits, s["i"], t, live)
         hi = hit.nonzero().squeeze(1)
         if hi.numel():
             h = {key: v.index_select(0, hi) for key, v in s.items()}
@@ -194,9 +194,9 @@ def ssr_dda_supercover(gbuffer: GBuffer, params: SupercoverDDASSRParams = Superc
     # The walk runs in float64 whatever the input dtype: which of two cells a ray enters at a pixel corner is a
     # discrete choice, and float32 rounding flipped it on 13 of 3072 cornell_box pixels (another texel's colour).
     g64 = gbuffer.select(REQUIRES).to(dtype=torch.float64)
-    s, sel, P0, P1 = _rays(g64, dda, zero)
+    s, sel, P0, P1 = dda_rays(g64, dda, zero)
     visits = torch.zeros(B * H * W, dtype=torch.int32, device=gbuffer.view_z.device) if debug else None
-    o = _march(s, (g64.view_z.reshape(-1), g64.mask.reshape(-1)), params.z_thickness, params.max_steps,
+    o = supercover_march(s, (g64.view_z.reshape(-1), g64.mask.reshape(-1)), params.z_thickness, params.max_steps,
                H, W, visits)
     return assemble(gbuffer, params, sel, P1, o, visits)
 

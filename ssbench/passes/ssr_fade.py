@@ -23,7 +23,7 @@ import torch
 EDGE_FADE_MODES = ("circular", "vignette")
 
 
-def _positive(value: float, name: str, allow_zero: bool = False) -> None:
+def check_positive(value: float, name: str, allow_zero: bool = False) -> None:
     ok = isinstance(value, (int, float)) and not isinstance(value, bool) and value == value and value != float("inf")
     if not ok or value < 0 or (value == 0 and not allow_zero):
         bound = ">= 0" if allow_zero else "> 0"
@@ -73,8 +73,8 @@ def edge_fade(hit_pixel: torch.Tensor, width: int, height: int, edge_distance: f
         uvFactor = uvFactor * uvFactor
         edge = torch.clamp(1.0 - uvFactor, min=0.0)
     else:
-        _positive(edge_distance, "edge_distance", allow_zero=True)
-        _positive(edge_exponent, "edge_exponent")
+        check_positive(edge_distance, "edge_distance", allow_zero=True)
+        check_positive(edge_exponent, "edge_exponent")
         edgeuv_x, edgeuv_y = u * (1.0 - v), v * (1.0 - u)       # edgeuv = vUv·(1 − vUv.yx)
         edge = edgeuv_x * edgeuv_y * edge_distance
         edge = torch.clamp(torch.pow(edge.abs(), edge_exponent), 0.0, 1.0)
@@ -97,7 +97,7 @@ def distance_fade(ray_distance: torch.Tensor, fade_distance: float = 10.0,
         >>> distance_fade(torch.tensor([0.0, 5.0, 10.0, 20.0]), 10.0, 2.0).tolist()
         [1.0, 0.75, 0.0, 0.0]
     """
-    _positive(fade_distance, "fade_distance")
-    _positive(fade_exponent, "fade_exponent")
+    check_positive(fade_distance, "fade_distance")
+    check_positive(fade_exponent, "fade_exponent")
     d = ray_distance.abs()                                      # a length; abs() keeps pow real for −0.0
     return torch.clamp(1.0 - torch.pow(d / fade_distance, fade_exponent), 0.0, 1.0)

@@ -45,7 +45,7 @@ from .common import make_generator, uv_to_texel
 from .gbuffer_checks import check_gbuffer, half_in_float32
 from .ssr_common import (BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult,
                          clip_ray_length, reflection_rays)
-from .ssr_fade import EDGE_FADE_MODES, _positive, distance_fade, edge_fade
+from .ssr_fade import EDGE_FADE_MODES, check_positive, distance_fade, edge_fade
 
 REQUIRES = ("view_z", "normal", "mask", "color")
 REQUIRES_BACKFACE = REQUIRES + ("back_z",)
@@ -97,9 +97,9 @@ class LinearSSRParams:
 
     def __post_init__(self) -> None:
         for name in ("max_ray_distance", "thickness", "fade_distance", "fade_exponent", "edge_exponent"):
-            _positive(getattr(self, name), name)
-        _positive(self.edge_distance, "edge_distance", allow_zero=True)
-        _positive(self.jitter, "jitter", allow_zero=True)
+            check_positive(getattr(self, name), name)
+        check_positive(self.edge_distance, "edge_distance", allow_zero=True)
+        check_positive(self.jitter, "jitter", allow_zero=True)
         if self.jitter > 1:
             raise ValueError(f"jitter: must lie in [0, 1] steps, got {self.jitter!r}")
         for name, lo in (("iterations", 1), ("max_iterations", 1), ("binary_search_iterations", 0), ("seed", 0)):

@@ -13,13 +13,13 @@ import torch
 from tqdm import tqdm
 
 from . import backend, cache, convert
-from .gbuffer import _resolve
+from .gbuffer import resolve_camera
 
 PASS_SPP = 16
 _KERNEL_VERSION = 1
 
 
-def _pass_seed(seed: int, k: int) -> int:
+def pass_seed(seed: int, k: int) -> int:
     return (seed * 0x9E3779B1 + k * 0x85EBCA6B + 1) % (1 << 32)
 
 
@@ -40,7 +40,7 @@ def color(scene, width: Optional[int] = None, height: Optional[int] = None, spp:
         raise ValueError(f"spp: samples per pixel must be a positive integer, got {spp!r}")
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise ValueError(f"seed: must be a non-negative integer, got {seed!r}")
-    sc, cam = _resolve(scene, width, height)
+    sc, cam = resolve_camera(scene, width, height)
     key = cache.make_key("color", _KERNEL_VERSION, sc.content_hash(), cam, spp, seed, PASS_SPP)
     stored: dict = {}
     hit = cache.load(key, stored) if use_cache else None
@@ -57,7 +57,7 @@ def color(scene, width: Optional[int] = None, height: Optional[int] = None, spp:
     acc = torch.zeros((cam.height, cam.width, 3), dtype=torch.float64)
     for k, n in enumerate(tqdm(passes, desc=f"color {sc.name} {cam.width}x{cam.height} {spp}spp",
                                disable=not show, leave=False)):
-        s = _pass_seed(seed, k)
+        s = pass_seed(seed, k)
         s = dr.opaque(mi.UInt32, s) if backend.is_jit() else s
         img = mi.render(mscene, spp=n, seed=s)
         acc += (img.torch() if backend.is_jit() else torch.from_numpy(np.array(img))).double() * n  # (H, W, 3)

@@ -41,7 +41,7 @@ def _channels(channels: Optional[Iterable[str]]) -> tuple[str, ...]:
     return chans
 
 
-def _resolve(scene, width, height) -> tuple[Scene, Camera]:
+def resolve_camera(scene, width, height) -> tuple[Scene, Camera]:
     sc = load_scene(scene)
     w = sc.camera.width if width is None else width
     h = sc.camera.height if height is None else height
@@ -217,7 +217,7 @@ def gbuffer(scene, width: Optional[int] = None, height: Optional[int] = None,
     Returns:
         A batch-1 G-buffer whose camera is the scene camera at ``width × height``.
     """
-    sc, cam = _resolve(scene, width, height)
+    sc, cam = resolve_camera(scene, width, height)
     chans = _channels(channels)
     geo = tuple(c for c in chans if c != "color")
     gb = None

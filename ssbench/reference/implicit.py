@@ -44,8 +44,8 @@ from typing import Optional
 import torch
 
 from ..implicit.shading import shade_hits
-from .implicit_dense import _rays, clip_to_bounds
-from .implicit_march import _bisect, _march, segment_box  # noqa: F401 (segment_box: API)
+from .implicit_dense import flat_rays, clip_to_bounds
+from .implicit_march import bisect_brackets, interval_march, segment_box  # noqa: F401 (segment_box: API)
 
 __all__ = ["implicit", "ImplicitReference", "segment_box", "ISOLATION_LEAVES"]
 
@@ -181,9 +181,9 @@ def implicit(surface, camera, *, epsilon: float = 1e-12, max_iterations: int = 2
             return ImplicitReference(**{k: torch.from_numpy(got[k]) for k in _TENSORS},
                                      iterations=int(got["iterations"]), seconds=float(got["seconds"]))
     start = time.perf_counter()
-    o, d, tn, tf, img = _rays(camera, batch, jitter)
+    o, d, tn, tf, img = flat_rays(camera, batch, jitter)
     t0, t1 = clip_to_bounds(o, d, tn, tf, bounds)
-    s = _march(surface, o, d, t0, t1, float(tolerance), max_iterations, exits)
+    s = interval_march(surface, o, d, t0, t1, float(tolerance), max_iterations, exits)
     found, n_pt = s["found"], s["n_pt"]
     t, t_exit = tf.clone(), tf.clone()
     gi = found.nonzero().squeeze(1)
@@ -191,7 +191,7 @@ def implicit(surface, camera, *, epsilon: float = 1e-12, max_iterations: int = 2
     obj = torch.full((o.shape[0],), -1, dtype=torch.int32)
     if gi.numel():
         sub = n_pt[gi].clone()
-        t[gi] = _bisect(surface, o[gi], d[gi], s["br_lo"][gi], s["br_hi"][gi], epsilon, sub, True)
+        t[gi] = bisect_brackets(surface, o[gi], d[gi], s["br_lo"][gi], s["br_hi"][gi], epsilon, sub, True)
         normal[gi], obj[gi] = shade_hits(surface, o[gi] + t[gi, None] * d[gi])      # one gradient each
         n_pt[gi] = sub + 1
         t_exit[gi] = t[gi]
@@ -200,7 +200,7 @@ def implicit(surface, camera, *, epsilon: float = 1e-12, max_iterations: int = 2
             ex = gi[~s["no_exit"][gi]]
             if ex.numel():
                 sub = n_pt[ex].clone()
-                t_exit[ex] = _bisect(surface, o[ex], d[ex], s["ex_lo"][ex], s["ex_hi"][ex], epsilon, sub, False)
+                t_exit[ex] = bisect_brackets(surface, o[ex], d[ex], s["ex_lo"][ex], s["ex_hi"][ex], epsilon, sub, False)
                 n_pt[ex] = sub
     unfinished = s["unfinished"]
     iso = torch.where(found, s["br_hi"] - s["iso"], 0.0)

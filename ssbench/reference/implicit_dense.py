@@ -84,7 +84,7 @@ def clip_to_bounds(o: torch.Tensor, d: torch.Tensor, t_near: torch.Tensor, t_far
     return torch.where(empty, math.inf, t0), torch.where(empty, -math.inf, t1)
 
 
-def _rays(camera, batch, jitter):
+def flat_rays(camera, batch, jitter):
     """Flattened float64 pixel rays ``(o, d, t_near, t_far)`` (N = B·H·W) and a ``(N·C) → (B, C, H, W)`` map."""
     rays = camera_rays(camera, batch=batch, jitter=jitter, dtype=torch.float64)
     B, _, H, W = rays.direction.shape
@@ -202,7 +202,7 @@ def dense_march(surface, camera, steps: int = 100_000, *, batch: int = 1, jitter
     if bounds is None or len(bounds) != 2 or any(len(b) != 3 for b in bounds):
         raise ValueError(f"surface.bounds: expected ((x0, y0, z0), (x1, y1, z1)), got {bounds!r}")
     start = time.perf_counter()
-    o, d, tn, tf, img = _rays(camera, batch, jitter)
+    o, d, tn, tf, img = flat_rays(camera, batch, jitter)
     t0, t1 = clip_to_bounds(o, d, tn, tf, bounds)
     use = backend
     if backend == "auto":

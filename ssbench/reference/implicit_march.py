@@ -46,7 +46,7 @@ def _f(surface, o, d, t):
 RUN_LEAVES = 256
 
 
-def _march(surface, o, d, t0, t1, tol_rel, max_iterations, exits, budget=2048, max_lanes=128, run_leaves=RUN_LEAVES):
+def interval_march(surface, o, d, t0, t1, tol_rel, max_iterations, exits, budget=2048, max_lanes=128, run_leaves=RUN_LEAVES):
     """Lock-step interval march over the rays (a loop over iterations, compacted to the active rays).
 
     One iteration evaluates, per active ray and in one ``surface.interval`` call, ``K`` consecutive segments
@@ -198,7 +198,7 @@ def _march(surface, o, d, t0, t1, tol_rel, max_iterations, exits, budget=2048, m
                 clean=clean, unfinished=unfinished, n_int=n_int, n_pt=n_pt, iterations=it)
 
 
-def _bisect(surface, o, d, lo, hi, epsilon, n_pt, lo_nonneg):
+def bisect_brackets(surface, o, d, lo, hi, epsilon, n_pt, lo_nonneg):
     """Bisect brackets whose ``lo`` end has class ``(f ≥ 0) == lo_nonneg`` and ``hi`` end the other class."""
     lo, hi = lo.clone(), hi.clone()
     for _ in range(200):

@@ -17,7 +17,7 @@ import torch
 from ..gbuffer import GBuffer
 from ..scenes import load as load_scene
 from . import backend, cache, convert
-from .color import _pass_seed
+from .color import pass_seed
 
 _KERNEL_VERSION = 1
 
@@ -128,7 +128,7 @@ def reflections(scene, gbuffer: GBuffer, *, spp: int = 16, seed: int = 0, use_ca
     integrator = mscene.integrator()
     acc = torch.zeros(3, N, dtype=torch.float64)
     for k in range(spp):
-        sampler.seed(dr.opaque(mi.UInt32, _pass_seed(seed, k)), N)
+        sampler.seed(dr.opaque(mi.UInt32, pass_seed(seed, k)), N)
         L, _, _ = integrator.sample(mscene, sampler, mi.RayDifferential3f(rray), None, valid)
         L = dr.select(valid, L, 0.0)
         acc += torch.stack([L.x.torch(), L.y.torch(), L.z.torch()]).double()

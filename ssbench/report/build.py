@@ -19,7 +19,7 @@ import time
 from typing import Iterable, Optional, Sequence
 
 from ..gbuffer import CHANNELS, GBuffer
-from ..io import _umask_mode, replace_dir
+from ..io import umask_mode, replace_dir
 from . import summary
 
 #: scenes of the SSR section when the report names none (mirrors ``ssr_section.SSR_SCENES``)
@@ -114,7 +114,7 @@ def _write_text(path: str, text: str) -> None:
     fd, tmp = tempfile.mkstemp(prefix=".tmp-", dir=os.path.dirname(path))
     with os.fdopen(fd, "w", encoding="utf-8") as f:
         f.write(text)
-    os.chmod(tmp, _umask_mode())
+    os.chmod(tmp, umask_mode())
     os.replace(tmp, path)
 
 

@@ -26,7 +26,7 @@ import tempfile
 from typing import Any, Optional
 
 from ..bench.rows import METADATA_FIELDS, is_volatile
-from ..io import _umask, replace_dir
+from ..io import umask, replace_dir
 from .summary import SECTIONS, clean_json
 
 #: row fields that, with effect / scene / method / params, identify a row across runs
@@ -274,7 +274,7 @@ def write_comparison(c: dict, root: str) -> str:
                            ("compare.json", json.dumps(c, indent=2, default=str) + "\n")):
             with open(os.path.join(tmp, name), "w", encoding="utf-8") as f:
                 f.write(text)
-        os.chmod(tmp, 0o777 & ~_umask())                     # mkdtemp's 0o700 → a normal directory
+        os.chmod(tmp, 0o777 & ~umask())                     # mkdtemp's 0o700 → a normal directory
         replace_dir(tmp, dest)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)

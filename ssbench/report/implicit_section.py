@@ -64,7 +64,7 @@ def heat_rgb(x: torch.Tensor, vmax: float, cmap: str = "magma") -> np.ndarray:
     return (matplotlib.colormaps[cmap](v)[..., :3] * 255 + 0.5).astype(np.uint8)
 
 
-def _save(fig, path: str) -> None:
+def save_fig(fig, path: str) -> None:
     from ..io import save_figure
     save_figure(fig, path, dpi=100)
 
@@ -96,7 +96,7 @@ def _plot_punch(path: str, prog: dict, fixed: dict) -> None:
            title=f"{prog['scene']}: N = {prog['params']['steps']}, {prog['width']}×{prog['height']}")
     ax.legend(fontsize=7)
     fig.subplots_adjust(left=0.14, right=0.98, bottom=0.14, top=0.9)          # (tight_layout: a second draw)
-    _save(fig, path)
+    save_fig(fig, path)
 
 
 def _plot_maps(path: str, maps: list, label: str, cmap: str = "magma") -> float:
@@ -111,7 +111,7 @@ def _plot_maps(path: str, maps: list, label: str, cmap: str = "magma") -> float:
         ax.set_title(title, fontsize=9)
         ax.set_axis_off()
     fig.colorbar(im, ax=list(axes), label=label, shrink=0.9)
-    _save(fig, path)
+    save_fig(fig, path)
     return vmax
 
 
@@ -127,7 +127,7 @@ def _plot_invalidations(path: str, row: dict, segments) -> None:
     ax.set(xlabel="frame", ylabel="pixels", title=f"{row['scene']}: (1+ε)t' probe invalidations per frame")
     ax.legend(fontsize=7)
     fig.subplots_adjust(left=0.1, right=0.98, bottom=0.17, top=0.88)
-    _save(fig, path)
+    save_fig(fig, path)
 
 
 def _compare(d, rel, name, frames, steps, kw, ev_mod):

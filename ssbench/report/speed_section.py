@@ -26,7 +26,7 @@ from typing import Any, Optional
 from ..analysis import multiples as MU
 from ..analysis.multiples import Panel
 from .ao_section import fmt
-from .speed_sweeps import _as_sweeps, _run, _write_rows, load_embedded
+from .speed_sweeps import as_sweeps, run_sweeps, write_rows, load_embedded
 
 #: the sweeps' largest image size (the report's, when smaller)
 SIZE = (96, 72)
@@ -171,8 +171,8 @@ def _tables(rows: list, eq_rows: list, spec: dict, fronts: dict, ladders: dict) 
 def _effect(effect: str, sweeps: list, run_dir: str, progress, use_cache: bool) -> dict:
     from ..analysis.figures import error_time_figure
     spec, notes, t = SPECS[effect], [], [time.perf_counter()]
-    rows, runs = _run(sweeps, run_dir, progress, notes)
-    files = _write_rows(rows, os.path.join(run_dir, "rows", f"speed_{effect}"))
+    rows, runs = run_sweeps(sweeps, run_dir, progress, notes)
+    files = write_rows(rows, os.path.join(run_dir, "rows", f"speed_{effect}"))
     for r in rows:
         if spec["derive"]:
             spec["derive"](r)
@@ -236,7 +236,7 @@ def build_speed_section(run_dir: str, *, width: int, height: int, seed: int = 0,
             try:
                 if effect not in SPECS:
                     raise ValueError(f"sweeps: unknown effect {effect!r}; known: {', '.join(SPECS)}")
-                sw = load_embedded(value, size, seed) if kind == "embedded" else _as_sweeps(value)
+                sw = load_embedded(value, size, seed) if kind == "embedded" else as_sweeps(value)
                 bad = [s.name for s in sw if s.effect != effect]
                 if bad:
                     raise ValueError(f"sweeps[{effect!r}]: sweep(s) {bad} are of another effect")

@@ -25,7 +25,7 @@ def load_embedded(path: str, size: tuple, seed: int) -> list:
     return docs
 
 
-def _as_sweeps(value) -> list:
+def as_sweeps(value) -> list:
     from ..bench import Sweep, load_sweep, sweep_from_dict
     items = value if isinstance(value, (list, tuple)) else [value]
     out = []
@@ -39,7 +39,7 @@ def _as_sweeps(value) -> list:
     return out
 
 
-def _write_rows(rows: list, base: str) -> dict:
+def write_rows(rows: list, base: str) -> dict:
     """``base.jsonl`` and ``base.parquet`` of ``rows`` (:func:`ssbench.bench.rows.write_tables`, the sweep
     tables' format)."""
     from ..bench.rows import write_tables
@@ -47,7 +47,7 @@ def _write_rows(rows: list, base: str) -> dict:
     return write_tables(rows, base)
 
 
-def _run(sweeps: list, run_dir: str, progress, notes: list) -> tuple[list, list]:
+def run_sweeps(sweeps: list, run_dir: str, progress, notes: list) -> tuple[list, list]:
     """Run every sweep (fresh, into ``run_dir/sweeps/<name>``); rows pooled in order, duplicates dropped."""
     from ..bench import run_sweep
     rows, seen, runs = [], set(), []

@@ -105,7 +105,7 @@ def plot(path: str, rays: list[dict], pixel: tuple[int, int], size: int = 24) ->
     atomically as PNG."""
     from matplotlib.figure import Figure
 
-    from .implicit_section import _save
+    from .implicit_section import save_fig
     H, W = rays[0]["visits"].shape
     p0, p1 = rays[1]["p0"], rays[1]["end"]                                        # the DDA's segment
     length = max(1e-9, math.hypot(p1[0] - p0[0], p1[1] - p0[1]))
@@ -134,4 +134,4 @@ def plot(path: str, rays: list[dict], pixel: tuple[int, int], size: int = 24) ->
                 ax.set_ylabel(f"near the {where}", fontsize=8)
     fig.suptitle(f"One ray from pixel {pixel} (seed 000 Fig. 11): green once, red twice or more, grey skipped",
                  fontsize=9)
-    _save(fig, path)
+    save_fig(fig, path)

@@ -132,8 +132,8 @@ def build_ssr_section(run_dir: str, scenes: Optional[Iterable[str]] = None, widt
     t_start = time.perf_counter()
     try:
         from .. import evaluate
-        from ..evaluate._ssr import _reflections
-        reflections = _reflections()
+        from ..evaluate._ssr import reflections_module
+        reflections = reflections_module()
     except Exception as e:
         return _unavailable(f"SSR section skipped: the reference reflections are not importable "
                             f"({type(e).__name__}: {e}).")

@@ -31,8 +31,8 @@ from typing import Any
 
 from .model import Scene
 from .transforms import clean, decompose, identity4
-from .mitsuba_xml_props import _Node, _Props, _tree
-from .schema import _path_str, scene_from_dict
+from .mitsuba_xml_props import Node, Props, parse_tree
+from .schema import path_str, scene_from_dict
 
 _SHAPES = {"sphere": {"center", "radius"}, "cube": set(), "rectangle": set(), "disk": set(),
            "cylinder": {"p0", "p1", "radius"}, "obj": {"filename", "face_normals", "flip_tex_coords"},
@@ -41,9 +41,9 @@ _IGNORED_TOP = {"bsdf", "default", "sampler", "film", "rfilter", "texture"}
 _UNLIMITED_DEPTH = 64
 
 
-class _Conv(_Props):
+class _Conv(Props):
     # ------------------------------------------------------------ objects
-    def sensor(self, node: _Node) -> dict:
+    def sensor(self, node: Node) -> dict:
         if node.get("type") != "perspective":
             raise self.err(node, f"camera: unsupported sensor type {node.get('type')!r} (only 'perspective')")
         props, kids = self.split(node, {"fov", "fov_axis", "focal_length", "near_clip", "far_clip", "to_world"},
@@ -88,17 +88,17 @@ class _Conv(_Props):
                 "height": height, "near": self.scalar(props, "near_clip", 0.01, ("camera", "near")),
                 "far": self.scalar(props, "far_clip", 10000.0, ("camera", "far"))}
 
-    def bsdf(self, node: _Node, path: tuple) -> dict:
+    def bsdf(self, node: Node, path: tuple) -> dict:
         if node.tag == "ref":
             if node.get("id") not in self.named:
-                raise self.err(node, f"{_path_str(path)}: reference to unknown bsdf id {node.get('id')!r}")
+                raise self.err(node, f"{path_str(path)}: reference to unknown bsdf id {node.get('id')!r}")
             node = self.named[node.get("id")]
         kind = node.get("type")
         self.at(path, node)
         if kind == "twosided":
             _, kids = self.split(node, set(), ("bsdf", "ref"))
             if len(kids) != 1:
-                raise self.err(node, f"{_path_str(path)}: twosided must wrap exactly one bsdf")
+                raise self.err(node, f"{path_str(path)}: twosided must wrap exactly one bsdf")
             return self.bsdf(kids[0], path)
         a = path + ("albedo",)
         if kind == "diffuse":
@@ -115,31 +115,31 @@ class _Conv(_Props):
             return {"albedo": self.color(props, "base_color", 0.5, a),
                     "roughness": self.scalar(props, "roughness", 0.5, path + ("roughness",)),
                     "metallic": self.scalar(props, "metallic", 0.0, path + ("metallic",))}
-        raise self.err(node, f"{_path_str(path)}: unknown bsdf type {kind!r} "
+        raise self.err(node, f"{path_str(path)}: unknown bsdf type {kind!r} "
                              f"(supported: diffuse, twosided, conductor, roughconductor, principled)")
 
-    def shape(self, node: _Node, k: int) -> dict:
+    def shape(self, node: Node, k: int) -> dict:
         kind, path = node.get("type"), ("shapes", k)
         if kind not in _SHAPES:
-            raise self.err(node, f"{_path_str(path + ('type',))}: unknown object type {kind!r} "
+            raise self.err(node, f"{path_str(path + ('type',))}: unknown object type {kind!r} "
                                  f"(supported: {', '.join(_SHAPES)})")
         props, kids = self.split(node, _SHAPES[kind] | {"to_world", "flip_normals"}, ("bsdf", "ref", "emitter"))
         self.at(path, node)
         if self.flag(props, "flip_normals"):
-            raise self.err(props["flip_normals"], f"{_path_str(path)}: flip_normals is not supported")
+            raise self.err(props["flip_normals"], f"{path_str(path)}: flip_normals is not supported")
         tw = props.get("to_world")
         m = self.transform(tw) if tw is not None else identity4()
         try:
             t, r, s = decompose(m)
         except ValueError as e:
-            raise self.err(tw or node, f"{_path_str(path)}.to_world: {e}") from None
+            raise self.err(tw or node, f"{path_str(path)}.to_world: {e}") from None
         for key in ("translate", "rotate", "scale", "size"):
             self.at(path + (key,), tw)
         d: dict[str, Any] = {"type": kind, "id": node.get("id", f"{kind}_{k}")}
         one = lambda v: all(abs(x - 1.0) < 1e-12 for x in v)        # noqa: E731
         if kind == "sphere":
             if max(s) - min(s) > 1e-9 * max(s):
-                raise self.err(tw, f"{_path_str(path)}.to_world: spheres take only uniform scales, got {s}")
+                raise self.err(tw, f"{path_str(path)}.to_world: spheres take only uniform scales, got {s}")
             c = self.xyz(props["center"], 0.0) if "center" in props else [0.0, 0.0, 0.0]
             self.at(path + ("center",), props.get("center", tw))
             d["center"] = [clean(sum(m[i][j] * c[j] for j in range(3)) + m[i][3]) for i in range(3)]
@@ -165,21 +165,21 @@ class _Conv(_Props):
                 d.update(radius=self.scalar(props, "radius", 1.0, path + ("radius",)), caps=False)
             else:
                 if "filename" not in props:
-                    raise self.err(node, f"{_path_str(path)}.filename: missing required property")
+                    raise self.err(node, f"{path_str(path)}.filename: missing required property")
                 self.at(path + ("file",), props["filename"])
                 d.update(type="mesh", file=self.text(props, "filename", ""),
                          face_normals=self.flag(props, "face_normals"))
         mats = [c for c in kids if c.tag in ("bsdf", "ref")]
         if len(mats) > 1:
-            raise self.err(mats[1], f"{_path_str(path)}: a shape takes at most one bsdf")
+            raise self.err(mats[1], f"{path_str(path)}: a shape takes at most one bsdf")
         d["material"] = (self.bsdf(mats[0], path + ("material",)) if mats else
                          {"albedo": [0.5] * 3, "roughness": 1.0, "metallic": 0.0})   # Mitsuba's default bsdf
         bad = [c for c in kids if c.tag == "emitter" and c.get("type") != "area"]
         if bad:
-            raise self.err(bad[0], f"{_path_str(path)}: only area emitters may be nested in a shape")
+            raise self.err(bad[0], f"{path_str(path)}: only area emitters may be nested in a shape")
         return d
 
-    def emitter(self, node: _Node, j: int) -> dict:
+    def emitter(self, node: Node, j: int) -> dict:
         kind, path = node.get("type"), ("lights", j)
         self.at(path, node)
         if kind == "point":
@@ -199,10 +199,10 @@ class _Conv(_Props):
                   [row[2] for row in self.transform(props["to_world"])[:3]] if "to_world" in props else [0, 0, 1.0])
             return {"type": "directional", "direction": dv,
                     "irradiance": self.color(props, "irradiance", 1.0, path + ("irradiance",))}
-        raise self.err(node, f"{_path_str(path + ('type',))}: unsupported emitter type {kind!r} (supported: "
+        raise self.err(node, f"{path_str(path + ('type',))}: unsupported emitter type {kind!r} (supported: "
                              f"point, constant, directional; area emitters only inside shapes)")
 
-    def scene(self, root: _Node) -> dict:
+    def scene(self, root: Node) -> dict:
         if root.tag != "scene":
             raise self.err(root, f"the root element must be <scene version=...>, got <{root.tag}>")
         self.at((), root)
@@ -236,7 +236,7 @@ class _Conv(_Props):
             raise self.err(root, "camera: the scene has no <sensor>")
         return data
 
-    def substitute(self, node: _Node, params: dict) -> None:
+    def substitute(self, node: Node, params: dict) -> None:
         for key, v in node.attrs.items():
             if "$" in v and node.tag != "default":
                 for name in sorted(params, key=len, reverse=True):
@@ -251,5 +251,5 @@ class _Conv(_Props):
 def parse_mitsuba_xml(text: str, filename: str = "<xml>", base_dir: str | None = None) -> Scene:
     """Parse Mitsuba 3 scene XML (the subset in the module docstring). Errors name ``filename:line``."""
     conv = _Conv(filename)
-    data = conv.scene(_tree(text, filename))
+    data = conv.scene(parse_tree(text, filename))
     return scene_from_dict(data, conv.locate, filename, base_dir)

@@ -1,7 +1,7 @@
 """The safe XML tree and property readers behind ``mitsuba_xml.py``: data only (nothing is ever executed).
 
 The file is parsed with ``xml.parsers.expat``; DOCTYPE/ENTITY declarations are refused, so no external entity is
-resolved and no entity expansion happens. :class:`_Props` reads Mitsuba property elements (numbers, colours,
+resolved and no entity expansion happens. :class:`Props` reads Mitsuba property elements (numbers, colours,
 transforms, lookat) and turns every problem into ``file:line: what is wrong``.
 """
 from __future__ import annotations
@@ -18,7 +18,7 @@ _SEP = re.compile(r"[,\s]+")
 _PROPS = {"float", "integer", "boolean", "string", "rgb", "spectrum", "point", "vector", "transform"}
 
 
-class _Node:
+class Node:
     __slots__ = ("tag", "attrs", "kids", "line")
 
     def __init__(self, tag: str, attrs: dict, line: int):
@@ -28,16 +28,16 @@ class _Node:
         return self.attrs.get(key, default)
 
 
-def _tree(text: str, filename: str) -> _Node:
+def parse_tree(text: str, filename: str) -> Node:
     p = expat.ParserCreate()
     p.SetParamEntityParsing(expat.XML_PARAM_ENTITY_PARSING_NEVER)
-    stack: list[_Node] = []
-    roots: list[_Node] = []
+    stack: list[Node] = []
+    roots: list[Node] = []
 
     def start(tag: str, attrs: dict) -> None:
         if len(stack) > 32:
             raise SceneError(f"{filename}:{p.CurrentLineNumber}: malformed XML: elements nested too deeply")
-        node = _Node(tag, attrs, p.CurrentLineNumber)
+        node = Node(tag, attrs, p.CurrentLineNumber)
         (stack[-1].kids if stack else roots).append(node)
         stack.append(node)
 
@@ -53,14 +53,14 @@ def _tree(text: str, filename: str) -> _Node:
     return roots[0]
 
 
-class _Props:
+class Props:
     def __init__(self, filename: str):
         self.f, self.lines, self.named = filename, {}, {}
 
-    def err(self, node: _Node, msg: str) -> SceneError:
+    def err(self, node: Node, msg: str) -> SceneError:
         return SceneError(f"{self.f}:{node.line}: {msg}")
 
-    def at(self, path: tuple, node: _Node | None) -> None:
+    def at(self, path: tuple, node: Node | None) -> None:
         if node is not None:
             self.lines[path] = node.line
 
@@ -71,9 +71,9 @@ class _Props:
         return f"{self.f}:1"
 
     # ------------------------------------------------------------ values
-    def split(self, node: _Node, allowed: set, objs: tuple = (), ignore: set = frozenset()) -> tuple[dict, list]:
-        props: dict[str, _Node] = {}
-        kids: list[_Node] = []
+    def split(self, node: Node, allowed: set, objs: tuple = (), ignore: set = frozenset()) -> tuple[dict, list]:
+        props: dict[str, Node] = {}
+        kids: list[Node] = []
         what = f"<{node.tag} type={node.get('type')!r}>"
         for k in node.kids:
             if k.tag in _PROPS:
@@ -92,7 +92,7 @@ class _Props:
                 raise self.err(k, f"{what}: element <{k.tag}> is not supported here")
         return props, kids
 
-    def nums(self, node: _Node, key: str = "value", counts: tuple = (1,)) -> list[float]:
+    def nums(self, node: Node, key: str = "value", counts: tuple = (1,)) -> list[float]:
         raw = node.get(key)
         if raw is None:
             raise self.err(node, f"<{node.tag} name={node.get('name')!r}>: missing attribute {key!r}")
@@ -108,7 +108,7 @@ class _Props:
                                  f"got {raw!r}")
         return vals
 
-    def xyz(self, node: _Node, default: float, key: str = "value") -> list[float]:
+    def xyz(self, node: Node, default: float, key: str = "value") -> list[float]:
         if key in node.attrs:
             v = self.nums(node, key, (1, 3) if key == "value" else (3,))
             return v * 3 if len(v) == 1 else v
@@ -145,7 +145,7 @@ class _Props:
         v = self.nums(node, counts=(1, 3) if node.tag == "rgb" else (1,))
         return v * 3 if len(v) == 1 else v
 
-    def transform(self, t: _Node) -> list[list[float]]:
+    def transform(self, t: Node) -> list[list[float]]:
         m = identity4()
         for op in t.kids:
             if op.tag == "translate":
@@ -172,7 +172,7 @@ class _Props:
             m = matmul4(step, m)           # Mitsuba applies the operations in document order
         return m
 
-    def lookat(self, op: _Node) -> tuple[list[float], list[float], list[float]]:
+    def lookat(self, op: Node) -> tuple[list[float], list[float], list[float]]:
         eye, target = self.xyz(op, 0.0, "origin"), self.xyz(op, 0.0, "target")
         if eye == target:
             raise self.err(op, "lookat: target must differ from origin")

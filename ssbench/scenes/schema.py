@@ -49,7 +49,7 @@ _LIGHT_KEYS = {"point": {"position", "intensity"}, "directional": {"direction", 
                "environment": {"radiance"}}
 
 
-def _path_str(path: Path) -> str:
+def path_str(path: Path) -> str:
     out = ""
     for p in path:
         out += f"[{p}]" if isinstance(p, int) else (f".{p}" if out else str(p))
@@ -78,12 +78,12 @@ def kind_of(v: Any) -> str:
         return f"a number ({v!r})"
     return type(v).__name__
 
-class _Ctx:
+class Ctx:
     def __init__(self, locate: Locator, base_dir: str | None):
         self.locate, self.base_dir = locate, base_dir
 
     def fail(self, path: Path, msg: str) -> SceneError:
-        return SceneError(f"{self.locate(path)}: {_path_str(path)}: {msg}")
+        return SceneError(f"{self.locate(path)}: {path_str(path)}: {msg}")
 
     # ------------------------------------------------------------ typed getters
     def mapping(self, v: Any, path: Path) -> dict:
@@ -133,7 +133,7 @@ class _Ctx:
         return v
 
 
-def _camera(c: _Ctx, v: Any) -> Camera:
+def camera_from(c: Ctx, v: Any) -> Camera:
     path = ("camera",)
     d = c.mapping(v, path)
     c.keys(d, {"eye", "target", "up", "fovy", "width", "height", "near", "far"}, path)
@@ -158,7 +158,7 @@ def _camera(c: _Ctx, v: Any) -> Camera:
         raise c.fail(path + (field,), str(e).split(":", 1)[-1].strip()) from None
 
 
-def _material(c: _Ctx, v: Any, path: Path, named: dict[str, Material]) -> Material:
+def material_from(c: Ctx, v: Any, path: Path, named: dict[str, Material]) -> Material:
     if isinstance(v, str):
         if v not in named:
             raise c.fail(path, f"unknown material {v!r} (defined: {', '.join(sorted(named)) or 'none'})")
@@ -173,14 +173,14 @@ def _material(c: _Ctx, v: Any, path: Path, named: dict[str, Material]) -> Materi
                     metallic=c.number(d.get("metallic", 0.0), path + ("metallic",), 0.0, 1.0))
 
 
-def _transform(c: _Ctx, d: dict, path: Path) -> list[list[float]]:
+def _transform(c: Ctx, d: dict, path: Path) -> list[list[float]]:
     t = c.vec(d.get("translate", [0, 0, 0]), path + ("translate",))
     r = c.vec(d.get("rotate", [0, 0, 0]), path + ("rotate",))
     s = c.vec(d.get("scale", 1.0), path + ("scale",), lo=0.0, lo_open=True, broadcast=True)
     return matmul4(translate4(t), matmul4(rotate4(r), scale4(s)))
 
 
-def _file_sha256(path: str) -> str:
+def file_sha256(path: str) -> str:
     h = hashlib.sha256()
     with open(path, "rb") as f:
         for chunk in iter(lambda: f.read(1 << 20), b""):
@@ -188,7 +188,7 @@ def _file_sha256(path: str) -> str:
     return h.hexdigest()
 
 
-def _shape(c: _Ctx, v: Any, i: int, named: dict[str, Material], seen: set[str]) -> Shape:
+def _shape(c: Ctx, v: Any, i: int, named: dict[str, Material], seen: set[str]) -> Shape:
     path = ("shapes", i)
     d = c.mapping(v, path)
     if "type" not in d:
@@ -203,7 +203,7 @@ def _shape(c: _Ctx, v: Any, i: int, named: dict[str, Material], seen: set[str]) 
     if "__" in sid or not all(ch.isalnum() or ch in "_-." for ch in sid):
         raise c.fail(path + ("id",), f"ids use letters, digits, '_', '-', '.' (no '__'), got {sid!r}")
     seen.add(sid)
-    mat = _material(c, d.get("material", {}), path + ("material",), named)
+    mat = material_from(c, d.get("material", {}), path + ("material",), named)
     to_world = _transform(c, d, path)
 
     def need(key: str) -> Any:
@@ -237,13 +237,13 @@ def _shape(c: _Ctx, v: Any, i: int, named: dict[str, Material], seen: set[str]) 
         if not os.path.isfile(full):
             raise c.fail(path + ("file",), f"mesh file not found: {full}")
         p["file"] = os.path.abspath(full)
-        p["sha256"] = _file_sha256(full)
+        p["sha256"] = file_sha256(full)
         p["face_normals"] = c.boolean(d.get("face_normals", False), path + ("face_normals",))
     return Shape(id=sid, type=kind, params=tuple(sorted(p.items())), to_world=freeze4(to_world),
                  material=mat, where=c.locate(path))
 
 
-def _light(c: _Ctx, v: Any, i: int) -> Light:
+def light_from(c: Ctx, v: Any, i: int) -> Light:
     path = ("lights", i)
     d = c.mapping(v, path)
     kind = d.get("type")
@@ -267,7 +267,7 @@ def _light(c: _Ctx, v: Any, i: int) -> Light:
 def scene_from_dict(data: Any, locate: Locator | None = None, source: str = "<dict>",
                     base_dir: str | None = None) -> Scene:
     """Validate plain data into a :class:`Scene`; errors name ``file:line`` (via ``locate``) and the field."""
-    c = _Ctx(locate or (lambda path: source), base_dir)
+    c = Ctx(locate or (lambda path: source), base_dir)
     d = c.mapping(data, ())
     c.keys(d, {"name", "description", "camera", "materials", "shapes", "lights", "render"}, ())
     name = c.text(d.get("name", os.path.splitext(os.path.basename(source))[0] or "scene"), ("name",))
@@ -276,10 +276,10 @@ def scene_from_dict(data: Any, locate: Locator | None = None, source: str = "<di
         raise c.fail(("description",), "expected a string")
     if "camera" not in d:
         raise c.fail(("camera",), "missing required field")
-    camera = _camera(c, d["camera"])
+    camera = camera_from(c, d["camera"])
     named: dict[str, Material] = {}
     for k, mv in c.mapping(d.get("materials", {}), ("materials",)).items():
-        named[k] = _material(c, mv, ("materials", k), {})
+        named[k] = material_from(c, mv, ("materials", k), {})
     shapes_v = d.get("shapes")
     if not isinstance(shapes_v, list) or not shapes_v:
         raise c.fail(("shapes",), "expected a non-empty list of shapes")
@@ -288,7 +288,7 @@ def scene_from_dict(data: Any, locate: Locator | None = None, source: str = "<di
     lights_v = d.get("lights", [])
     if not isinstance(lights_v, list):
         raise c.fail(("lights",), "expected a list of lights")
-    lights = tuple(_light(c, lv, i) for i, lv in enumerate(lights_v))
+    lights = tuple(light_from(c, lv, i) for i, lv in enumerate(lights_v))
     render = c.mapping(d.get("render", {}), ("render",))
     c.keys(render, {"max_depth"}, ("render",))
     max_depth = c.integer(render.get("max_depth", 6), ("render", "max_depth"), 1)

@@ -9,7 +9,7 @@ from ssbench import checks
 from ssbench.camera import Camera
 from ssbench.gbuffer import GBuffer
 from ssbench.passes import ao_method
-from ssbench.passes.gtao import (GTAO, QUALITY_PRESETS, REQUIRES, GTAOParams, _hilbert_index, gtao,
+from ssbench.passes.gtao import (GTAO, QUALITY_PRESETS, REQUIRES, GTAOParams, hilbert_index, gtao,
                                  noise_buffer, slice_visibility)
 
 F64 = torch.float64
@@ -180,7 +180,7 @@ class TestGTAO:
         nb = noise_buffer(GTAOParams(noise=tile2), 1, 8, 8)
         assert torch.equal(nb[0, :, 5, 6], tile2[:, 1, 2])
         assert bool((noise_buffer(GTAOParams(noise="none"), 1, 3, 3) == 0.5).all())
-        idx = _hilbert_index(torch.arange(64).repeat(64), torch.arange(64).repeat_interleave(64))
+        idx = hilbert_index(torch.arange(64).repeat(64), torch.arange(64).repeat_interleave(64))
         assert sorted(idx.tolist()) == list(range(4096))                    # a permutation of the 64² cells
         order = torch.argsort(idx)
         xs, ys = torch.arange(64).repeat(64)[order], torch.arange(64).repeat_interleave(64)[order]

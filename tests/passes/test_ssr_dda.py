@@ -10,7 +10,7 @@ from ssbench.camera import Camera
 from ssbench.gbuffer import GBuffer
 from ssbench.passes.ssr_common import (BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS,
                                        reflection_rays)
-from ssbench.passes.ssr_dda import DDASSR, REQUIRES, DDASSRParams, _rays, project_to_pixel_matrix, ssr_dda
+from ssbench.passes.ssr_dda import DDASSR, REQUIRES, DDASSRParams, dda_rays, project_to_pixel_matrix, ssr_dda
 from ssbench.passes.ssr_visits import crossed_pixels, visit_map
 from ssbench.passes.teaching.ssr_dda_basic import ssr_dda_basic
 from tests.passes.ssr_scenes import FLOOR, WALL, analytic, one_ray, raycast, room
@@ -251,8 +251,8 @@ def test_fit_stride_spans_the_segment(kw):
     g, zero = room(), torch.zeros(1, 1, 36, 48, dtype=F64)
     for K in (3, 8, 20):
         p = DDASSRParams(max_ray_distance=50.0, max_steps=K, fit_stride_to_steps=True, **kw)
-        s, sel, P0, P1 = _rays(g, p, zero)
-        fixed = _rays(g, DDASSRParams(max_ray_distance=50.0, max_steps=K, **kw), zero)[0]["stride"]
+        s, sel, P0, P1 = dda_rays(g, p, zero)
+        fixed = dda_rays(g, DDASSRParams(max_ray_distance=50.0, max_steps=K, **kw), zero)[0]["stride"]
         L = (P1 - P0).abs().amax(1)                                       # major-axis pixels, after clipping
         assert torch.equal(s["stride"], torch.maximum(fixed, torch.ceil(L / K)))   # the cutoff only scales the floor
         assert bool((s["stride"] * K >= L).all())                         # K samples reach P1 …

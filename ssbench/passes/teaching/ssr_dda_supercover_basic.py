@@ -1,7 +1,7 @@
 """The supercover DDA, one ray at a time: Amanatides & Woo's grid walk with their names, for reading.
 
 This file exists only to teach. The ray set-up (near-plane clipping, homogeneous pixel endpoints ``P0``/``P1``,
-``Q``, ``k``, ``permute``, ``stepDir``) is the DDA's (``ssr_dda._rays`` at stride 1; the DDA's own teaching twin
+``Q``, ``k``, ``permute``, ``stepDir``) is the DDA's (``ssr_dda.dda_rays`` at stride 1; the DDA's own teaching twin
 spells it out); what follows is the walk of :mod:`ssbench.passes.ssr_dda_supercover` as a plain Python loop over
 floats: ``X, Y`` the current pixel, ``tMaxX``/``tMaxY`` the line parameter of the next column / row edge,
 ``tDeltaX``/``tDeltaY`` the parameter per pixel, ``stepX``/``stepY`` the directions. The line parameter ``n`` is
@@ -16,7 +16,7 @@ import torch
 
 from ...gbuffer import GBuffer
 from ..ssr_common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS, SSRResult
-from ..ssr_dda import _rays, assemble, check_inputs
+from ..ssr_dda import dda_rays, assemble, check_inputs
 from ..ssr_dda_supercover import SupercoverDDASSRParams
 
 TINY = sys.float_info.min                              # torch.finfo(float64).tiny
@@ -81,7 +81,7 @@ def ssr_dda_supercover_basic(gbuffer: GBuffer,
     check_inputs(gbuffer, dda)
     B, _, H, W = gbuffer.view_z.shape
     dt, dev = gbuffer.view_z.dtype, gbuffer.view_z.device
-    s, sel, P0, P1 = _rays(gbuffer, dda, torch.zeros(B, 1, H, W, dtype=torch.float64))
+    s, sel, P0, P1 = dda_rays(gbuffer, dda, torch.zeros(B, 1, H, W, dtype=torch.float64))
     view_z, mask = gbuffer.view_z[:, 0].tolist(), gbuffer.mask[:, 0].tolist()
     N = sel.numel()
     o = dict(term=torch.full((N,), OUT_OF_STEPS, dtype=torch.int8), steps=torch.zeros(N, dtype=torch.int32),

@@ -333,14 +333,14 @@ def tidy_columns(rows: Sequence[dict]) -> dict[str, list]:
 def run_metadata(*, run_id: str, sweep, executor: dict, resume: bool, out: str) -> dict:
     """Metadata of one invocation: commit (+dirty), package versions, backend variant, torch threads, machine,
     date, the sweep file's hash and the executor."""
-    from ..report.build import environment, git_state
-    env = environment()
+    from .. import runinfo
+    env = runinfo.environment()
     return {"run_id": run_id, "date": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
             "sweep": {"name": sweep.name, "effect": sweep.effect, "source": os.path.abspath(sweep.source)
                       if os.path.exists(sweep.source) else sweep.source, "sha256": sweep.sha256,
                       "configs": len(sweep.configs),
                       "timing": None if sweep.timing is None else vars(sweep.timing)},
-            "git": git_state(), "versions": {k: env.get(k) for k in ("ssbench", "python", "torch", "kornia", "numpy",
+            "git": runinfo.git_state(), "versions": {k: env.get(k) for k in ("ssbench", "python", "torch", "kornia", "numpy",
                                                                      "mitsuba", "drjit")},
             "backend": {"variant": env.get("variant"), "libllvm": env.get("libllvm"),
                         "reason": env.get("backend_reason"), "drjit_threads": env.get("drjit_threads")},

@@ -9,7 +9,7 @@ from ._args import UsageError, guard_work, out_dir
 
 
 def cmd_info(args) -> int:
-    from ..report.build import environment
+    from ..runinfo import environment
     env = environment()
     if args.json:
         print(json.dumps(env, indent=2))

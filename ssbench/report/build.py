@@ -10,16 +10,14 @@ from __future__ import annotations
 import datetime as _dt
 import json
 import os
-import platform
 import shutil
-import subprocess
-import sys
 import tempfile
 import time
 from typing import Iterable, Optional, Sequence
 
 from ..gbuffer import CHANNELS, GBuffer
 from ..io import umask_mode, replace_dir
+from ..runinfo import environment, git_state  # noqa: F401  (re-exported: the report's metadata)
 from . import summary
 
 #: scenes of the SSR section when the report names none (mirrors ``ssr_section.SSR_SCENES``)
@@ -27,7 +25,6 @@ _SSR_SCENES = ("reflective_floor", "fence")
 #: G-buffer previews shown under each scene's colour image, in this order
 PREVIEW_ROW = ("view_z", "normal", "position", "albedo", "roughness", "metallic", "shape_id", "mask", "back_z")
 ALL_CHANNELS = tuple(CHANNELS)
-_REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
 # ------------------------------------------------------------------------------------------ rendering
@@ -58,44 +55,6 @@ def render_scene(scene, width: Optional[int] = None, height: Optional[int] = Non
 
 
 # ------------------------------------------------------------------------------------------ metadata
-def _version(module: str) -> Optional[str]:
-    try:
-        return getattr(__import__(module), "__version__", None)
-    except Exception:
-        return None
-
-
-def environment() -> dict:
-    """Versions, threads, the Mitsuba backend choice (with its probe attempts) and the machine."""
-    import torch
-    from .. import __version__
-    from ..reference import backend
-    b = backend.info()
-    return {"ssbench": __version__, "python": platform.python_version(), "python_executable": sys.executable,
-            "torch": torch.__version__, "torch_threads": torch.get_num_threads(), "kornia": _version("kornia"),
-            "numpy": _version("numpy"), "mitsuba": b["mitsuba"], "drjit": b["drjit"],
-            "drjit_threads": b["drjit_threads"], "variant": b["variant"], "libllvm": b["libllvm"],
-            "libllvm_major": b["libllvm_major"], "backend_reason": b["reason"],
-            "probe": [list(t) for t in b["tried"]], "node": platform.node(),
-            "processor": platform.processor() or platform.machine(), "machine": platform.machine(),
-            "platform": platform.platform(), "cpu_count": os.cpu_count()}
-
-
-def git_state(repo: str = _REPO) -> dict:
-    """``{"commit": sha or "unknown", "dirty": bool or None}`` of the repository holding ssbench."""
-    def git(*args: str) -> Optional[str]:
-        try:
-            r = subprocess.run(["git", *args], cwd=repo, capture_output=True, text=True, timeout=20)
-        except (OSError, subprocess.SubprocessError):
-            return None
-        return r.stdout if r.returncode == 0 else None
-    sha = git("rev-parse", "HEAD")
-    if not sha:
-        return {"commit": "unknown", "dirty": None}
-    status = git("status", "--porcelain", "--untracked-files=no")
-    return {"commit": sha.strip(), "dirty": None if status is None else bool(status.strip())}
-
-
 # ------------------------------------------------------------------------------------------ output
 def _new_run_dir(out_root: str) -> tuple[str, str]:
     stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")

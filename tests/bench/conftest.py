@@ -61,7 +61,7 @@ TOY = E.Effect("toy", methods=TOY_METHODS, resolve=toy_resolve, evaluate=toy_eva
 def toy(monkeypatch):
     """Register the toy effect (one entry of EFFECTS) and stub the slow metadata probes."""
     monkeypatch.setitem(E.EFFECTS, "toy", TOY)
-    import ssbench.report.build as build
+    import ssbench.runinfo as build
     monkeypatch.setattr(build, "environment", lambda: {"torch": torch.__version__, "variant": "stub",
                                                        "torch_threads": torch.get_num_threads(), "cpu_count": 2})
     monkeypatch.setattr(build, "git_state", lambda: {"commit": "c0ffee", "dirty": False})

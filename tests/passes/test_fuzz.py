@@ -158,33 +158,20 @@ def _ssr_output(out, g, desc):
     assert bool(g.mask[b, 0, row, col].all()), (desc, "a hit on the cleared background")
 
 
+CASES = [(m, ao_method, (), _ao_output) for m in AO] + [(m, ssr_method, ("color",), _ssr_output) for m in SSR]
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("method", AO)
-def test_ao_pass_contract(method):
-    fn, P, requires = ao_method(method)
+@pytest.mark.parametrize("method,resolve,finite,check_output", CASES, ids=[c[0] for c in CASES])
+def test_pass_contract(method, resolve, finite, check_output):
+    fn, P, requires = resolve(method)
     seen = {"refused": 0, "meta": 0, "ran": 0}
 
     @FUZZ
     @given(frames())
     def prop(frame):
         g, desc = frame
-        seen[_run(method, fn, P, g, desc, requires, (), _ao_output)] += 1
-    prop()
-    print(f"fuzz {method}: {seen}")
-    assert sum(seen.values()) >= EXAMPLES and seen["ran"] > 0 and seen["refused"] > 0, seen
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("method", SSR)
-def test_ssr_pass_contract(method):
-    fn, P, requires = ssr_method(method)
-    seen = {"refused": 0, "meta": 0, "ran": 0}
-
-    @FUZZ
-    @given(frames())
-    def prop(frame):
-        g, desc = frame
-        seen[_run(method, fn, P, g, desc, requires, ("color",), _ssr_output)] += 1
+        seen[_run(method, fn, P, g, desc, requires, finite, check_output)] += 1
     prop()
     print(f"fuzz {method}: {seen}")
     assert sum(seen.values()) >= EXAMPLES and seen["ran"] > 0 and seen["refused"] > 0, seen

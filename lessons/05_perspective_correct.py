@@ -251,5 +251,5 @@ assert checks and all(checks.values())
 # ## See also
 #
 # * Seed 000 appendix A (the derivation), §2.2 (the DDA set-up with `H0`, `H1`, `k0`, `k1`, `Q0`, `Q1`, `P0`, `P1`).
-# * `ssbench/passes/ssr_dda.py` (`project_to_pixel_matrix`, `_rays`) and `passes/teaching/ssr_dda_basic.py`.
+# * `ssbench/passes/ssr_dda.py` (`project_to_pixel_matrix`, `dda_rays`) and `passes/teaching/ssr_dda_basic.py`.
 # * Next: **lesson 6**, the DDA march itself.

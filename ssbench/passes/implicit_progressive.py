@@ -106,7 +106,7 @@ def txaa_jitter(generator: torch.Generator, batch: int = 1, dtype: torch.dtype =
     return torch.rand(batch, 2, 1, 1, generator=generator, dtype=torch.float64).to(dtype) - 0.5
 
 
-def _frame_generator(params: ProgressiveParams, frame: int) -> torch.Generator:
+def frame_generator(params: ProgressiveParams, frame: int) -> torch.Generator:
     g = torch.Generator(device="cpu")
     g.manual_seed(params.seed * 1_000_003 + frame)
     return g
@@ -156,7 +156,7 @@ def _run(surface, o, d, t_far, shape, state, params, generator, active) -> tuple
         raise ValueError(f"state: t_prime has shape {tuple(state.t_prime.shape)}, expected {(B, 1, H, W)}")
     if state.found is not None and tuple(state.found.shape) != (B, 1, H, W):
         raise ValueError(f"state: found has shape {tuple(state.found.shape)}, expected {(B, 1, H, W)}")
-    g = generator if generator is not None else _frame_generator(params, state.frame)
+    g = generator if generator is not None else frame_generator(params, state.frame)
     R = flat(torch.rand(B, 1, H, W, generator=g, dtype=torch.float64).to(o.dtype).to(o.device)).squeeze(1)
     t_prime = flat(state.t_prime.to(dtype=o.dtype, device=o.device)).squeeze(1)
     found_prev = flat(state.found).squeeze(1).to(o.device) if state.found is not None else t_prime < t_far

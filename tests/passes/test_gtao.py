@@ -255,3 +255,17 @@ def test_reference_crease():
     assert bool(torch.isfinite(r.ao).all()) and bool(((r.ao >= 0) & (r.ao <= 1)).all())
     assert bool(torch.isfinite(r.bent_normal).all())
     assert bool((r.ao[~g.mask] == 1).all())
+
+
+@pytest.mark.parametrize("kw", [dict(), dict(noise="hash", quality="low"), dict(falloff_range=0.0, quality="high"),
+                                dict(thin_occluder_compensation=0.7, noise="none", denoise_passes=0),
+                                dict(frame=5, sample_distribution_power=1.5, final_value_power=1.0)])
+def test_teaching_twin_equals_vectorised(kw):
+    from ssbench.passes.teaching.gtao_basic import gtao_basic
+    g = crease(w=16, h=12)[0]
+    for gb in (g, quad_with_background()):
+        p = GTAOParams(radius=2.0, **kw)
+        a = gtao(gb, p, generator=torch.Generator().manual_seed(3)).ao
+        b = gtao_basic(gb, p, generator=torch.Generator().manual_seed(3)).ao
+        assert float((a - b).abs().max()) < 1e-12, float((a - b).abs().max())
+    assert float(gtao(g, GTAOParams(radius=2.0, **kw)).ao[g.mask].min()) < 0.9          # the crease is occluded: not trivial

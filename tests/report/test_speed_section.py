@@ -83,10 +83,10 @@ def test_section_writes_raw_rows_images_and_tables(section):
     assert out["available"] and [e["name"] for e in out["effects"]] == ["ao", "ssr", "implicit"]
     for e in out["effects"]:
         assert e["available"], e["note"]
-        n = len(S._as_sweeps(TINY[e["name"]])[0])
+        n = len(S.as_sweeps(TINY[e["name"]])[0])
         lines = (run_dir / e["files"]["jsonl"]).read_text().splitlines()
         assert e["rows"] == len(lines) == n and pq.read_table(run_dir / e["files"]["parquet"]).num_rows == n
-        assert {json.loads(x)["config_id"] for x in lines} == set(S._as_sweeps(TINY[e["name"]])[0].ids())
+        assert {json.loads(x)["config_id"] for x in lines} == set(S.as_sweeps(TINY[e["name"]])[0].ids())
         assert e["errors"] == 0 and e["summary"] and e["equal_error"] and e["fronts"]
         assert {(s["scene"], s["method"]) for s in e["summary"]} == {(q["scene"], q["method"])
                                                                       for q in e["equal_error"]}

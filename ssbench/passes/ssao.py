@@ -121,6 +121,22 @@ def view_position(camera: Camera, view_z: torch.Tensor, position_from: str) -> t
     return camera.uv_to_view(uv, view_z), view_z
 
 
+#: bytes of the per-sample blocks a pass may hold at once (about a core's L2): the SSAO passes march a band of
+#: image rows at a time, so their time per pixel does not jump once an image's blocks leave the cache
+BLOCK_BYTES = 1 << 20
+
+
+def row_bands(height: int, width: int, samples: int, itemsize: int, budget: int = BLOCK_BYTES) -> list[slice]:
+    """Slices of image rows whose ``(B, 3, samples, rows, width)`` sample blocks fit in ``budget`` bytes.
+
+    Example:
+        >>> row_bands(10, 100, 16, 4, budget=4 * 3 * 16 * 100 * 4)
+        [slice(0, 4, None), slice(4, 8, None), slice(8, 10, None)]
+    """
+    rows = max(1, budget // max(1, 3 * samples * width * itemsize))
+    return [slice(r0, min(height, r0 + rows)) for r0 in range(0, height, rows)]
+
+
 def range_check_count(camera: Camera, sample_point: torch.Tensor, texture: torch.Tensor, from_depth: bool,
                       min_distance: float, max_distance: float) -> torch.Tensor:
     """The shader's sample loop body for all samples at once: project, fetch, compare, count.
@@ -223,12 +239,15 @@ def hemisphere_ssao(gbuffer: GBuffer, params: HemisphereSSAOParams = HemisphereS
     tangent = tangent / length(tangent).clamp_min(torch.finfo(dtype).tiny)
     bitangent = torch.cross(n, tangent, dim=1)
 
-    # ---- §2.2 sample loop, all K samples at once ---------------------------------------------------
+    # ---- §2.2 sample loop, all K samples of a band of rows at once (the working set stays cache-sized) -
     kx, ky, kz = (kernel[:, c].reshape(1, 1, -1, 1, 1) for c in range(3))          # (1, 1, K, 1, 1)
-    sample_vector = (tangent.unsqueeze(2) * kx + bitangent.unsqueeze(2) * ky) + n.unsqueeze(2) * kz
-    sample_point = position.unsqueeze(2) + sample_vector * p.kernel_radius         # (B, 3, K, H, W)
-    count = range_check_count(cam, sample_point, texture, p.position_from == "depth",
-                              p.min_distance, p.max_distance)                      # (B, 1, H, W)
+    count = torch.empty(n.shape[0], 1, cam.height, cam.width, dtype=torch.int64, device=device)
+    for rs in row_bands(cam.height, cam.width, p.kernel_size, n.element_size()):
+        sample_vector = (tangent[..., rs, :].unsqueeze(2) * kx + bitangent[..., rs, :].unsqueeze(2) * ky) \
+            + n[..., rs, :].unsqueeze(2) * kz
+        sample_point = position[..., rs, :].unsqueeze(2) + sample_vector * p.kernel_radius   # (B, 3, K, h, W)
+        count[..., rs, :] = range_check_count(cam, sample_point, texture, p.position_from == "depth",
+                                              p.min_distance, p.max_distance)      # (B, 1, h, W)
     return ssao_result(count, p, mask, dtype=dtype, debug=debug, row=row, col=col, kernel=kernel, noise=noise)
 
 

@@ -38,7 +38,7 @@ from ..gbuffer import GBuffer
 from .common import AOResult, make_generator
 from .sampling import noise_texel, noise_texture, sphere_kernel
 from .gbuffer_checks import check_gbuffer, half_in_float32
-from .ssao import check_ssao_params, range_check_count, ssao_result, view_position
+from .ssao import check_ssao_params, range_check_count, row_bands, ssao_result, view_position
 
 FLAVOUR = "volume_sphere"  # the ground truth this pass estimates (ssbench.reference.ao_volume)
 #: continuous parameters ``ssbench tune`` may fit (as hemisphere SSAO's: the same range check and strength)
@@ -123,9 +123,12 @@ def crytek_ssao(gbuffer: GBuffer, params: CrytekSSAOParams = CrytekSSAOParams(),
     col, row = noise_texel(cam.uv_grid(dtype, device), cam.width, cam.height, p.noise_size)   # (H, W)
     random = noise[:, row, col].reshape(1, 3, 1, cam.height, cam.width)            # (1, 3, 1, H, W)
     k = kernel.T.reshape(1, 3, -1, 1, 1)                                           # (1, 3, K, 1, 1)
-    reflected = k - 2.0 * (k * random).sum(1, keepdim=True) * random               # (1, 3, K, H, W)
-    sample_point = position.unsqueeze(2) + reflected * p.kernel_radius             # (B, 3, K, H, W)
-    count = range_check_count(cam, sample_point, texture, False, p.min_distance, p.max_distance)
+    count = torch.empty(position.shape[0], 1, cam.height, cam.width, dtype=torch.int64, device=device)
+    for rs in row_bands(cam.height, cam.width, p.kernel_size, position.element_size()):   # cache-sized bands
+        rnd = random[..., rs, :]
+        reflected = k - 2.0 * (k * rnd).sum(1, keepdim=True) * rnd                  # (1, 3, K, h, W)
+        sample_point = position[..., rs, :].unsqueeze(2) + reflected * p.kernel_radius    # (B, 3, K, h, W)
+        count[..., rs, :] = range_check_count(cam, sample_point, texture, False, p.min_distance, p.max_distance)
     return ssao_result(count, p, mask, dtype=dtype, debug=debug, row=row, col=col, kernel=kernel, noise=noise)
 
 

@@ -1,5 +1,6 @@
 """The report's tuning section: a tiny real run, the template, and notes instead of crashes."""
 import os
+import re
 import sys
 
 import pytest
@@ -34,6 +35,8 @@ def test_section_tunes_both_methods_and_renders(tmp_path):
     assert f"{rows[('gtao', 'stairs')]['rmse_cos_tuned']:.4f}" == out["methods"][1]["scenes"][3]["tuned"]
     text = _render(out)
     assert 'id="tuning-hbao"' in text and 'id="tuning-gtao"' in text and out["methods"][0]["verdict"] in text
+    # tables sit in a wrapping flex box, never in the 130-px thumbnail grid (.row), where they overlapped
+    assert text.count('<div class="tables">') == len(METHODS) and not re.search(r'class="row">\s*<table', text)
     md = summary_md(out)
     assert "## Tuning" in md and out["methods"][1]["verdict"] in md
     assert [g["method"] for g in out["glance"]] == list(METHODS)

@@ -201,7 +201,9 @@ def ssr_linear(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(), *,
     # ---- flatten the marched rays: per-ray state tensors of length n ----
     # a pixel starts a ray where it holds geometry whose origin and direction are finite numbers (the origin
     # read back from a depth buffer whose precision is exhausted, e.g. near/far = 1e-30/1e30, is ±inf)
-    ok = mask & torch.isfinite(rayOrg).all(1, keepdim=True) & torch.isfinite(deltaStep).all(1, keepdim=True)
+    # (and, as in the DDA marchers, not from geometry nearer than the near plane: no depth buffer holds it)
+    ok = mask & (view_z <= -cam.near) & torch.isfinite(rayOrg).all(1, keepdim=True) \
+        & torch.isfinite(deltaStep).all(1, keepdim=True)
     ray = ok.reshape(-1).nonzero().squeeze(1)                                     # (n,) flat pixel ids
     n = ray.numel()                                                               # rays marched
     O, dS, Q = _flat(rayOrg)[ray], _flat(deltaStep)[ray], _flat(Q)[ray]           # (n, 3)

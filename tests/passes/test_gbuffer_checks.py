@@ -122,3 +122,14 @@ def test_contract_messages_name_the_channel():
         check_gbuffer(replace(g, color=g.color * math.nan), ("view_z", "mask", "color"), finite=("color",))
     with pytest.raises(TypeError, match="^gbuffer:"):
         check_gbuffer("not a gbuffer", ("view_z",))
+
+
+@pytest.mark.parametrize("method", SSR)
+def test_ssr_starts_no_ray_from_geometry_nearer_than_the_near_plane(method):
+    g = room(16, 12)
+    z = g.view_z.clone()
+    z[0, 0, 8:, :] = -0.5 * g.camera.near                                  # the bottom rows: in front of near
+    fn, P, gg = _input(replace(g, view_z=z), method)
+    r = fn(gg, P())
+    assert bool((r.termination[0, 0, 8:, :] == NO_RAY).all())
+    assert bool((r.termination[0, 0, :8, :][g.mask[0, 0, :8, :]] != NO_RAY).all())

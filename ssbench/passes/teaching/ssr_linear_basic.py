@@ -50,7 +50,7 @@ def ssr_linear_basic(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams
     from_depth, backface = params.position_from == "depth", params.use_back_face_depth
     # textures (B, C, H, W) as nested lists
     DepthSampler = (cam.view_z_to_depth(gbuffer.view_z) if from_depth else gbuffer.view_z).tolist()
-    mask = gbuffer.mask.tolist()
+    mask, ViewZ = gbuffer.mask.tolist(), gbuffer.view_z.tolist()
     NormalSampler, ColorSampler = gbuffer.normal.tolist(), gbuffer.color.tolist()
     BackDepthSampler = (torch.where(gbuffer.mask, gbuffer.back_z, gbuffer.view_z).tolist() if backface else None)
     PositionSampler = gbuffer.position.tolist() if params.position_from == "position" else None
@@ -111,8 +111,8 @@ def ssr_linear_basic(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams
     for b in range(B):
         for row in range(H):
             for col in range(W):
-                if not mask[b][0][row][col]:
-                    continue                                         # background: no ray
+                if not mask[b][0][row][col] or ViewZ[b][0][row][col] > -CameraNear:
+                    continue                                         # background, or nearer than near: no ray
                 vUv = [(col + 0.5) / W, 1.0 - (row + 0.5) / H]
                 # ---- §1.1 reflection vector ----
                 if PositionSampler is not None:

@@ -174,7 +174,13 @@ def build_ao_section(run_dir: str, scenes: Optional[Iterable[str]] = None, width
                                        and r["method"] == m), None), "{:.3f}") for s in out_scenes]}
                 for m in methods]
     from ..evaluate import BLUR_NAMES
+    from .colorbars import colorbar_png
+    bars = {"error": colorbar_png(os.path.join(run_dir, "img", "ao", "colorbar_error.png"), "RdBu", -ERR_RANGE,
+                                  ERR_RANGE, "AO − GT", low="too dark", high="too bright"),
+            "noise": colorbar_png(os.path.join(run_dir, "img", "ao", "colorbar_noise.png"), "RdBu", -0.1, 0.1,
+                                  "AO − blurred AO")}
     return {"available": bool(out_scenes), "note": "" if out_scenes else "AO section: every scene failed.",
+            "colorbars": {k: os.path.relpath(v, run_dir).replace(os.sep, "/") for k, v in bars.items()},
             "blurs": ["raw", *BLUR_NAMES],
             "notes": notes, "methods": methods, "scenes": out_scenes, "rows": rows,
             "columns": [(k, label) for k, label, _ in TABLE], "overview": overview, "radius": radius,

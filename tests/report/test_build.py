@@ -137,7 +137,11 @@ def test_ao_section_in_the_report(report):
         assert r["width"] == 48 and r["height"] == 36 and r["radius"] == 0.5 and r["nonfinite"] == 0
     srcs = [s for s in re.findall(r'<img[^>]*\ssrc="([^"]+)"', html) if s.startswith("img/ao/")]
     per_method = sum(4 + (r["weighting"] != "cosine") for r in ao["rows"])   # AO, errors, residual, spectrum
-    assert len(srcs) == len(SCENES) * 8 + per_method                       # GT x5, oracle, 2 regions per scene
+    bars = [s for s in srcs if s.startswith("img/ao/colorbar_")]           # one error + one noise scale per scene
+    assert len(bars) == 2 * len(SCENES) and set(bars) == set(ao["colorbars"].values())
+    assert len(srcs) == len(SCENES) * 10 + per_method                      # GT x5, oracle, 2 regions, 2 bars
+    bar = mimage.imread(str(latest / ao["colorbars"]["error"]))
+    assert bar.shape[1] > 3 * bar.shape[0] and bar[..., :3].std() > 0.1    # a wide, coloured bar
     for src in srcs:
         assert (latest / src).is_file(), src
     assert mimage.imread(str(latest / srcs[0])).shape[:2] == (36, 48)
@@ -216,7 +220,7 @@ def test_ao_section_with_stubs(tmp_path, monkeypatch):
     html = _render_section(ao)
     assert "<strong>stub</strong>" in html and "missing skipped" in html and "renderer exploded" in html
     srcs = re.findall(r'<img[^>]*\ssrc="([^"]+)"', html)
-    assert len(srcs) == 8 + 4 and all((tmp_path / s).is_file() for s in srcs)     # cosine flavour: one error map
+    assert len(srcs) == 8 + 4 + 2 and all((tmp_path / s).is_file() for s in srcs)   # cosine: one error map; 2 bars
     assert "| stub | 0.2500" in summary_md(ao)
 
 

@@ -193,7 +193,7 @@ def ssr_dda_supercover(gbuffer: GBuffer, params: SupercoverDDASSRParams = Superc
     zero = torch.zeros(B, 1, H, W, dtype=torch.float64)
     # The walk runs in float64 whatever the input dtype: which of two cells a ray enters at a pixel corner is a
     # discrete choice, and float32 rounding flipped it on 13 of 3072 cornell_box pixels (another texel's colour).
-    g64 = gbuffer.select(REQUIRES).to(dtype=torch.float64)
+    g64 = gbuffer.select(("view_z", "normal", "mask")).to(dtype=torch.float64)   # the walk reads no colour
     s, sel, P0, P1 = dda_rays(g64, dda, zero)
     visits = torch.zeros(B * H * W, dtype=torch.int32, device=gbuffer.view_z.device) if debug else None
     o = supercover_march(s, (g64.view_z.reshape(-1), g64.mask.reshape(-1)), params.z_thickness, params.max_steps,

@@ -160,9 +160,17 @@ _COMMANDS["tune"] = _cmd_tune
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run the ``ssbench`` command line; returns the exit status."""
-    args = None
     import warnings
+    previous = warnings.formatwarning                        # warnings read as one line, for this call only
     warnings.formatwarning = lambda message, category, *rest, **kw: f"ssbench: warning: {message}\n"
+    try:
+        return _dispatch(argv)
+    finally:
+        warnings.formatwarning = previous
+
+
+def _dispatch(argv: Optional[Sequence[str]]) -> int:
+    args = None
     try:
         args = _parser().parse_args(argv)
         return _COMMANDS[args.command](args)

@@ -40,13 +40,14 @@ __all__ = ["banding", "lowpass"]
 
 
 def _gaussian(sigma: float, dtype: torch.dtype, device) -> torch.Tensor:
-    """:math:`(1, k, k)` normalised Gaussian kernel of ``sigma`` pixels, ``k = 2⌈3σ⌉ + 1`` (kornia)."""
+    """:math:`(1, k)` normalised 1-D Gaussian of ``sigma`` pixels, ``k = 2⌈3σ⌉ + 1`` (kornia); the 2-D kernel is
+    its outer product, applied separably (121 taps → 2 × 11 at σ = 1.5: float64 convolution has no fast path)."""
     k = 2 * max(1, int(math.ceil(3 * sigma))) + 1
-    return kornia.filters.get_gaussian_kernel2d((k, k), (sigma, sigma), dtype=dtype, device=device)
+    return kornia.filters.get_gaussian_kernel1d(k, sigma, dtype=dtype, device=device)
 
 
 def _conv(x: torch.Tensor, k: torch.Tensor) -> torch.Tensor:
-    return kornia.filters.filter2d(x, k, border_type="constant")            # zero border
+    return kornia.filters.filter2d_separable(x, k, k, border_type="constant")   # zero border
 
 
 def lowpass(x: torch.Tensor, mask: torch.Tensor, sigma: float = 1.5) -> torch.Tensor:
@@ -66,7 +67,7 @@ def lowpass(x: torch.Tensor, mask: torch.Tensor, sigma: float = 1.5) -> torch.Te
 
 def banding(pred: torch.Tensor, target: torch.Tensor, view_z: torch.Tensor, mask: Optional[torch.Tensor] = None,
             *, target_stderr: Optional[torch.Tensor] = None, sigma: float = 1.5, occluded: float = 0.99,
-            band: int = 4) -> torch.Tensor:
+            band: int = 4, reduction: str = "mean") -> torch.Tensor:
     r"""Structured error of ``pred`` against ``target`` (see the module docstring for the formula).
 
     Args:
@@ -75,12 +76,17 @@ def banding(pred: torch.Tensor, target: torch.Tensor, view_z: torch.Tensor, mask
         view_z: :math:`(B, 1, H, W)` view z, for the depth edges left out (:func:`~ssbench.metrics.depth_edges`).
         mask: :math:`(B, 1, H, W)` bool valid pixels (``None``: all).
         target_stderr: :math:`(B, 1, H, W)` per-pixel standard error of ``target`` (``None``: exact target).
+
+        ``target``, ``view_z``, ``mask`` and ``target_stderr`` may instead all have batch 1: one scene shared
+        by every item of ``pred`` (a stack of kernel draws), whose region and noise floor are computed once.
         sigma: low-pass scale in pixels (> 0).
         occluded: the region is where the smoothed target is below this (in (0, 1]).
         band: half-width in pixels of the depth-edge band left out.
+        reduction: ``"mean"`` pools the region of every batch item into one energy (a batch of kernel draws
+            gives the banding of the method, not of one draw); ``"none"`` scores each item on its own.
 
     Returns:
-        0-d tensor, ``nan`` when the region is empty.
+        0-d tensor (``"mean"``) or :math:`(B,)` (``"none"``); ``nan`` where the region is empty.
 
     Example:
         >>> y = torch.linspace(0, 1, 32).reshape(1, 1, 32, 1).expand(1, 1, 32, 32)
@@ -97,24 +103,35 @@ def banding(pred: torch.Tensor, target: torch.Tensor, view_z: torch.Tensor, mask
         raise ValueError(f"sigma: must be a finite number > 0, got {sigma!r}")
     if isinstance(occluded, bool) or not isinstance(occluded, (int, float)) or not 0 < occluded <= 1:
         raise ValueError(f"occluded: must be a number in (0, 1], got {occluded!r}")
-    pred, target, m = prepare(pred, target, mask)
-    if view_z.shape != pred.shape:
-        raise ValueError(f"view_z: shape must match pred {tuple(pred.shape)}, got {tuple(view_z.shape)}")
-    x, t = pred.double(), target.double()
     if isinstance(band, bool) or not isinstance(band, int) or band < 0:
         raise ValueError(f"band: must be an integer >= 0, got {band!r}")
-    region = m & ~edge_band(view_z, m[:, :1], band) & (lowpass(t, m, sigma) < occluded)
-    if not bool(region.any()):
-        return torch.tensor(float("nan"), dtype=pred.dtype)
+    if reduction not in ("mean", "none"):
+        raise ValueError(f"reduction: must be 'mean' or 'none', got {reduction!r}")
+    n, rb = pred.shape[0], view_z.shape[0]          # rb: the references' batch, n or 1 (shared by every item)
+    if rb not in (1, n):
+        raise ValueError(f"view_z: batch must be {n} (pred's) or 1, got {rb}")
+    for name, v in (("target", target), ("mask", mask), ("target_stderr", target_stderr)):
+        if v is not None and v.dim() == 4 and v.shape[0] != rb:
+            raise ValueError(f"{name}: batch must match view_z's ({rb}), got {v.shape[0]}")
+    x, t, m = prepare(pred[:1] if rb == 1 else pred, target, mask)     # checks; x is reread below
+    if view_z.shape != t.shape:
+        raise ValueError(f"view_z: shape must match pred {tuple(pred.shape)}, got {tuple(view_z.shape)}")
+    x, t = pred.to(x.dtype).double(), t.double()
+    region = m & ~edge_band(view_z, m[:, :1], band) & (lowpass(t, m, sigma) < occluded)     # (rb, 1, H, W)
+    dims = (1, 2, 3) if reduction == "none" else (0, 1, 2, 3)
+    region_n = region.expand(n, -1, -1, -1)
+    count = region_n.sum(dims)
     e = lowpass(x - t, m, sigma)
-    energy = e[region].square().mean()
+    energy = torch.where(region_n, e.square(), torch.zeros_like(e)).sum(dims) / count.clamp_min(1)
     if target_stderr is not None:
-        if target_stderr.shape != pred.shape:
-            raise ValueError(f"target_stderr: shape must match pred {tuple(pred.shape)}, "
+        if target_stderr.shape != t.shape:
+            raise ValueError(f"target_stderr: shape must match target {tuple(t.shape)}, "
                              f"got {tuple(target_stderr.shape)}")
         k = _gaussian(sigma, torch.float64, x.device)
         mf = m.double()
-        var = torch.where(m, target_stderr.double(), torch.zeros_like(x)).square()
+        var = torch.where(m, target_stderr.double(), torch.zeros_like(t)).square()
         floor = _conv(var, k * k) / _conv(mf, k).clamp_min(1e-300).square()   # variance of the blurred noise
-        energy = energy - floor[region].mean()
-    return energy.clamp_min(0).sqrt().to(pred.dtype)
+        floor = torch.where(region, floor, torch.zeros_like(floor)).expand(n, -1, -1, -1)
+        energy = energy - floor.sum(dims) / count.clamp_min(1)
+    out = energy.clamp_min(0).sqrt()
+    return torch.where(count > 0, out, torch.full_like(out, float("nan"))).to(pred.dtype)

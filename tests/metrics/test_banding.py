@@ -83,3 +83,22 @@ def test_lowpass_is_normalised_inside_the_mask_and_arguments_are_checked():
             banding(t, t, _z(), **kw)
     with pytest.raises(ValueError, match="view_z"):
         banding(t, t, torch.ones(1, 1, 2, 2))
+
+
+def test_a_batch_of_draws_pools_their_energy_and_shares_one_scene():
+    """``reduction="none"`` scores each draw as a batch of one would; ``"mean"`` is the root of their mean
+    energy; batch-1 references (one scene for every draw) give the same numbers as repeating them."""
+    t = _truth()
+    draws = torch.cat([_quantised(t, k, dither=None if k % 2 else k) for k in (3, 4, 5, 8)])
+    se = torch.full_like(t, 0.01)
+    n = draws.shape[0]
+    one = torch.stack([banding(d[None], t, _z(), target_stderr=se) for d in draws])
+    each = banding(draws, t, _z(), target_stderr=se, reduction="none")
+    assert each.shape == (n,) and torch.allclose(each, one, rtol=1e-12, atol=0)
+    pooled = banding(draws, t.expand(n, -1, -1, -1), _z().expand(n, -1, -1, -1), target_stderr=se.expand(n, -1, -1, -1))
+    assert float(pooled) == pytest.approx(float(one.square().mean().sqrt()), rel=1e-12)
+    assert float(banding(draws, t, _z(), target_stderr=se)) == pytest.approx(float(pooled), rel=1e-12)
+    with pytest.raises(ValueError, match="reduction"):
+        banding(draws, t, _z(), reduction="sum")
+    with pytest.raises(ValueError, match="target"):
+        banding(draws, t.expand(2, -1, -1, -1), _z())                       # neither n nor view_z's batch 1

@@ -31,7 +31,8 @@ def test_section_with_stub_experiments(tmp_path, monkeypatch):
     assert sec["available"] and sec["passed"] == 2 and sec["total"] == 3
     assert any("Broken" in n and "no Mitsuba here" in n for n in sec["notes"])
     curves = sec["experiments"][0]["curves"]
-    assert [c["ok"] for c in curves] == [True, False] and curves[0]["ratio"] == "3.00"
+    assert [c["ok"] for c in curves] == [True, False] and curves[0]["ratio"] == "3.00 ± 0.18"   # 3·hypot(.002/.06, .001/.02)
+    assert curves[1]["ratio"] == "0.50"                                    # no error bars: no ±
     assert (tmp_path / "img" / "calibration" / "banding.png").is_file()
     rows = sec["rows"]
     assert [r["kind"] for r in rows] == ["response"] * 3 + ["flicker"]

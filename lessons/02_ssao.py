@@ -50,8 +50,8 @@ from ssbench.passes.blur import box_blur
 from ssbench.passes.common import fetch_uv
 from ssbench.passes.composite import composite
 from ssbench.passes.sampling import hemisphere_kernel, noise_texel, noise_texture, sphere_kernel
-from ssbench.passes.ssao import HemisphereSSAOParams, hemisphere_ssao
-from ssbench.passes.ssao_crytek import CrytekSSAOParams, crytek_ssao
+from ssbench.passes.ao.ssao import HemisphereSSAOParams, hemisphere_ssao
+from ssbench.passes.ao.crytek import CrytekSSAOParams, crytek_ssao
 from ssbench.scenes import load
 from _setup import pick, size
 
@@ -486,7 +486,7 @@ assert checks and all(checks.values())
 # %% [markdown]
 # ## See also
 #
-# * `ssbench/passes/ssao.py`, `ssao_crytek.py`, `sampling.py`, `blur.py`, `composite.py` — the passes used here;
+# * `ssbench/passes/ao/ssao.py`, `ao/crytek.py`, `sampling.py`, `blur.py`, `composite.py` — the passes used here;
 #   `ssbench/passes/teaching/ssao_basic.py` — the same shader one pixel at a time, tested equal to the pass.
 # * `ssbench/reference/ao.py` — the ground truth and its three flavours; `ssbench/metrics/ao.py` — halo, flat
 #   bias, banding, noise.

@@ -42,9 +42,9 @@ import torch
 from ssbench import evaluate, metrics, reference
 from ssbench.passes.blur import box_blur, cross_bilateral_blur, default_blur_falloff
 from ssbench.passes.common import fetch_uv
-from ssbench.passes.gtao import GTAOParams, gtao
-from ssbench.passes.hbao import HBAOParams, hbao
-from ssbench.passes.ssao import HemisphereSSAOParams, hemisphere_ssao
+from ssbench.passes.ao.gtao import GTAOParams, gtao
+from ssbench.passes.ao.hbao import HBAOParams, hbao
+from ssbench.passes.ao.ssao import HemisphereSSAOParams, hemisphere_ssao
 from ssbench.scenes import load
 from _setup import pick, size
 
@@ -187,7 +187,7 @@ check("obscurance (hits weighted by W) is never darker than binary AO, ray for r
 #
 # The falloff changes *what is being estimated*: the ground truth that matches HBAO is not binary visibility but
 # **obscurance**, where a ray that hits at distance `t` counts `1 − (t/R)²` blocked (`weighting="obscurance"`;
-# `ssbench.passes.hbao.FLAVOUR`). Traced with the same rays it is never darker than the binary one.
+# `ssbench.passes.ao.hbao.FLAVOUR`). Traced with the same rays it is never darker than the binary one.
 #
 # ## 3. The pass (§3.3)
 #
@@ -473,8 +473,8 @@ assert checks and all(checks.values())
 # %% [markdown]
 # ## See also
 #
-# * `ssbench/passes/hbao.py` and its per-pixel twin `ssbench/passes/teaching/hbao_basic.py` (the shader of §3.3
-#   line by line, tested equal to the pass); `ssbench/passes/gtao.py`, `gtao_denoise.py`, `blur.py`.
+# * `ssbench/passes/ao/hbao.py` and its per-pixel twin `ssbench/passes/teaching/hbao_basic.py` (the shader of §3.3
+#   line by line, tested equal to the pass); `ssbench/passes/ao/gtao.py`, `ao/gtao_denoise.py`, `blur.py`.
 # * `ssbench/reference/ao.py` — the three flavours and `screen_space_oracle`; `ssbench/evaluate/_ao.py`.
 # * `ssbench ao cornell_box --method hbao --param radius=0.5` and the AO section of `make report`.
 # * Next: **lesson 4**, screen-space reflections.

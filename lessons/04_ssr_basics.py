@@ -43,9 +43,9 @@ import torch
 from ssbench import reference
 from ssbench.metrics import ssr as ssr_metrics
 from ssbench.passes.common import uv_to_texel
-from ssbench.passes.ssr_common import clip_ray_length, reflection_rays
-from ssbench.passes.ssr_fade import distance_fade, edge_fade
-from ssbench.passes.ssr_linear import LinearSSRParams, ssr_linear
+from ssbench.passes.ssr.common import clip_ray_length, reflection_rays
+from ssbench.passes.ssr.fade import distance_fade, edge_fade
+from ssbench.passes.ssr.linear import LinearSSRParams, ssr_linear
 from ssbench.scenes import load
 from _setup import pick, size
 
@@ -347,8 +347,8 @@ assert checks and all(checks.values())
 # %% [markdown]
 # ## See also
 #
-# * `ssbench/passes/ssr_linear.py` (and its per-pixel twin `passes/teaching/ssr_linear_basic.py`),
-#   `ssr_common.py`, `ssr_fade.py`; `ssbench/metrics/ssr.py` for the classes; `ssbench/metrics/thickness.py` for
+# * `ssbench/passes/ssr/linear.py` (and its per-pixel twin `passes/teaching/ssr_linear_basic.py`),
+#   `ssr/common.py`, `ssr/fade.py`; `ssbench/metrics/ssr.py` for the classes; `ssbench/metrics/thickness.py` for
 #   how other engines spell `Thickness`.
 # * `ssbench/reference/reflections.py` — the exact mirror ray; `ssbench ssr reflective_floor --method linear`.
 # * Next: **lesson 5** (why the DDA interpolates `1/z`) and **lesson 6** (the DDA march and SSR's failure cases).

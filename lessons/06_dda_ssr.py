@@ -42,10 +42,10 @@ import torch
 
 from ssbench import reference
 from ssbench.metrics import ssr as ssr_metrics
-from ssbench.passes.ssr_common import HIT, TERMINATION_NAMES, clip_ray_length, reflection_rays
-from ssbench.passes.ssr_dda import DDASSRParams, project_to_pixel_matrix, ssr_dda
-from ssbench.passes.ssr_dda_supercover import SupercoverDDASSRParams, ssr_dda_supercover
-from ssbench.passes.ssr_visits import crossed_pixels, visit_map
+from ssbench.passes.ssr.common import HIT, TERMINATION_NAMES, clip_ray_length, reflection_rays
+from ssbench.passes.ssr.dda import DDASSRParams, project_to_pixel_matrix, ssr_dda
+from ssbench.passes.ssr.dda_supercover import SupercoverDDASSRParams, ssr_dda_supercover
+from ssbench.passes.ssr.visits import crossed_pixels, visit_map
 from ssbench.scenes import load
 from _setup import pick, size
 
@@ -431,7 +431,7 @@ assert checks and all(checks.values())
 # %% [markdown]
 # ## See also
 #
-# * `ssbench/passes/ssr_dda.py` (module docstring: every fix to the article's code, with reasons) and its
+# * `ssbench/passes/ssr/dda.py` (module docstring: every fix to the article's code, with reasons) and its
 #   per-pixel twin `passes/teaching/ssr_dda_basic.py`; `ssbench/metrics/ssr.py` for the classes.
 # * `ssbench ssr reflective_floor --method dda` and the SSR section of `make report`;
 #   `benchmarks/` for marchers against the gather floor.

@@ -52,10 +52,10 @@ from matplotlib.patches import Circle, Patch, Rectangle
 from ssbench.implicit import ExpressionError, load, parse
 from ssbench.metrics import implicit as M
 from ssbench.passes import IMPLICIT_METHODS, implicit_method
-from ssbench.passes.implicit_analytic import analytic_sphere
-from ssbench.passes.implicit_common import OUT_OF_STEPS, camera_rays
-from ssbench.passes.implicit_fixed import FixedStepParams, fixed_step
-from ssbench.passes.implicit_sphere import SphereTraceParams, sphere_trace
+from ssbench.passes.implicit.analytic import analytic_sphere
+from ssbench.passes.implicit.common import OUT_OF_STEPS, camera_rays
+from ssbench.passes.implicit.fixed import FixedStepParams, fixed_step
+from ssbench.passes.implicit.sphere import SphereTraceParams, sphere_trace
 from ssbench.reference import dense_march
 from ssbench.reference import implicit as certified
 from _setup import size
@@ -743,7 +743,7 @@ assert checks and all(checks.values())
 #
 # * `ssbench/implicit/parser.py` (the whitelist grammar and its limits), `implicit/interval.py` (every interval
 #   rule, NaN semantics, outward rounding), `implicit/catalog.py` (the hard cases and why each is hard).
-# * `ssbench/passes/implicit_analytic.py`, `implicit_fixed.py`, `implicit_sphere.py` (module docstrings:
+# * `ssbench/passes/implicit/analytic.py`, `fixed.py`, `sphere.py` (module docstrings:
 #   overshoot handling, Keinert's fallback); `ssbench/reference/implicit.py` (root isolation, `certified`,
 #   `ambiguous_t`) and `implicit_dense.py`; `ssbench/metrics/implicit.py` (classes, `lipschitz_check`, the `w/h`
 #   prediction).

@@ -47,11 +47,11 @@ from matplotlib.patches import Patch
 from ssbench.evaluate import run_implicit
 from ssbench.implicit import catalog, load
 from ssbench.metrics import implicit as M
-from ssbench.passes.implicit_analytic import analytic_sphere
-from ssbench.passes.implicit_common import INVALIDATED, bisect, camera_rays
-from ssbench.passes.implicit_fixed import FixedStepParams, fixed_step, march_lattice
-from ssbench.passes.implicit_gbuffer import to_gbuffer
-from ssbench.passes.implicit_progressive import (ProgressiveParams, ProgressiveState, progressive,
+from ssbench.passes.implicit.analytic import analytic_sphere
+from ssbench.passes.implicit.common import INVALIDATED, bisect, camera_rays
+from ssbench.passes.implicit.fixed import FixedStepParams, fixed_step, march_lattice
+from ssbench.passes.implicit.gbuffer import to_gbuffer
+from ssbench.passes.implicit.progressive import (ProgressiveParams, ProgressiveState, progressive,
                                                  progressive_secondary, reflection_bundle, run_progressive,
                                                  silhouette_mask)
 from ssbench.reference import implicit as certified
@@ -643,7 +643,7 @@ check("thin shell with TXAA: after 24 frames less than 70 % of the front wall th
 # The progressive method trades the fixed-step march's *space* sampling for *time* sampling: cheap frames that
 # converge on a still image, with a probe that notices change. Its weak points are the ones measured here —
 # ε against thin walls, recasts when surfaces recede, and any jitter of the rays themselves (TXAA). The
-# article's other anti-aliasing route, supersampling (`implicit_gbuffer.supersample`), keeps each sub-sample's
+# article's other anti-aliasing route, supersampling (`passes.implicit.gbuffer.supersample`), keeps each sub-sample's
 # ray fixed and so keeps the method's premise, at k² times the cost.
 #
 # ## Checks
@@ -656,7 +656,7 @@ assert checks and all(checks.values())
 # %% [markdown]
 # ## See also
 #
-# * `ssbench/passes/implicit_progressive.py` — the module docstring walks through 手法 2.1–2.5, why the probe
+# * `ssbench/passes/implicit/progressive.py` — the module docstring walks through 手法 2.1–2.5, why the probe
 #   works and why ε must be smaller than the chord; `ProgressiveState`, `progressive_secondary`, `txaa_jitter`,
 #   `silhouette_mask`, `run_progressive`.
 # * `ssbench/evaluate/_implicit.py` (`run_implicit`: per-frame punch-through, the prediction, invalidations),

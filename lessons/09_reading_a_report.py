@@ -71,7 +71,7 @@ from ssbench.bench.effects import ao_samples
 from ssbench.bench.timing import round_fields
 from ssbench.cli import main as ssbench_cli
 from ssbench.passes import AO_METHODS
-from ssbench.passes.hbao import HBAOParams
+from ssbench.passes.ao.hbao import HBAOParams
 from ssbench.report import speed_section
 from ssbench.report.build import build_report
 from ssbench.tune import tune

@@ -265,7 +265,7 @@ def test_ao_real_run(tmp_path, capsys):
 
 # ------------------------------------------------------------------------------------------ ssbench ssr
 from ssbench.passes import SSR_METHODS  # noqa: E402
-from ssbench.passes.ssr_common import HIT, MAX_DISTANCE, NO_RAY, SSRResult  # noqa: E402
+from ssbench.passes.ssr.common import HIT, MAX_DISTANCE, NO_RAY, SSRResult  # noqa: E402
 
 
 @dataclasses.dataclass(frozen=True)

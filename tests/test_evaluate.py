@@ -291,7 +291,7 @@ def test_no_warmup(stub):
 # ------------------------------------------------------------------------------------------ SSR rows
 from ssbench.metrics import ssr as SSRM  # noqa: E402
 from ssbench.passes import SSR_METHODS  # noqa: E402
-from ssbench.passes.ssr_common import HIT, MAX_DISTANCE, NO_RAY, OUT_OF_STEPS, SSRResult  # noqa: E402
+from ssbench.passes.ssr.common import HIT, MAX_DISTANCE, NO_RAY, OUT_OF_STEPS, SSRResult  # noqa: E402
 
 SH, SW = 10, 16          # rows 0-1 background; left half: truth hits visibly (3 px up); right half: sky
 

@@ -4,8 +4,8 @@ import torch
 
 from ssbench.evaluate import ao_frames
 from ssbench.evaluate._temporal import halton
-from ssbench.passes.gtao import GTAOParams
-from ssbench.passes.gtao_parts import noise_buffer
+from ssbench.passes.ao.gtao import GTAOParams
+from ssbench.passes.ao.gtao_parts import noise_buffer
 
 pytestmark = [pytest.mark.slow, pytest.mark.mitsuba]
 KW = dict(width=48, height=36, radius=1.0, frames=4)

@@ -165,7 +165,7 @@ def ao_samples(method: str, params, module=None) -> int:
     SSAO), ``num_directions × num_steps`` (HBAO), ``2 × slices × steps`` (GTAO, both sides of each slice).
 
     Example:
-        >>> from ssbench.passes.hbao import HBAOParams
+        >>> from ssbench.passes.ao.hbao import HBAOParams
         >>> ao_samples("hbao", HBAOParams(num_directions=4, num_steps=3))
         12
     """

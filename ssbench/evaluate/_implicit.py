@@ -157,7 +157,7 @@ def run_implicit(scene, method: str, params=None, *, frames: int = 1, width: Opt
     from ..implicit.scene import load
     from ..metrics import implicit as M
     from ..passes import implicit_method
-    from ..passes.implicit_common import TERMINATION_NAMES, camera_rays
+    from ..passes.implicit.common import TERMINATION_NAMES, camera_rays
     from ..reference.implicit import implicit as trace
 
     fn, params_cls = implicit_method(method)

@@ -47,7 +47,7 @@ class SSREvaluation:
 
     Attributes:
         row: the flat dict :func:`ssr` returns.
-        result: the pass's :class:`~ssbench.passes.ssr_common.SSRResult` (tensors on the CPU).
+        result: the pass's :class:`~ssbench.passes.ssr.common.SSRResult` (tensors on the CPU).
         truth: the ``ReflectionReference``.
         classes: :math:`(1, 1, H, W)` int8 classes (:func:`ssbench.metrics.ssr.classify`).
         gbuffer: the reference G-buffer (the pass's channels and :data:`SSR_GT_CHANNELS`).
@@ -182,7 +182,7 @@ def run_ssr(scene, method: str, params=None, *, width: int = 320, height: int = 
     from ..metrics import mae
     from ..metrics import ssr as M
     from ..passes import ssr_method
-    from ..passes.ssr_common import NO_RAY
+    from ..passes.ssr.common import NO_RAY
     from ..scenes import load as load_scene
 
     fn, params_cls, _ = ssr_method(method)

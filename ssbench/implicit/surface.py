@@ -9,7 +9,7 @@ rotate as Euler degrees ``R = Rz·Ry·Rx`` exactly as :mod:`ssbench.scenes.trans
 
 A uniform scale keeps a distance bound a distance bound, so the declared λ holds unchanged in world space.
 An :class:`ImplicitSurface` is the union ``f = min_i f_i`` and implements the surface protocol of
-:mod:`ssbench.passes.implicit_common`.
+:mod:`ssbench.passes.implicit.common`.
 
 Evaluation count convention: one call of :meth:`ImplicitSurface.f` on ``n`` points counts as ``n``
 evaluations, whatever the number of objects (the union is one function of ``p``); a gradient counts as one.
@@ -212,7 +212,7 @@ class ImplicitObject:
 
 @dataclass(frozen=True)
 class ImplicitSurface:
-    """The union ``f = min_i f_i`` of implicit objects (the protocol of ``ssbench.passes.implicit_common``).
+    """The union ``f = min_i f_i`` of implicit objects (the protocol of ``ssbench.passes.implicit.common``).
 
     One :meth:`f` call on ``n`` points is ``n`` evaluations, whatever the number of objects.
 

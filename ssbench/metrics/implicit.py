@@ -1,7 +1,7 @@
 r"""Scoring implicit-surface ray casters against the certified reference (seed 004: punch-through, false hits).
 
 :func:`classify` gives every pixel one label by comparing a method's
-:class:`~ssbench.passes.implicit_common.ImplicitResult` (``t``, ``hit``) with the reference
+:class:`~ssbench.passes.implicit.common.ImplicitResult` (``t``, ``hit``) with the reference
 :class:`~ssbench.reference.implicit.ImplicitReference` (``t``, ``hit``, ``unfinished``). With
 ``tol = atol + rtol·t_ref``:
 
@@ -210,7 +210,7 @@ def lipschitz_check(surface, samples: int = 100_000, generator: Optional[torch.G
         ``near_samples`` and ``nonfinite`` (points whose gradient is not finite, ignored).
 
     Example:
-        >>> from ssbench.passes.implicit_common import FunctionSurface
+        >>> from ssbench.passes.implicit.common import FunctionSurface
         >>> wavy = FunctionSurface(lambda p: p.norm(dim=-1) - 1 + 0.1 * torch.sin(30 * p[..., 0]), lipschitz=1.0,
         ...                        bounds=((-1.2,) * 3, (1.2,) * 3))
         >>> r = lipschitz_check(wavy, samples=2000)

@@ -1,6 +1,6 @@
 r"""Per-pixel classification of an SSR pass against the exact mirror reflection.
 
-A screen-space reflection pass (:class:`~ssbench.passes.ssr_common.SSRResult`) reports, per pixel, whether its
+A screen-space reflection pass (:class:`~ssbench.passes.ssr.common.SSRResult`) reports, per pixel, whether its
 march found a hit and where (``hit``, ``hit_pixel``, ``hit_view``). The ground truth
 (``ssbench.reference.reflections`` → ``ReflectionReference``) traces the exact mirror ray of the same pixel
 in the full scene and says where it really lands and whether a depth buffer *could* hold that point
@@ -114,7 +114,7 @@ def classify(result: Any, truth: Any, gbuffer=None, k_px: float = 1.5, *,
     r"""Label every pixel of an SSR pass against the exact mirror reflection (see the module docstring).
 
     Args:
-        result: the pass's :class:`~ssbench.passes.ssr_common.SSRResult`; its *raw* ``hit``, ``hit_pixel``
+        result: the pass's :class:`~ssbench.passes.ssr.common.SSRResult`; its *raw* ``hit``, ``hit_pixel``
             and ``hit_view`` are compared (fades play no part).
         truth: a ``ReflectionReference`` (``valid``, ``hit``, ``hit_view``, ``hit_pixel``, ``on_screen``,
             ``visible``, ``back_face``, optionally ``hit_shape``) of the same size.

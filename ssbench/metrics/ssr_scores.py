@@ -74,8 +74,8 @@ def class_fractions(classes: torch.Tensor, targets: Optional[torch.Tensor] = Non
 
 
 def termination_fractions(termination: torch.Tensor, mask: Optional[torch.Tensor] = None) -> dict[str, float]:
-    """Share of each termination reason (``ssr_common.TERMINATION_NAMES``, spaces → ``_``) over ``mask``."""
-    from ..passes.ssr_common import TERMINATION_NAMES
+    """Share of each termination reason (``ssbench.passes.ssr.common.TERMINATION_NAMES``, spaces → ``_``) over ``mask``."""
+    from ..passes.ssr.common import TERMINATION_NAMES
     checks.check_shape(termination, ["B", "1", "H", "W"], "termination")
     m = torch.ones_like(termination, dtype=torch.bool) if mask is None else mask_arg(mask, termination, "mask")
     n = int(m.sum())

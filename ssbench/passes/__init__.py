@@ -1,22 +1,27 @@
-"""Screen-space passes: pure functions of (GBuffer, params, generator) with thin ``nn.Module`` wrappers.
+"""The passes, grouped by effect: ``ao/`` (ambient occlusion), ``ssr/`` (screen-space reflections) and
+``implicit/`` (implicit-surface ray casters), plus what they share (``common``, ``gbuffer_checks``,
+``sampling``, ``blur``, ``composite``) and the per-pixel teaching twins (``teaching/``).
 
-No Mitsuba import and no file I/O here. Every pass module declares the G-buffer channels it reads in
-``REQUIRES``. :data:`AO_METHODS` and :data:`SSR_METHODS` map a method name to ``"module:function:ParamsClass"``;
-use :func:`ao_method` / :func:`ssr_method` to resolve it; :data:`IMPLICIT_METHODS` / :func:`implicit_method` do
-the same for the implicit-surface ray casters (which take a surface and a camera, not a G-buffer).
+Screen-space passes are pure functions ``(gbuffer, params, *, generator=None, debug=False)`` with thin
+``nn.Module`` wrappers; implicit casters take ``(surface, camera, params, …)``. No Mitsuba import and no file I/O
+here. A method is one module that ends with its :class:`~ssbench.passes.registry.Method` declaration (and
+declares the G-buffer channels it reads in ``REQUIRES``); nothing here lists method names. :data:`AO_METHODS`,
+:data:`SSR_METHODS` and :data:`IMPLICIT_METHODS` map each declared name to ``"module:function:ParamsClass"`` (in
+the methods' declared ``order``); :func:`ao_method`, :func:`ssr_method` and :func:`implicit_method` resolve one.
+Every declared method's function, parameters and module are also public here
+(``from ssbench.passes import hbao, HBAO, HBAOParams``).
 """
 from __future__ import annotations
 
 import importlib
 
+from . import ao as _ao
+from . import implicit as _implicit
+from . import ssr as _ssr
 from .common import AOResult
+from .registry import Method, face, spec
 
-AO_METHODS: dict[str, str] = {
-    "crytek": "ssbench.passes.ssao_crytek:crytek_ssao:CrytekSSAOParams",
-    "ssao": "ssbench.passes.ssao:hemisphere_ssao:HemisphereSSAOParams",
-    "hbao": "ssbench.passes.hbao:hbao:HBAOParams",
-    "gtao": "ssbench.passes.gtao:gtao:GTAOParams",
-}
+AO_METHODS: dict[str, str] = {m.name: spec(m) for m in _ao.METHODS}
 
 
 def ao_method(name: str):
@@ -28,11 +33,7 @@ def ao_method(name: str):
     return getattr(m, fn), getattr(m, params), getattr(m, "REQUIRES")
 
 
-SSR_METHODS: dict[str, str] = {
-    "linear": "ssbench.passes.ssr_linear:ssr_linear:LinearSSRParams",
-    "dda": "ssbench.passes.ssr_dda:ssr_dda:DDASSRParams",
-    "dda_supercover": "ssbench.passes.ssr_dda_supercover:ssr_dda_supercover:SupercoverDDASSRParams",
-}
+SSR_METHODS: dict[str, str] = {m.name: spec(m) for m in _ssr.METHODS}
 
 
 def ssr_method(name: str):
@@ -45,11 +46,7 @@ def ssr_method(name: str):
     return getattr(m, fn), getattr(m, params), getattr(m, "REQUIRES")
 
 
-IMPLICIT_METHODS: dict[str, str] = {
-    "fixed": "ssbench.passes.implicit_fixed:fixed_step:FixedStepParams",
-    "sphere": "ssbench.passes.implicit_sphere:sphere_trace:SphereTraceParams",
-    "progressive": "ssbench.passes.implicit_progressive:progressive:ProgressiveParams",
-}
+IMPLICIT_METHODS: dict[str, str] = {m.name: spec(m) for m in _implicit.METHODS}
 
 
 def implicit_method(name: str):
@@ -73,5 +70,8 @@ def declared(fn, name: str, default=None):
     return getattr(importlib.import_module(fn.__module__), name, default)
 
 
-__all__ = ["AOResult", "AO_METHODS", "ao_method", "SSR_METHODS", "ssr_method", "IMPLICIT_METHODS",
-           "implicit_method", "declared"]
+_FACE = face(_ao.METHODS + _ssr.METHODS + _implicit.METHODS)   # every method's function, params and module
+globals().update(_FACE)
+
+__all__ = ["AOResult", "Method", "AO_METHODS", "ao_method", "SSR_METHODS", "ssr_method", "IMPLICIT_METHODS",
+           "implicit_method", "declared", *_FACE]

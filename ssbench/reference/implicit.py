@@ -133,7 +133,7 @@ def implicit(surface, camera, *, epsilon: float = 1e-12, max_iterations: int = 2
     r"""Certified first entering root of ``surface`` on every pixel ray of ``camera`` (see the module docstring).
 
     Args:
-        surface: the surface protocol of :mod:`ssbench.passes.implicit_common` (``f``, ``f_and_grad``,
+        surface: the surface protocol of :mod:`ssbench.passes.implicit.common` (``f``, ``f_and_grad``,
             ``interval``, ``bounds``; ``object_index`` optional).
         camera: the :class:`~ssbench.camera.Camera`; rays are ``camera_rays(camera, batch, jitter, float64)``.
         epsilon: relative bisection width: stop when ``hi − lo ≤ epsilon·max(1, t)``.

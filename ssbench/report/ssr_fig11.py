@@ -1,10 +1,10 @@
 """Seed 000 Fig. 11 in the report: which depth texels *one* ray reads, per marcher, against the pixels it crosses.
 
 For one reflective pixel the linear view-space march (``ssr_linear(..., trace_pixel=)``), the DDA at stride 1
-and the supercover DDA (:func:`ssbench.passes.ssr_visits.visit_map`) march the same mirror ray over the real
+and the supercover DDA (:func:`ssbench.passes.ssr.visits.visit_map`) march the same mirror ray over the real
 depth buffer. :func:`one_ray` counts, per marcher, the reads, the distinct pixels read, the pixels read more than
 once (oversampling) and the pixels the segment crosses before the march stopped that it never read (skipped),
-with :func:`~ssbench.passes.ssr_visits.crossed_pixels` as the independent yardstick; :func:`plot` draws them.
+with :func:`~ssbench.passes.ssr.visits.crossed_pixels` as the independent yardstick; :func:`plot` draws them.
 """
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ def pick_pixel(g, result) -> Optional[tuple[int, int]]:
     """A reflective pixel in the lower third whose ray (``result``: the DDA at defaults) hits after the longest
     diagonal run (largest ``min(|Δx|, |Δy|)`` in pixels, so it crosses both rows and columns), ``(x, y)``;
     ``None`` if no ray hits."""
-    from ..passes.ssr_common import HIT
+    from ..passes.ssr.common import HIT
     H = g.height
     hit = (result.termination[0, 0] == HIT) & g.mask[0, 0]
     if g.metallic is not None:
@@ -55,10 +55,10 @@ def one_ray(g, pixel: tuple[int, int], results: Optional[dict] = None) -> list[d
     import dataclasses
 
     from ..passes import ssr_method
-    from ..passes.ssr_dda import DDASSRParams
-    from ..passes.ssr_dda_supercover import SupercoverDDASSRParams
-    from ..passes.ssr_linear import LinearSSRParams, ssr_linear
-    from ..passes.ssr_visits import crossed_pixels, visit_map
+    from ..passes.ssr.dda import DDASSRParams
+    from ..passes.ssr.dda_supercover import SupercoverDDASSRParams
+    from ..passes.ssr.linear import LinearSSRParams, ssr_linear
+    from ..passes.ssr.visits import crossed_pixels, visit_map
     x, y = pixel
     H, W = g.height, g.width
     out = {}

@@ -152,10 +152,10 @@ def test_agree_is_within_the_iqr():
 
 
 def test_ao_sample_counts_per_method():
-    from ssbench.passes.gtao import GTAOParams
-    from ssbench.passes.hbao import HBAOParams
-    from ssbench.passes.ssao import HemisphereSSAOParams
-    from ssbench.passes.ssao_crytek import CrytekSSAOParams
+    from ssbench.passes.ao.gtao import GTAOParams
+    from ssbench.passes.ao.hbao import HBAOParams
+    from ssbench.passes.ao.ssao import HemisphereSSAOParams
+    from ssbench.passes.ao.crytek import CrytekSSAOParams
     assert E.ao_samples("hbao", HBAOParams(num_directions=8, num_steps=4)) == 32
     assert E.ao_samples("gtao", GTAOParams(quality="high")) == 2 * 3 * 3
     assert E.ao_samples("gtao", GTAOParams(quality="low", slice_count=4)) == 2 * 4 * 2

@@ -7,7 +7,7 @@ import torch
 
 from ssbench.implicit import catalog
 from ssbench.implicit.scene import ImplicitScene, load
-from ssbench.passes.implicit_common import camera_rays
+from ssbench.passes.implicit.common import camera_rays
 
 NAMES = catalog.names()
 F64 = torch.float64

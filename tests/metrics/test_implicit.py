@@ -97,7 +97,7 @@ def test_lipschitz_check_flags_the_displaced_torus_not_the_sphere(scenes):
 
 
 def test_lipschitz_check_errors():
-    from ssbench.passes.implicit_common import FunctionSurface
+    from ssbench.passes.implicit.common import FunctionSurface
     with pytest.raises(ValueError, match="bounds"):
         M.lipschitz_check(FunctionSurface(lambda p: p.norm(dim=-1) - 1, lipschitz=1.0))
     with pytest.raises(ValueError, match="samples"):
@@ -156,8 +156,8 @@ def test_prediction_errors_and_edges():
 def test_fixed_step_punch_through_on_the_thin_shell_matches_the_prediction():
     """Jittered fixed step (= the progressive method's first frame) against the certified truth and h/w."""
     from ssbench.implicit.scene import load
-    from ssbench.passes.implicit_common import camera_rays
-    from ssbench.passes.implicit_fixed import FixedStepParams, fixed_step
+    from ssbench.passes.implicit.common import camera_rays
+    from ssbench.passes.implicit.fixed import FixedStepParams, fixed_step
     from ssbench.reference.implicit import implicit
     sc = load("thin_shell")
     surf, cam = sc.surface(0), replace(sc.camera_at(0), width=32, height=24)

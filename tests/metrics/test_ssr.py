@@ -9,7 +9,7 @@ import torch
 from ssbench.camera import Camera
 from ssbench.gbuffer import GBuffer
 from ssbench.metrics import ssr as M
-from ssbench.passes.ssr_common import HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult, empty_result
+from ssbench.passes.ssr.common import HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult, empty_result
 
 H, W = 2, 14          # row 0: one test pixel per column; row 1: not reflective, its shape ids are lookup targets
 ORIGIN = (0.0, 0.0, -1.0)

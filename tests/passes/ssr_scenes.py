@@ -7,7 +7,7 @@ import torch
 
 from ssbench.camera import Camera
 from ssbench.gbuffer import GBuffer
-from ssbench.passes.ssr_common import reflection_rays
+from ssbench.passes.ssr.common import reflection_rays
 
 F64 = torch.float64
 

@@ -26,7 +26,7 @@ from ssbench.camera import Camera
 from ssbench.gbuffer import CHANNELS, GBuffer
 from ssbench.passes import ao_method, ssr_method
 from ssbench.passes.gbuffer_checks import normal_tolerance
-from ssbench.passes.ssr_common import HIT
+from ssbench.passes.ssr.common import HIT
 
 EXAMPLES = 500
 AO = ("crytek", "ssao", "hbao", "gtao")

@@ -11,7 +11,7 @@ import torch
 from ssbench.camera import Camera
 from ssbench.passes import ao_method, ssr_method
 from ssbench.passes.gbuffer_checks import check_gbuffer, normal_tolerance
-from ssbench.passes.ssr_common import HIT, NO_RAY
+from ssbench.passes.ssr.common import HIT, NO_RAY
 from tests.passes.ssr_scenes import room
 
 AO = ("crytek", "ssao", "hbao", "gtao")
@@ -40,7 +40,7 @@ def test_non_finite_depth_is_a_value_error_naming_view_z(method, value):
 @pytest.mark.parametrize("near,far", [(1e-7, 100.0), (1e-30, 1e30), (1e-9, 1.0), (1.0, 1e9)])
 @pytest.mark.parametrize("position_from", ["depth", "view_z"])
 def test_linear_ssr_extreme_near_far_is_finite(near, far, position_from):
-    from ssbench.passes.ssr_linear import LinearSSRParams, ssr_linear
+    from ssbench.passes.ssr.linear import LinearSSRParams, ssr_linear
     g = room(48, 36)
     cam = Camera.from_look_at((0, 1, 2), (0, 0.5, -3), (0, 1, 0), 60.0, 48, 36, near, far)
     r = ssr_linear(replace(g, camera=cam), LinearSSRParams(position_from=position_from))
@@ -51,7 +51,7 @@ def test_linear_ssr_extreme_near_far_is_finite(near, far, position_from):
 
 
 def test_linear_ssr_geometry_beyond_the_far_plane_is_finite():
-    from ssbench.passes.ssr_linear import ssr_linear
+    from ssbench.passes.ssr.linear import ssr_linear
     g = room(48, 36)
     z = torch.where(g.mask, torch.full_like(g.view_z, -1e30), g.view_z)
     r = ssr_linear(replace(g, view_z=z))

@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from ssbench.implicit.scene import load
-from ssbench.passes.implicit_common import camera_rays
+from ssbench.passes.implicit.common import camera_rays
 from ssbench.reference import backend
 from ssbench.reference.implicit import ImplicitReference, implicit
 from ssbench.reference.implicit_dense import dense_march

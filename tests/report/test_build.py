@@ -288,7 +288,7 @@ def _stub_ssr(monkeypatch, fail_scene=None, visits=True):
     from ssbench import passes, reference
     from ssbench.camera import Camera
     from ssbench.gbuffer import GBuffer
-    from ssbench.passes.ssr_common import HIT, MAX_DISTANCE, SSRResult
+    from ssbench.passes.ssr.common import HIT, MAX_DISTANCE, SSRResult
 
     @dataclasses.dataclass(frozen=True)
     class P:

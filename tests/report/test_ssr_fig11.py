@@ -4,8 +4,8 @@ from __future__ import annotations
 import matplotlib.image as mimage
 import torch
 
-from ssbench.passes.ssr_dda import DDASSRParams, ssr_dda
-from ssbench.passes.ssr_visits import crossed_pixels
+from ssbench.passes.ssr.dda import DDASSRParams, ssr_dda
+from ssbench.passes.ssr.visits import crossed_pixels
 from ssbench.report import ssr_fig11 as F
 from tests.passes.ssr_scenes import room
 
@@ -34,7 +34,7 @@ def test_one_ray_counts_and_figure(tmp_path):
 def test_pick_pixel_none_without_hits():
     import dataclasses
 
-    from ssbench.passes.ssr_common import MAX_DISTANCE
+    from ssbench.passes.ssr.common import MAX_DISTANCE
     g = room(32, 24)
     res = ssr_dda(g, DDASSRParams(max_ray_distance=50.0))
     assert F.pick_pixel(g, res) is not None

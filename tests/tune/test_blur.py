@@ -5,8 +5,8 @@ import pytest
 import torch
 
 from ssbench.evaluate import blur_fn
-from ssbench.passes.gtao import GTAOParams
-from ssbench.passes.hbao import HBAOParams
+from ssbench.passes.ao.gtao import GTAOParams
+from ssbench.passes.ao.hbao import HBAOParams
 from ssbench.tune import BLUR_DEFAULTS, Objective, apply_blur, baseline, probe, resolve_space, tunable_names, tune
 
 from .conftest import trough_case

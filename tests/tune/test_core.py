@@ -4,7 +4,7 @@ import math
 import pytest
 import torch
 
-from ssbench.passes.gtao import GTAOParams
+from ssbench.passes.ao.gtao import GTAOParams
 from ssbench.tune import Objective, baseline, median_timer, resolve_space, tunable_names, tune
 from ssbench.tune.space import coerce_fixed
 

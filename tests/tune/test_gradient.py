@@ -4,8 +4,8 @@ import math
 import pytest
 import torch
 
-from ssbench.passes.gtao import GTAOParams
-from ssbench.passes.hbao import HBAOParams
+from ssbench.passes.ao.gtao import GTAOParams
+from ssbench.passes.ao.hbao import HBAOParams
 from ssbench.tune import Objective, inject, probe, refine
 
 torch.set_num_threads(1)

@@ -7,10 +7,10 @@ Accurate Indirect Occlusion" (SIGGRAPH 2016 course, Algorithm 1) in the form Int
 ``orthoDirectionVec``, ``axisVec``, ``projectedNormalVec``, ``signNorm``, ``cosNorm``, ``n``,
 ``lowHorizonCos0/1``, ``horizonCos0/1``, ``sampleOffset``, ``sampleDelta``, ``shc``, ``weight``, ``h0``,
 ``h1``, ``iarc0/1``, ``localVisibility``, ``visibility``. It reads the same noise as
-:func:`ssbench.passes.gtao.gtao` (:func:`~ssbench.passes.gtao_parts.noise_buffer`) and makes the same departures
+:func:`ssbench.passes.ao.gtao.gtao` (:func:`~ssbench.passes.ao.gtao_parts.noise_buffer`) and makes the same departures
 from XeGTAO (full-resolution nearest fetches instead of the depth MIP chain, off-screen samples ignored), so the
-two agree to round-off (``tests/passes/test_gtao.py``). The final spatial denoise, when asked for, is the
-vectorised :func:`~ssbench.passes.gtao_denoise.gtao_denoise`. Use the vectorised pass for anything but 16×12.
+two agree to round-off (``tests/passes/ao/test_gtao.py``). The final spatial denoise, when asked for, is the
+vectorised :func:`~ssbench.passes.ao.gtao_denoise.gtao_denoise`. Use the vectorised pass for anything but 16×12.
 """
 from __future__ import annotations
 
@@ -21,8 +21,8 @@ import torch
 
 from ...gbuffer import GBuffer
 from ..common import AOResult
-from ..gtao import GTAOParams, check_inputs
-from ..gtao_parts import noise_buffer
+from ..ao.gtao import GTAOParams, check_inputs
+from ..ao.gtao_parts import noise_buffer
 
 CENTER_Z_BIAS = 0.99999          # XE_GTAO_FP32_DEPTHS: viewspaceZ *= 0.99999
 SLOPE_FUDGE = 0.05               # projectedNormalVecLength lerped 5 % toward 1
@@ -147,7 +147,7 @@ def gtao_basic(gbuffer: GBuffer, params: GTAOParams = GTAOParams(),
                 ao[b][0][row][col] = max(visibility / SliceCount, 0.0) ** params.final_value_power
     vis = torch.tensor(ao, dtype=gbuffer.view_z.dtype, device=gbuffer.view_z.device)
     if params.denoise_passes:
-        from ..gtao_denoise import gtao_denoise
+        from ..ao.gtao_denoise import gtao_denoise
         vis = gtao_denoise(torch.where(gbuffer.mask, vis, torch.ones_like(vis)), gbuffer.view_z, gbuffer.mask,
                            passes=params.denoise_passes)
     vis = vis.clamp(0.03, 1.0)

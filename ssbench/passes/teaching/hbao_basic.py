@@ -4,7 +4,7 @@ This file exists only to teach. It is a slow per-pixel Python loop whose functio
 shader's names (``viewPos``, ``uvToView``, ``minDiff``, ``calculateNumSteps``, ``rotateDirections``,
 ``snapUVOffset``, ``getBiasedTangent``, ``TanToSin``, ``integrateOcclusion``, ``horizonOcclusion``, ``P``,
 ``Pr``, ``dPdu``, ``deltaUV``, ``numSteps``, ``stepSizeUV``...). It draws the same noise texture with the same
-generator call as :func:`ssbench.passes.hbao.hbao`, so the two agree to round-off (``tests/passes/test_hbao.py``).
+generator call as :func:`ssbench.passes.ao.hbao.hbao`, so the two agree to round-off (``tests/passes/ao/test_hbao.py``).
 Use the vectorised pass for anything but 16×12 images.
 """
 from __future__ import annotations
@@ -16,7 +16,7 @@ import torch
 
 from ...gbuffer import GBuffer
 from ..common import AOResult, make_generator
-from ..hbao import HBAOParams, check_inputs, noise_texture
+from ..ao.hbao import HBAOParams, check_inputs, noise_texture
 
 
 def hbao_basic(gbuffer: GBuffer, params: HBAOParams = HBAOParams(),

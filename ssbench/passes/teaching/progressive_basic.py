@@ -11,12 +11,12 @@ https://www.shadertoy.com/view/XsdSR7), one function per step, with its symbols 
 3. :func:`invalidate` — 推定値の無効化: no bracket while ``t'`` held a found intersection → ``t' := d_f``, cast again.
 4. :func:`refine` — 絞込み: bisection of the bracket.
 5. shading and 6. 保存 ``t' := t`` — the normal comes from the vectorised
-   :func:`~ssbench.passes.implicit_common.finish` (one gradient per hit), as in :func:`ssbench.passes.
+   :func:`~ssbench.passes.implicit.common.finish` (one gradient per hit), as in :func:`ssbench.passes.
    implicit_progressive.progressive`.
 
 It draws ``R`` exactly as the vectorised pass (one ``torch.rand`` of :math:`(B, 1, H, W)` per frame), so the two
 agree bit for bit on ``t``, ``hit``, ``termination`` and the evaluation counts (``tests/passes/
-test_implicit_progressive.py``). Use the vectorised pass for anything but tiny images.
+implicit/test_progressive.py``). Use the vectorised pass for anything but tiny images.
 """
 from __future__ import annotations
 
@@ -24,8 +24,8 @@ from typing import Optional
 
 import torch
 
-from ..implicit_common import HIT, INVALIDATED, MISS, ImplicitResult, camera_rays, finish, flat
-from ..implicit_progressive import ProgressiveParams, ProgressiveState, frame_generator
+from ..implicit.common import HIT, INVALIDATED, MISS, ImplicitResult, camera_rays, finish, flat
+from ..implicit.progressive import ProgressiveParams, ProgressiveState, frame_generator
 
 
 def initialise(d_f: float) -> float:
@@ -77,11 +77,11 @@ def progressive_basic(surface, camera, state: Optional[ProgressiveState] = None,
                       params: ProgressiveParams = ProgressiveParams(),
                       generator: Optional[torch.Generator] = None) -> tuple[ImplicitResult, ProgressiveState]:
     """One frame of the progressive method per pixel, in float64; returns ``(result, new_state)`` like
-    :func:`~ssbench.passes.implicit_progressive.progressive` (``debug`` holds ``"invalidated"`` only).
+    :func:`~ssbench.passes.implicit.progressive.progressive` (``debug`` holds ``"invalidated"`` only).
 
     Example:
         >>> from ssbench.camera import Camera
-        >>> from ssbench.passes.implicit_common import FunctionSurface
+        >>> from ssbench.passes.implicit.common import FunctionSurface
         >>> cam = Camera.from_look_at((0, 0, 4), (0, 0, 0), (0, 1, 0), 45.0, 4, 3, 0.1, 10.0)
         >>> ball = FunctionSurface(lambda p: p.norm(dim=-1) - 1.0)
         >>> r, s = progressive_basic(ball, cam)

@@ -1,7 +1,7 @@
 """Teaching twins of the SSAO passes: the article's fragment shader run one pixel at a time in plain Python.
 
 *This module is not meant to be used in practice* (it is a few thousand times slower than
-:func:`ssbench.passes.ssao.hemisphere_ssao`); it exists to show the algorithm of seed 002 §2.2 line by line,
+:func:`ssbench.passes.ao.ssao.hemisphere_ssao`); it exists to show the algorithm of seed 002 §2.2 line by line,
 with the shader's own variable names, so the vectorised pass can be read against it. The tests check that both
 give the same AO. Like the shader it works on scalars and 3-vectors; GLSL helpers (``dot``, ``cross``,
 ``normalize``, ``texture2D``) are written out below.
@@ -22,8 +22,8 @@ from ...gbuffer import GBuffer
 from ..common import AOResult, make_generator
 from ..sampling import hemisphere_kernel, noise_texture, sphere_kernel
 from ..gbuffer_checks import check_gbuffer
-from ..ssao import REQUIRES, HemisphereSSAOParams
-from ..ssao_crytek import REQUIRES as CRYTEK_REQUIRES, CrytekSSAOParams
+from ..ao.ssao import REQUIRES, HemisphereSSAOParams
+from ..ao.crytek import REQUIRES as CRYTEK_REQUIRES, CrytekSSAOParams
 
 TINY = sys.float_info.min                      # the smallest normal float64, torch.finfo(float64).tiny
 
@@ -183,7 +183,7 @@ def _crytek_fragment(s: _Shader, vUv, Kernel, NoiseSampler, p: CrytekSSAOParams)
 
 def hemisphere_ssao_basic(gbuffer: GBuffer, params: HemisphereSSAOParams = HemisphereSSAOParams(),
                           generator: Optional[torch.Generator] = None) -> AOResult:
-    """Per-pixel twin of :func:`ssbench.passes.ssao.hemisphere_ssao` (same AO, float64, very slow).
+    """Per-pixel twin of :func:`ssbench.passes.ao.ssao.hemisphere_ssao` (same AO, float64, very slow).
 
     Example:
         >>> from ssbench.camera import Camera
@@ -199,5 +199,5 @@ def hemisphere_ssao_basic(gbuffer: GBuffer, params: HemisphereSSAOParams = Hemis
 
 def crytek_ssao_basic(gbuffer: GBuffer, params: CrytekSSAOParams = CrytekSSAOParams(),
                       generator: Optional[torch.Generator] = None) -> AOResult:
-    """Per-pixel twin of :func:`ssbench.passes.ssao_crytek.crytek_ssao` (positions from ``view_z``)."""
+    """Per-pixel twin of :func:`ssbench.passes.ao.crytek.crytek_ssao` (positions from ``view_z``)."""
     return _run(gbuffer, params, generator, CRYTEK_REQUIRES, sphere_kernel, _crytek_fragment)

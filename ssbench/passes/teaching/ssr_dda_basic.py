@@ -3,9 +3,9 @@
 This file exists only to teach. It is a slow per-pixel Python loop that keeps the shader's names (``rayOrg``,
 ``rayDir``, ``H0``, ``H1``, ``k0``, ``k1``, ``Q0``, ``Q1``, ``P0``, ``P1``, ``delta``, ``permute``, ``stepDir``,
 ``invdx``, ``dQ``, ``dk``, ``dP``, ``pixelStride``, ``rayZMin``, ``rayZMax``, ``prevZMaxEstimate``,
-``sceneZMax``, ``hitPixel``, ``hitPoint``), with the fixes of :mod:`ssbench.passes.ssr_dda` marked ``# FIX``.
-It draws the same jitter with the same generator call as :func:`~ssbench.passes.ssr_dda.ssr_dda`, so the two
-agree (``tests/passes/test_ssr_dda.py``). Use the vectorised pass for anything but 16×12 images.
+``sceneZMax``, ``hitPixel``, ``hitPoint``), with the fixes of :mod:`ssbench.passes.ssr.dda` marked ``# FIX``.
+It draws the same jitter with the same generator call as :func:`~ssbench.passes.ssr.dda.ssr_dda`, so the two
+agree (``tests/passes/ssr/test_dda.py``). Use the vectorised pass for anything but 16×12 images.
 """
 from __future__ import annotations
 
@@ -17,8 +17,8 @@ import torch
 
 from ...gbuffer import GBuffer
 from ..common import make_generator
-from ..ssr_common import BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult
-from ..ssr_dda import DDASSRParams, check_inputs, jitter_fractions, project_to_pixel_matrix
+from ..ssr.common import BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult
+from ..ssr.dda import DDASSRParams, check_inputs, jitter_fractions, project_to_pixel_matrix
 
 TINY = sys.float_info.min                              # torch.finfo(float64).tiny
 

@@ -2,10 +2,10 @@
 
 This file exists only to teach. The ray set-up (near-plane clipping, homogeneous pixel endpoints ``P0``/``P1``,
 ``Q``, ``k``, ``permute``, ``stepDir``) is the DDA's (``ssr_dda.dda_rays`` at stride 1; the DDA's own teaching twin
-spells it out); what follows is the walk of :mod:`ssbench.passes.ssr_dda_supercover` as a plain Python loop over
+spells it out); what follows is the walk of :mod:`ssbench.passes.ssr.dda_supercover` as a plain Python loop over
 floats: ``X, Y`` the current pixel, ``tMaxX``/``tMaxY`` the line parameter of the next column / row edge,
 ``tDeltaX``/``tDeltaY`` the parameter per pixel, ``stepX``/``stepY`` the directions. The line parameter ``n`` is
-in major-axis pixels from ``P0``. It agrees with the vectorised pass (``tests/passes/test_ssr_dda_supercover.py``).
+in major-axis pixels from ``P0``. It agrees with the vectorised pass (``tests/passes/ssr/test_dda_supercover.py``).
 """
 from __future__ import annotations
 
@@ -15,9 +15,9 @@ import sys
 import torch
 
 from ...gbuffer import GBuffer
-from ..ssr_common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS, SSRResult
-from ..ssr_dda import dda_rays, assemble, check_inputs
-from ..ssr_dda_supercover import SupercoverDDASSRParams
+from ..ssr.common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS, SSRResult
+from ..ssr.dda import dda_rays, assemble, check_inputs
+from ..ssr.dda_supercover import SupercoverDDASSRParams
 
 TINY = sys.float_info.min                              # torch.finfo(float64).tiny
 
@@ -66,7 +66,7 @@ def walk(ray: dict, view_z, mask, params: SupercoverDDASSRParams, H: int, W: int
 def ssr_dda_supercover_basic(gbuffer: GBuffer,
                              params: SupercoverDDASSRParams = SupercoverDDASSRParams()) -> SSRResult:
     """Per-ray supercover DDA SSR; returns an :class:`SSRResult` like
-    :func:`~ssbench.passes.ssr_dda_supercover.ssr_dda_supercover` (``debug`` empty).
+    :func:`~ssbench.passes.ssr.dda_supercover.ssr_dda_supercover` (``debug`` empty).
 
     Example:
         >>> from ssbench.camera import Camera

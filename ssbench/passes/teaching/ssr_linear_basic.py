@@ -3,10 +3,10 @@
 This file exists only to teach. It is a slow per-pixel Python loop whose functions and variables carry the
 shader's names (``getDepth``, ``getViewZ``, ``getViewPosition``, ``rayIntersectsDepth``, ``rayOrg``,
 ``rayDir``, ``rayLength``, ``rayEnd``, ``Q0``, ``Q1``, ``delta``, ``deltaStep``, ``hitPixel``, ``intersect``,
-``originalStride``, ``stride``, ``uvFactor``, ``edgeuv``...). It follows :func:`ssbench.passes.ssr_linear.ssr_linear`
+``originalStride``, ``stride``, ``uvFactor``, ``edgeuv``...). It follows :func:`ssbench.passes.ssr.linear.ssr_linear`
 in the places where that pass departs from the shader (termination codes, the bisection's bracket and kept
 probe, the jitter; see its module docstring) and draws the same jitter with the same generator call, so the
-two agree to round-off (``tests/passes/test_ssr_linear.py``). Use the vectorised pass for anything but 16×12
+two agree to round-off (``tests/passes/ssr/test_linear.py``). Use the vectorised pass for anything but 16×12
 images.
 """
 from __future__ import annotations
@@ -17,13 +17,13 @@ from typing import Optional
 import torch
 
 from ...gbuffer import GBuffer
-from ..ssr_common import BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult
-from ..ssr_linear import MAX_BINARY_SEARCH_ITERATIONS, LinearSSRParams, check_inputs, jitter_noise
+from ..ssr.common import BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult
+from ..ssr.linear import MAX_BINARY_SEARCH_ITERATIONS, LinearSSRParams, check_inputs, jitter_noise
 
 
 def ssr_linear_basic(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(),
                      generator: Optional[torch.Generator] = None) -> SSRResult:
-    """Per-pixel linear SSR; returns :class:`SSRResult` like :func:`~ssbench.passes.ssr_linear.ssr_linear`.
+    """Per-pixel linear SSR; returns :class:`SSRResult` like :func:`~ssbench.passes.ssr.linear.ssr_linear`.
 
     Example:
         >>> from ssbench.camera import Camera

@@ -1,0 +1,297 @@
+"""Ground-Truth Ambient Occlusion (Jimenez et al. 2016) as XeGTAO's main pass (``XeGTAO_MainPass``) computes it.
+
+Per pixel and slice (screen angle ``φ = (k + noise)/S·π``): project the normal into the slice (angle ``n`` from the
+view vector ``v``), march ``K`` pixel-centre-rounded steps per side, keep the highest horizon cosine (each sample's
+lerped toward ``cos(n ± π/2)`` by the falloff weight), integrate ``a(h)`` analytically, weight by ``|proj n|``;
+then the slice mean, ``pow(vis, FinalValuePower)``, ``max(0.03, vis)``, saturate (XeGTAO's final denoise does).
+
+**Differences from XeGTAO.** No depth MIP chain: every sample is a nearest fetch of the full-resolution ``view_z``
+at the pixel-centre rounded offset (XeGTAO reads a 5-level pyramid at ``mip = log2|offset| − 3.3``). Samples
+that fall off screen are ignored (XeGTAO's clamp sampler pairs the edge depth with the off-screen position, a
+fake surface that darkens the image border). The bent normal uses the exact slice basis ``(ô, v)`` where XeGTAO
+rotates ``(0, 0, −1)`` onto ``v`` (identical on the optical axis). Kept: the centre z ×0.99999 (FP32 bias), the
+small-radius term ``sat((10 − r_px)/100)·0.5`` (added before the slice mean, as in XeGTAO).
+
+**What it estimates.** With ``falloff_range = 0`` (hard cut) the slice integral is the cosine-weighted binary
+visibility of the depth buffer as a height field (all behind the first surface solid) within
+``R' = radius·radius_multiplier``: the ``"cosine"`` ground truth, in the limit of many steps and slices. With the
+default falloff an occluder at distance ``d`` enters with its horizon *cosine* lerped toward the low horizon by
+``w(d)``: full weight up to ``(1 − 0.615)·R' ≈ 0.28``, none beyond ``R' ≈ 0.73`` (radius 0.5), ``w ≈ 0.5`` at
+``d = radius``. That is neither a hard-cut cosine AO nor obscurance (which weights each *ray* by ``ρ(d)``); XeGTAO
+tuned 1.457 and 0.615 to best match (sRGB PSNR) its ray-traced reference, cosine-weighted binary visibility with
+rays of length ``radius``, so compare against the ``"cosine"`` ground truth at ``radius``. ``pow(·, 2.2)`` then
+darkens on purpose (tuned, not physical). Slice angles are uniform on *screen*, not around ``v``: off-axis pixels
+get a bias (an unoccluded plane facing the camera reads ≈ 0.96 in the corners of a 60° view).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Optional, Sequence, Union
+
+import torch
+from torch import nn
+
+from ...gbuffer import GBuffer
+from ..common import AOResult, check_count, check_radius, fetch, make_generator
+from ..gbuffer_checks import check_gbuffer, half_in_float32
+from .gtao_parts import cross3, dot3, hilbert_index, unit3, noise_buffer, slice_visibility  # noqa: F401
+from ..registry import Method
+
+FLAVOUR = "cosine"  # the ground-truth weighting this pass estimates (ssbench.reference.ao)
+REQUIRES = ("view_z", "normal", "mask")
+QUALITY_PRESETS = {"low": (1, 2), "medium": (2, 2), "high": (3, 3), "ultra": (9, 3)}  # slices, steps per side
+NOISE_KINDS = ("hash", "hilbert", "none")
+#: continuous parameters ``ssbench tune`` may fit: name -> (lo, hi, relative to the ground-truth radius)
+TUNABLE = {"radius": (0.25, 3.0, True), "falloff_range": (0.05, 1.0, False),
+           "final_value_power": (0.5, 4.0, False)}
+#: the report's tuning section fits this method
+TUNED_IN_REPORT = True
+#: where the defaults come from (shown by the report next to the parameters)
+DEFAULTS_SOURCE = ('XeGTAO (Intel, 2021, https://github.com/GameTechDev/XeGTAO): High quality, auto-tuned constants, '
+                   'Hilbert R2 noise, 1 denoise pass')
+#: the parameter that advances the noise from frame to frame (ssbench.evaluate.ao_frames)
+FRAME_PARAM = "frame"
+_CENTER_Z_BIAS = 0.99999        # XE_GTAO_FP32_DEPTHS: move the centre toward the camera
+_SLOPE_FUDGE = 0.05             # |proj n| lerped 5 % toward 1 ("slight overdarkening on high slopes")
+_R1 = 0.6180339887498948482     # golden-ratio step noise
+NoiseSpec = Union[str, torch.Tensor, Sequence]
+
+
+def _number(value, name: str, low: float, low_open: bool, high: float) -> None:
+    ok = not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value)
+    if not ok or value < low or (low_open and value == low) or value > high:
+        rng = f"{'(' if low_open else '['}{low}, {high}]"
+        raise ValueError(f"{name}: must be a finite number in {rng}, got {value!r}")
+
+
+@dataclass(frozen=True)
+class GTAOParams:
+    """Parameters of :func:`gtao`, XeGTAO's ``GTAOSettings`` snake-cased. Defaults are what XeGTAO ships
+    (Intel, XeGTAO, 2021, https://github.com/GameTechDev/XeGTAO, ``XeGTAO.h``): quality High, the auto-tuned
+    constants, Hilbert-curve R2 noise and one denoise pass.
+
+    Attributes:
+        quality: ``"low"`` 1×2, ``"medium"`` 2×2, ``"high"`` 3×3, ``"ultra"`` 9×3 (slices × steps per side).
+        slice_count, steps_per_slice: override the preset's counts when given.
+        radius: ``Radius`` in scene units; the effect radius is ``radius·radius_multiplier``.
+        falloff_range: fraction of the effect radius over which samples fade out (0 = hard cut at ``R'``).
+        sample_distribution_power: ``s^p`` packs steps toward the centre.
+        thin_occluder_compensation: scales sample Δz by ``1 + c`` in the falloff distance (0 = off).
+        final_value_power: ``vis^p`` after averaging the slices.
+        min_offset_pixels: ``pixelTooCloseThreshold``, added to every step as ``1.3/r_px``.
+        noise: ``"hilbert"`` (XeGTAO's R2 sequence along a 64² Hilbert curve, advanced by ``frame``; the default),
+            ``"hash"`` (per-pixel uniform pairs from ``seed``/the generator), ``"none"`` (0.5, the R2 value at index 0), or a tile
+            ``(2, 4, 4)`` (slice, step noise) or ``(4, 4)`` (both) in [0, 1) read at ``[row % 4, col % 4]``.
+        seed: seeds ``"hash"`` noise when no generator is passed.
+        frame: temporal index of the ``"hilbert"`` noise: XeGTAO adds ``288·(frame mod 64)`` to the Hilbert
+            index (``SpatioTemporalNoise``), so consecutive frames see other rotations for TAA to average.
+        denoise_passes: XeGTAO's 3×3 edge-aware denoise passes (``gtao_denoise``) applied *before* the final
+            clip to [0.03, 1], so values that overshoot 1 average out (XeGTAO's ``DenoisePasses`` default 1;
+            0 = raw, what the article-style comparisons of per-pixel noise use).
+    """
+
+    quality: str = "high"
+    slice_count: Optional[int] = None
+    steps_per_slice: Optional[int] = None
+    radius: float = 0.5
+    radius_multiplier: float = 1.457
+    falloff_range: float = 0.615
+    sample_distribution_power: float = 2.0
+    thin_occluder_compensation: float = 0.0
+    final_value_power: float = 2.2
+    min_offset_pixels: float = 1.3
+    noise: NoiseSpec = "hilbert"
+    seed: int = 0
+    frame: int = 0
+    denoise_passes: int = 1
+
+    def __post_init__(self) -> None:
+        if self.quality not in QUALITY_PRESETS:
+            raise ValueError(f"quality: expected one of {list(QUALITY_PRESETS)}, got {self.quality!r}")
+        for name in ("slice_count", "steps_per_slice"):
+            if getattr(self, name) is not None:
+                check_count(getattr(self, name), name)
+        check_radius(self.radius, "radius")
+        for name, low_open, high in (("radius_multiplier", True, math.inf), ("falloff_range", False, 1.0),
+                                     ("sample_distribution_power", True, math.inf),
+                                     ("thin_occluder_compensation", False, math.inf),
+                                     ("final_value_power", True, math.inf), ("min_offset_pixels", False, math.inf)):
+            _number(getattr(self, name), name, 0.0, low_open, high)
+        if isinstance(self.noise, str):
+            if self.noise not in NOISE_KINDS:
+                raise ValueError(f"noise: expected one of {NOISE_KINDS} or a 4x4 tile, got {self.noise!r}")
+        else:
+            t = torch.as_tensor(self.noise, dtype=torch.float64)
+            if tuple(t.shape) not in ((4, 4), (2, 4, 4)) or not bool(((t >= 0) & (t < 1)).all()):
+                raise ValueError(f"noise: a tile must have shape (4, 4) or (2, 4, 4) with values in [0, 1), "
+                                 f"got shape {tuple(t.shape)}")
+        make_generator(self.seed, None)                      # validates seed
+        if isinstance(self.frame, bool) or not isinstance(self.frame, int) or self.frame < 0:
+            raise ValueError(f"frame: must be an integer >= 0, got {self.frame!r}")
+        if isinstance(self.denoise_passes, bool) or not isinstance(self.denoise_passes, int) \
+                or self.denoise_passes < 0:
+            raise ValueError(f"denoise_passes: must be an integer >= 0, got {self.denoise_passes!r}")
+
+    @property
+    def slices(self) -> int:
+        """Slice count in use (``slice_count`` or the preset's)."""
+        return self.slice_count if self.slice_count is not None else QUALITY_PRESETS[self.quality][0]
+
+    @property
+    def steps(self) -> int:
+        """Steps per side of a slice in use (``steps_per_slice`` or the preset's)."""
+        return self.steps_per_slice if self.steps_per_slice is not None else QUALITY_PRESETS[self.quality][1]
+
+
+def check_inputs(gbuffer: GBuffer, params: GTAOParams) -> None:
+    """Type checks of ``params`` and the shared G-buffer contract (:func:`~ssbench.passes.gbuffer_checks.check_gbuffer`)."""
+    if not isinstance(params, GTAOParams):
+        raise TypeError(f"params: expected GTAOParams, got {type(params).__name__}")
+    check_gbuffer(gbuffer, REQUIRES)
+
+
+@half_in_float32
+def gtao(gbuffer: GBuffer, params: GTAOParams = GTAOParams(), *, generator: Optional[torch.Generator] = None,
+         debug: bool = False, bent_normals: bool = False) -> AOResult:
+    """GTAO of a G-buffer, XeGTAO's main pass vectorised over pixels (loops over slices and steps only).
+
+    .. math::
+        V = \\max\\Big(0.03,\\ \\Big[\\frac{1}{S}\\sum_{k=1}^{S} |\\mathrm{proj}\\,n_k|
+        \\big(a(h_{0,k}) + a(h_{1,k})\\big)\\Big]^{p}\\Big), \\qquad
+        a(h) = \\tfrac14\\big(\\cos n + 2h\\sin n - \\cos(2h - n)\\big)
+
+    Args:
+        gbuffer: needs ``view_z`` :math:`(B, 1, H, W)` (< 0 on geometry), ``normal`` :math:`(B, 3, H, W)` unit
+            view-space normals and ``mask`` :math:`(B, 1, H, W)` bool.
+        params: :class:`GTAOParams`.
+        generator: draws ``"hash"`` noise (default: a CPU generator seeded with ``params.seed``).
+        debug: also return ``horizon_cos`` :math:`(B, S, 2, H, W)` (final ``hc0``, ``hc1`` per slice),
+            ``normal_angle`` :math:`(B, S, H, W)` (``n``), ``slice_visibility`` :math:`(B, S, H, W)` and
+            ``screen_radius`` :math:`(B, 1, H, W)` (effect radius in pixels).
+        bent_normals: also return unit view-space bent normals (XeGTAO Algorithm 2; 0 on background).
+
+    Returns:
+        :class:`AOResult` with ``ao`` :math:`(B, 1, H, W)` in [0, 1], 1 on background.
+
+    Raises:
+        ValueError: missing channels, bad shapes, dtypes or values (the message names the argument).
+
+    Example:
+        >>> from ssbench.camera import Camera
+        >>> cam = Camera.from_look_at((0, 0, 0), (0, 0, -1), (0, 1, 0), 30.0, 8, 6, 0.1, 10.0)
+        >>> n = torch.zeros(1, 3, 6, 8); n[:, 2] = 1
+        >>> m = torch.ones(1, 1, 6, 8, dtype=torch.bool)
+        >>> g = GBuffer(cam, view_z=torch.full((1, 1, 6, 8), -2.0), normal=n, mask=m)
+        >>> r = gtao(g)
+        >>> r.ao.shape, bool((r.ao > 0.99).all())       # a wall facing the camera is unoccluded
+        (torch.Size([1, 1, 6, 8]), True)
+    """
+    check_inputs(gbuffer, params)
+    cam, mask = gbuffer.camera, gbuffer.mask
+    B, _, H, W = gbuffer.view_z.shape
+    dtype, dev = gbuffer.view_z.dtype, gbuffer.view_z.device
+    S, K = params.slices, params.steps
+    noise = noise_buffer(params, B, H, W, generator).to(dtype=dtype, device=dev)   # (B, 2, H, W)
+
+    # ---- Centre pixel: position, view vector, screen radius (vectors are (x, y, z) tuples of (B, 1, H, W)) ----
+    z = torch.where(mask, gbuffer.view_z, torch.full_like(gbuffer.view_z, -cam.far))  # sanitised depth texture
+    zc = z * _CENTER_Z_BIAS
+    col = torch.arange(W, dtype=dtype, device=dev).view(1, 1, 1, W)
+    row = torch.arange(H, dtype=dtype, device=dev).view(1, 1, H, 1)
+    ray_x = lambda c: (2.0 * (c + 0.5) / W - 1.0) * cam.aspect / cam.focal          # view x at z = -1
+    ray_y = lambda r: (1.0 - 2.0 * (r + 0.5) / H) / cam.focal                       # (uv_to_view, v up)
+    P = (ray_x(col) * -zc, ray_y(row) * -zc, zc)
+    v = unit3(tuple(-c for c in P))                                                  # toward the camera
+    N = tuple(torch.where(mask, gbuffer.normal[:, i:i + 1], v[i]) for i in range(3))
+    R = params.radius * params.radius_multiplier                                     # effect radius
+    r_px = R * cam.focal * H / (2.0 * -zc)                                           # (B, 1, H, W) pixels
+    min_s = params.min_offset_pixels / r_px
+    fr, toc, tiny = params.falloff_range, params.thin_occluder_compensation, torch.finfo(dtype).tiny
+    j = torch.arange(K, dtype=dtype, device=dev).view(1, K, 1, 1)
+    vis = torch.clamp((10.0 - r_px) / 100.0, 0.0, 1.0) * 0.5                        # small-radius fade
+    bent = [0.0, 0.0, 0.0] if bent_normals else None
+    dbg_h, dbg_n, dbg_v = [], [], []
+
+    for k in range(S):
+        # ---- Slice: direction, projected normal (Algorithm 1, lines 5-15) ----
+        phi = (k + noise[:, :1]) / S * math.pi                                       # (B, 1, H, W)
+        cos_phi, sin_phi = torch.cos(phi), torch.sin(phi)
+        dv = cos_phi * v[0] + sin_phi * v[1]
+        o = (cos_phi - dv * v[0], sin_phi - dv * v[1], -dv * v[2])                  # orthoDirectionVec
+        axis = unit3(cross3(o, v))
+        na = dot3(N, axis)
+        proj_n = tuple(N[i] - axis[i] * na for i in range(3))
+        proj_len = dot3(proj_n, proj_n).sqrt()
+        cos_n = (dot3(proj_n, v) / proj_len.clamp_min(tiny)).clamp(0.0, 1.0)
+        n = torch.sign(dot3(o, proj_n)) * torch.acos(cos_n)
+        low0, low1 = torch.cos(n + math.pi / 2), torch.cos(n - math.pi / 2)        # lowHorizonCos0/1
+        # ---- Horizon search: K steps x 2 sides at once, samples on dim 1 (lines 17-26) ----
+        step_noise = torch.frac(noise[:, 1:] + (k + j * K) * _R1)                   # (B, K, H, W)
+        s = ((j + step_noise) / K) ** params.sample_distribution_power + min_s
+        off_x, off_y = torch.round(s * cos_phi * r_px), torch.round(-s * sin_phi * r_px)  # screen y down
+        cx = col + torch.cat([off_x, -off_x], 1)                                     # (B, 2K, H, W)
+        cy = row + torch.cat([off_y, -off_y], 1)
+        on = (cx >= 0) & (cx < W) & (cy >= 0) & (cy < H)                             # off screen: ignored
+        cx, cy = torch.where(on, cx, col), torch.where(on, cy, row)      # (weight 0; huge r_px overflowed delta)
+        zs = fetch(z, cx.clamp(0, W - 1).long(), cy.clamp(0, H - 1).long())[:, 0]     # (B, 2K, H, W)
+        delta = (ray_x(cx) * -zs - P[0], ray_y(cy) * -zs - P[1], zs - P[2])
+        dist = dot3(delta, delta).sqrt().clamp_min(tiny)
+        shc = dot3(delta, v) / dist                                                  # sample horizon cos
+        if toc:
+            dist = (delta[0] ** 2 + delta[1] ** 2 + (delta[2] * (1.0 + toc)) ** 2).sqrt()
+        w = ((dist * (-1.0 / (fr * R)) + ((1.0 - fr) / fr + 1.0)).clamp(0.0, 1.0) if fr > 0
+             else (dist <= R).to(dtype)) * on
+        hc0 = torch.maximum(low0, (low0 + w[:, :K] * (shc[:, :K] - low0)).amax(1, keepdim=True))
+        hc1 = torch.maximum(low1, (low1 + w[:, K:] * (shc[:, K:] - low1)).amax(1, keepdim=True))
+        # ---- Integrate the slice (line ~27) ----
+        proj_len = proj_len + _SLOPE_FUDGE * (1.0 - proj_len)
+        h0, h1 = -torch.acos(hc1.clamp(-1.0, 1.0)), torch.acos(hc0.clamp(-1.0, 1.0))
+        local = proj_len * slice_visibility(h0, h1, n)
+        vis = vis + local
+        if bent is not None:                                                         # Algorithm 2
+            t0 = (6 * torch.sin(h0 - n) - torch.sin(3 * h0 - n) + 6 * torch.sin(h1 - n) - torch.sin(3 * h1 - n)
+                  + 16 * torch.sin(n) - 3 * (torch.sin(h0 + n) + torch.sin(h1 + n))) / 12
+            t1 = (-torch.cos(3 * h0 - n) - torch.cos(3 * h1 - n) + 8 * torch.cos(n)
+                  - 3 * (torch.cos(h0 + n) + torch.cos(h1 + n))) / 12
+            o_hat = unit3(o)
+            bent = [bent[i] + proj_len * (t0 * o_hat[i] + t1 * v[i]) for i in range(3)]
+        if debug:
+            dbg_h.append(torch.stack([hc0, hc1], 2))                                 # (B, 1, 2, H, W)
+            dbg_n.append(n)
+            dbg_v.append(local)
+
+    # ---- Final value ----
+    vis = (vis / S).clamp_min(0.0) ** params.final_value_power
+    if params.denoise_passes:                     # before the clip, as XeGTAO: overshoot above 1 averages out
+        from .gtao_denoise import gtao_denoise
+        vis = gtao_denoise(torch.where(mask, vis, torch.ones_like(vis)), gbuffer.view_z, mask,
+                           passes=params.denoise_passes)
+    vis = vis.clamp(0.03, 1.0)
+    ao = torch.where(mask, vis, torch.ones_like(vis))
+    out_bent = (None if bent is None else
+                torch.where(mask, torch.cat(unit3(tuple(bent)), 1), torch.zeros_like(gbuffer.normal)))
+    extra = {"horizon_cos": torch.cat(dbg_h, 1), "normal_angle": torch.cat(dbg_n, 1),
+             "slice_visibility": torch.cat(dbg_v, 1), "screen_radius": r_px} if debug else {}
+    return AOResult(ao=ao, bent_normal=out_bent, debug=extra)
+
+
+class GTAO(nn.Module):
+    """:func:`gtao` as a module; ``GTAO(quality="ultra")`` overrides fields of ``params``.
+
+    Example:
+        >>> GTAO(quality="low").params.slices
+        1
+    """
+
+    def __init__(self, params: GTAOParams = GTAOParams(), **overrides) -> None:
+        super().__init__()
+        self.params = replace(params, **overrides) if overrides else params
+
+    def forward(self, gbuffer: GBuffer, generator: Optional[torch.Generator] = None, debug: bool = False,
+                bent_normals: bool = False) -> AOResult:
+        return gtao(gbuffer, self.params, generator=generator, debug=debug, bent_normals=bent_normals)
+
+
+#: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
+METHOD = Method("gtao", gtao, GTAOParams, GTAO, order=40)

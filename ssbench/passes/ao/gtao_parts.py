@@ -1,0 +1,80 @@
+"""Pieces of the GTAO pass (:mod:`ssbench.passes.ao.gtao`): the slice integral, the noise buffers and 3-vector helpers.
+
+``slice_visibility`` is the analytic cosine-weighted arc of a slice (Jimenez et al. 2016); ``noise_buffer`` draws
+the per-pixel slice and step noise: XeGTAO's Hilbert index × R2 sequence, a hash, a constant or a 4×4 tile.
+"""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Optional
+
+import torch
+
+from ..common import make_generator
+
+if TYPE_CHECKING:
+    from .gtao import GTAOParams
+
+_R2 = (0.75487766624669276005, 0.5698402909980532659114)   # R2 sequence (Hilbert-index noise)
+
+
+def slice_visibility(h0: torch.Tensor, h1: torch.Tensor, n: torch.Tensor) -> torch.Tensor:
+    """Cosine-weighted visible arc of a slice, ``a(h0) + a(h1)``, ``a(h) = (cos n + 2h sin n − cos(2h − n))/4``.
+
+    Equals ``∫_{h0}^{h1} cos(θ − n)·|sin θ| dθ`` for ``h0 ≤ 0 ≤ h1`` (angles from the view vector, ``n`` the
+    projected normal's angle); ``|sin θ|`` is the slice parametrisation's Jacobian. Unoccluded
+    (``h = n ± π/2``) it is ``cos n + n sin n``, whose ``|proj n|``-weighted slice average is 1.
+
+    Example:
+        >>> import math
+        >>> z = torch.zeros(1, dtype=torch.float64)
+        >>> slice_visibility(z - math.pi / 2, z + math.pi / 2, z).item()
+        1.0
+    """
+    def arc(h: torch.Tensor) -> torch.Tensor:
+        return (torch.cos(n) + 2.0 * h * torch.sin(n) - torch.cos(2.0 * h - n)) / 4.0
+    return arc(h0) + arc(h1)
+
+
+def hilbert_index(x: torch.Tensor, y: torch.Tensor, width: int = 64) -> torch.Tensor:
+    """XeGTAO's ``HilbertIndex`` of integer pixel coordinates (taken modulo ``width``)."""
+    x, y, index, level = x % width, y % width, torch.zeros_like(x), width // 2
+    while level > 0:
+        rx, ry = ((x & level) > 0).long(), ((y & level) > 0).long()
+        index = index + level * level * ((3 * rx) ^ ry)
+        flip = (ry == 0) & (rx == 1)
+        x, y = torch.where(flip, width - 1 - x, x), torch.where(flip, width - 1 - y, y)
+        x, y = torch.where(ry == 0, y, x), torch.where(ry == 0, x, y)
+        level //= 2
+    return index
+
+
+def noise_buffer(params: GTAOParams, batch: int, height: int, width: int,
+                 generator: Optional[torch.Generator] = None) -> torch.Tensor:
+    """:math:`(B, 2, H, W)` float64 ``(slice noise, step noise)`` in [0, 1) as chosen by ``params.noise``."""
+    shape, kind = (batch, 2, height, width), params.noise if isinstance(params.noise, str) else "tile"
+    if kind == "hash":
+        g = make_generator(params.seed, generator)
+        return torch.rand(shape, generator=g, dtype=torch.float64, device=g.device).cpu()
+    if kind == "none":
+        return torch.full(shape, 0.5, dtype=torch.float64)
+    row = torch.arange(height).view(height, 1).expand(height, width)
+    col = torch.arange(width).view(1, width).expand(height, width)
+    if kind == "hilbert":
+        idx = hilbert_index(col, row).to(torch.float64) + 288 * (params.frame % 64)   # (H, W), XeGTAO
+        r2 = torch.tensor(_R2, dtype=torch.float64).view(2, 1, 1)
+        return torch.frac(0.5 + idx * r2).expand(shape)
+    tile = torch.as_tensor(params.noise, dtype=torch.float64).expand(2, 4, 4)     # (2, 4, 4)
+    return tile[:, row % 4, col % 4].expand(shape)
+
+
+def dot3(a: tuple, b: tuple) -> torch.Tensor:                 # 3-vectors are (x, y, z) tuples of tensors
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def cross3(a: tuple, b: tuple) -> tuple:
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def unit3(a: tuple) -> tuple:
+    inv = 1.0 / dot3(a, a).sqrt().clamp_min(torch.finfo(a[0].dtype).tiny)
+    return tuple(c * inv for c in a)

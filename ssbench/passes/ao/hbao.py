@@ -1,0 +1,287 @@
+"""Horizon-Based Ambient Occlusion (Bavoil & Sainz 2008), transcribed from the seed article (seed 002 §3).
+
+The pass follows the article's shader (§3.3) function by function: ``viewPos``/``uvToView`` with
+``UvToViewParams``, ``diskRadiusInUV = 0.5·R·FocalLength/−P.z``, ``dPdu``/``dPdv`` by ``minDiff``,
+``calculateNumSteps`` (with ``MaxRadiusPixels`` and the dithered step count), ``rotateDirections``,
+``snapUVOffset``, ``getBiasedTangent`` (``TanAngleBias``), ``integrateOcclusion`` for the first sample and
+``calculateHorizonOcclusion``'s horizon march, ``W(r) = 1 − r²/R²`` (§3.1), ``TanToSin`` and
+``ao = 1 − ao/NUM_DIRECTIONS·AOStrength``. The 2-pass cross-bilateral blur of §3.2 is a separate pass.
+
+**What it estimates.** Per image-plane direction φ the march finds the horizon elevation ``h(φ)`` of the depth
+buffer, treated as a height field (everything behind the first surface is solid), above the pixel's
+depth-derived tangent ``t(φ)``. Elevations are measured from the view-space xy plane (the hemisphere axis is
+view +z, not the pixel's ray or normal). Each rise of the horizon from ``h_{i−1}`` to ``h_i`` adds
+``W(r_i)·(sin h_i − sin h_{i−1})``, with ``r_i`` the distance to the sample that raised it. With ``W ≡ 1``,
+``(1/2π)∫(sin h − sin t) dφ`` is the solid-angle fraction of the hemisphere above the tangent plane hidden by
+the height field within ``R``: **uniform** (not cosine) weighting. The closest ground truth is therefore
+``ssbench.reference.ambient_occlusion(..., weighting="obscurance")`` (uniform solid angle, ``1 − ρ(t)`` with
+``ρ = 1 − (t/R)²``), with these known differences: ``W`` is taken at the horizon sample's distance, not at each
+ray's hit distance; hidden geometry is assumed solid; the bias drops occluders whose slope is within
+``TanAngleBias`` of the tangent's slope (and counts the rest only above that); directions are ``D`` evenly
+spaced image-plane angles with a per-pixel random rotation; ``AOStrength`` rescales the result, which is
+clamped to [0, 1].
+
+Follows the article's code literally, including two details that differ from NVIDIA's sample:
+``round(x)`` is ``floor(x + 0.5)``, and after the first sample the loop runs while ``j < numSteps − 1``,
+so an integer ``numSteps = N`` marches ``N − 1`` samples per direction (``debug["samples"]``); ``MAX_STEPS``
+is ``num_steps``. Texture reads are ``NEAREST``/``CLAMP_TO_EDGE`` as in the shader, so rays leaving the image
+see a fake wall at the edge depth (pixels within ``radiusInPixels`` of an edge can darken). The bias does
+not remove all planar self-occlusion: ``snapUVOffset(randstep·dUv)`` starts the march off the image direction
+of ``T``, which leaves ~1 % on a few pixels of a floor seen at a steep slope.
+The noise is a tiled ``noise_size²`` texture of ``(cos α, sin α, jitter)``, ``α = 2π·U/NUM_DIRECTIONS``
+(NVIDIA's random texture), read at ``[row % N, col % N]``; the jitter dithers the step count and offsets the
+start of every ray.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Optional
+
+import torch
+from torch import nn
+
+from ...gbuffer import GBuffer
+from ..common import AOResult, check_count, check_radius, fetch_uv, make_generator
+from ..gbuffer_checks import check_gbuffer, half_in_float32
+from ..registry import Method
+
+FLAVOUR = "obscurance"  # the ground-truth weighting this pass estimates (ssbench.reference.ao)
+#: continuous parameters ``ssbench tune`` may fit: name -> (lo, hi, relative to the ground-truth radius)
+TUNABLE = {"radius": (0.25, 3.0, True), "tan_angle_bias": (0.0, 1.0, False),
+           "ao_strength": (0.5, 2.5, False)}
+#: the report's tuning section fits this method
+TUNED_IN_REPORT = True
+#: where the defaults come from (shown by the report next to the parameters)
+DEFAULTS_SOURCE = ("NVIDIA's HBAO sample as ported by scanberg/hbao (6 directions × 6 steps, R 0.3, tangent bias 30°; "
+                   'Bavoil & Sainz, "Image-Space Horizon-Based Ambient Occlusion", SIGGRAPH 2008)')
+REQUIRES = ("view_z", "mask")
+POSITION_FROM = ("depth", "view_z")
+
+
+@dataclass(frozen=True)
+class HBAOParams:
+    """Parameters of :func:`hbao`, the article's names snake-cased (defaults: scanberg/hbao, NVIDIA's sample).
+
+    Attributes:
+        radius: ``R``, the view-space radius of the sampled disk (scene units).
+        max_radius_pixels: ``MaxRadiusPixels``, the largest screen footprint of a ray, in pixels.
+        num_directions: ``NUM_DIRECTIONS``.
+        num_steps: ``NUM_STEPS``, the most samples per direction.
+        tan_angle_bias: ``TanAngleBias``, added to the tangent's slope (default ``tan 30°``).
+        ao_strength: ``AOStrength`` in ``1 − ao·AOStrength``.
+        noise_size: side of the tiled noise texture (4 in the article).
+        seed: seeds the noise texture when no generator is passed.
+        position_from: ``"depth"`` (``perspectiveDepthToViewZ`` of the GL depth buffer, as the article) or
+            ``"view_z"`` (the G-buffer's view z, no depth round trip).
+    """
+
+    radius: float = 0.3
+    max_radius_pixels: float = 100.0
+    num_directions: int = 6
+    num_steps: int = 6
+    tan_angle_bias: float = math.tan(math.radians(30.0))
+    ao_strength: float = 1.0
+    noise_size: int = 4
+    seed: int = 0
+    position_from: str = "depth"
+
+    def __post_init__(self) -> None:
+        check_radius(self.radius, "radius")
+        check_radius(self.max_radius_pixels, "max_radius_pixels")
+        for name in ("num_directions", "num_steps", "noise_size"):
+            check_count(getattr(self, name), name)
+        for name in ("tan_angle_bias", "ao_strength"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ValueError(f"{name}: must be a finite number, got {v!r}")
+        if self.ao_strength < 0:
+            raise ValueError(f"ao_strength: must be >= 0, got {self.ao_strength!r}")
+        if self.position_from not in POSITION_FROM:
+            raise ValueError(f"position_from: expected one of {POSITION_FROM}, got {self.position_from!r}")
+
+
+def noise_texture(params: HBAOParams, generator: torch.Generator) -> torch.Tensor:
+    """:math:`(3, N, N)` float64 ``(cos α, sin α, jitter)`` with ``α = 2π·U/NUM_DIRECTIONS``, jitter ``U[0, 1)``.
+
+    One ``torch.rand`` call on ``generator``; the teaching twin calls this too, so both see the same noise.
+    """
+    n = params.noise_size
+    r = torch.rand(2, n, n, generator=generator, dtype=torch.float64)        # (2, N, N)
+    angle = 2.0 * math.pi * r[0] / params.num_directions
+    return torch.stack([torch.cos(angle), torch.sin(angle), r[1]], 0)
+
+
+def check_inputs(gbuffer: GBuffer, params: HBAOParams) -> None:
+    """Type checks of ``params`` and the shared G-buffer contract (:func:`~ssbench.passes.gbuffer_checks.check_gbuffer`)."""
+    if not isinstance(params, HBAOParams):
+        raise TypeError(f"params: expected HBAOParams, got {type(params).__name__}")
+    check_gbuffer(gbuffer, REQUIRES)
+
+
+def _rsqrt(x: torch.Tensor) -> torch.Tensor:
+    """``rsqrt`` that stays finite at 0 (a zero-length ``T.xy`` gives slope 0 instead of NaN)."""
+    return torch.rsqrt(x.clamp_min(torch.finfo(x.dtype).tiny))
+
+
+def _tan_to_sin(x: torch.Tensor) -> torch.Tensor:
+    """``TanToSin``: ``x·rsqrt(x² + 1)``, written ``x / hypot(x, 1)`` so huge slopes do not overflow."""
+    return x / torch.hypot(x, torch.ones_like(x))
+
+
+def _tangent(v: torch.Tensor) -> torch.Tensor:
+    """``getTangent``: ``V.z·rsqrt(dot(V.xy, V.xy))`` of a ``(B, 3, ...)`` vector (GL view space, z up)."""
+    return v[:, 2] * _rsqrt(v[:, 0] ** 2 + v[:, 1] ** 2)
+
+
+def _snap(uv: torch.Tensor, res: torch.Tensor, inv_res: torch.Tensor) -> torch.Tensor:
+    """``snapUVOffset``: ``round(uv·AORes)·InvAORes`` with the article's ``round(a) = floor(a + 0.5)``."""
+    return torch.floor(uv * res + 0.5) * inv_res
+
+
+def _min_diff(P: torch.Tensor, Pa: torch.Tensor, Pb: torch.Tensor) -> torch.Tensor:
+    """``minDiff``: the shorter of ``Pa − P`` and ``P − Pb`` (ties take ``P − Pb``)."""
+    v1, v2 = Pa - P, P - Pb
+    return torch.where((v1 * v1).sum(1, keepdim=True) < (v2 * v2).sum(1, keepdim=True), v1, v2)
+
+
+@half_in_float32
+def hbao(gbuffer: GBuffer, params: HBAOParams = HBAOParams(), *, generator: Optional[torch.Generator] = None,
+         debug: bool = False) -> AOResult:
+    """Horizon-based ambient occlusion of a G-buffer (seed 002 §3.3, vectorised over pixels and directions).
+
+    .. math::
+        AO = 1 - \\frac{s}{D}\\sum_{d=1}^{D} \\sum_i W(r_i)\\,(\\sin h_i - \\sin h_{i-1}),
+        \\qquad W(r) = 1 - r^2/R^2, \\quad \\tan h_0 = \\tan t + \\text{TanAngleBias}
+
+    Args:
+        gbuffer: needs ``view_z`` :math:`(B, 1, H, W)` and ``mask`` :math:`(B, 1, H, W)` bool.
+        params: :class:`HBAOParams`.
+        generator: draws the noise texture (default: a CPU generator seeded with ``params.seed``).
+        debug: also return ``num_steps`` :math:`(B, 1, H, W)` (``calculateNumSteps``), ``samples``
+            :math:`(B, 1, H, W)` (depth samples per direction), ``horizons`` :math:`(B, D, H, W)` (final horizon
+            elevation ``atan(tanH)`` in radians, 0 where skipped) and ``radius_pixels`` :math:`(B, 1, H, W)`.
+
+    Returns:
+        :class:`AOResult` with ``ao`` :math:`(B, 1, H, W)` in [0, 1]; 1 on background and where
+        ``radiusInPixels ≤ 1``.
+
+    Raises:
+        ValueError: missing channels, bad shapes, dtypes or values (the message names the argument).
+
+    Example:
+        >>> from ssbench.camera import Camera
+        >>> cam = Camera.from_look_at((0, 0, 0), (0, 0, -1), (0, 1, 0), 60.0, 8, 6, 0.1, 10.0)
+        >>> g = GBuffer(cam, view_z=torch.full((1, 1, 6, 8), -2.0), mask=torch.ones(1, 1, 6, 8, dtype=torch.bool))
+        >>> r = hbao(g, HBAOParams(radius=1.0))
+        >>> r.ao.shape, bool((r.ao == 1).all())         # a wall facing the camera is unoccluded
+        (torch.Size([1, 1, 6, 8]), True)
+    """
+    check_inputs(gbuffer, params)
+    cam, view_z, mask = gbuffer.camera, gbuffer.view_z, gbuffer.mask
+    B, _, H, W = view_z.shape
+    D, dtype, dev = params.num_directions, view_z.dtype, view_z.device
+    g = make_generator(params.seed, generator)
+    noise = noise_texture(params, g).to(dtype=dtype, device=dev)                 # (3, N, N)
+
+    if params.position_from == "depth":                        # DepthSampler holds the GL depth buffer
+        tex, to_view_z = cam.view_z_to_depth(view_z), cam.depth_to_view_z
+    else:
+        tex, to_view_z = view_z, (lambda z: z)
+
+    def viewPos(uv: torch.Tensor) -> torch.Tensor:             # (B, 2, *S) -> (B, 3, *S), nearest + clamp
+        return cam.uv_to_view(uv, to_view_z(fetch_uv(tex, uv)), dim=1)
+
+    AORes = torch.tensor([W, H], dtype=dtype, device=dev).view(1, 2, 1, 1)     # (1, 2, 1, 1)
+    InvAORes = 1.0 / AORes
+    R = params.radius if torch.is_tensor(params.radius) else float(params.radius)   # a tensor keeps autograd
+    R2 = R * R
+    uv0 = cam.uv_grid(dtype, dev).unsqueeze(0).expand(B, -1, -1, -1)           # (B, 2, H, W)
+    P = viewPos(uv0)                                                             # (B, 3, H, W)
+
+    # ---- projected radius (diskRadiusInUV, radiusInPixels) ----
+    FocalLength = cam.focal * H / W
+    radiusInPixels = 0.5 * R * FocalLength / -P[:, 2:3] * W                      # (B, 1, H, W)
+    active = mask & (radiusInPixels > 1.0)
+
+    # ---- tangent basis from the 4 neighbours (minDiff) ----
+    ex = torch.tensor([1.0, 0.0], dtype=dtype, device=dev).view(1, 2, 1, 1) * InvAORes
+    ey = torch.tensor([0.0, 1.0], dtype=dtype, device=dev).view(1, 2, 1, 1) * InvAORes
+    Pr, Pl, Pt, Pb = viewPos(uv0 + ex), viewPos(uv0 - ex), viewPos(uv0 + ey), viewPos(uv0 - ey)
+    dPdu = _min_diff(P, Pr, Pl).unsqueeze(2)                                     # (B, 3, 1, H, W)
+    dPdv = (_min_diff(P, Pt, Pb) * (H / W)).unsqueeze(2)
+
+    # ---- per-pixel noise and calculateNumSteps ----
+    rows = torch.arange(H, device=dev) % params.noise_size
+    cols = torch.arange(W, device=dev) % params.noise_size
+    rand = noise[:, rows][:, :, cols].unsqueeze(0)                               # (1, 3, H, W)
+    numSteps = torch.clamp(radiusInPixels, max=float(params.num_steps))
+    stepSizeInPixels = radiusInPixels / (numSteps + 1.0)
+    maxNumSteps = params.max_radius_pixels / stepSizeInPixels
+    clamp = maxNumSteps < numSteps
+    numSteps = torch.where(clamp, torch.floor(maxNumSteps + rand[:, 2:3]).clamp_min(1.0), numSteps)
+    stepSizeInPixels = torch.where(clamp, params.max_radius_pixels / numSteps, stepSizeInPixels)
+    stepSizeInUV = (stepSizeInPixels * InvAORes).unsqueeze(2)                    # (B, 2, 1, H, W)
+
+    # ---- directions: rotateDirections(vec2(cos(angle), sin(angle)), rand.xy) ----
+    angle = (2.0 * math.pi / D) * torch.arange(D, dtype=dtype, device=dev).view(1, D, 1, 1)
+    c, s = rand[:, 0:1], rand[:, 1:2]                                            # (1, 1, H, W)
+    dir = torch.stack([torch.cos(angle) * c - torch.sin(angle) * s,
+                       torch.cos(angle) * s + torch.sin(angle) * c], 1)         # (1, 2, D, H, W)
+    dUv = dir * stepSizeInUV                                                     # (B, 2, D, H, W)
+    texelDeltaUV = dir * InvAORes.unsqueeze(2)
+    randstep = rand[:, 2:3].unsqueeze(2)                                         # (1, 1, 1, H, W)
+    res, inv, uv0d, Pd = AORes.unsqueeze(2), InvAORes.unsqueeze(2), uv0.unsqueeze(2), P.unsqueeze(2)
+
+    # ---- calculateHorizonOcclusion, all directions at once ----
+    uv = uv0d + _snap(randstep * dUv, res, inv)                                       # (B, 2, D, H, W)
+    deltaUV = _snap(dUv, res, inv)
+    T = deltaUV[:, 0:1] * dPdu + deltaUV[:, 1:2] * dPdv                         # (B, 3, D, H, W)
+    tanH = _tangent(T) + params.tan_angle_bias                                   # (B, D, H, W)
+    # integrateOcclusion: a first sample between uv0 and uv0 + deltaUV, against the tangent of its own offset
+    snapped_duv = _snap(randstep * deltaUV + texelDeltaUV, res, inv)
+    T1 = snapped_duv[:, 0:1] * dPdu + snapped_duv[:, 1:2] * dPdv
+    tanT = _tangent(T1) + params.tan_angle_bias
+    diff = viewPos(uv0d + snapped_duv) - Pd
+    tanS, d2 = _tangent(diff), (diff * diff).sum(1)
+    hit = active & (d2 < R2) & (tanS > tanT)
+    ao = torch.where(hit, (1.0 - d2 / R2) * (_tan_to_sin(tanS) - _tan_to_sin(tanT)).clamp(0.0, 1.0), 0.0)
+    tanH = torch.where(hit, torch.maximum(tanH, tanS), tanH)
+    numStepsLeft = numSteps - 1.0                                                # --numSteps
+    sinH = _tan_to_sin(tanH)
+    samples = torch.ones_like(numSteps)
+    for j in range(1, params.num_steps):                                         # the march: j < numSteps
+        live = active & (j < numStepsLeft)                                       # (B, 1, H, W)
+        if live.device.type != "meta" and not bool(live.any()):                   # (meta: shapes only)
+            break
+        samples = samples + live.to(dtype)
+        uv = uv + deltaUV
+        diff = viewPos(uv) - Pd
+        tanS, d2 = _tangent(diff), (diff * diff).sum(1)                          # (B, D, H, W)
+        hit = live & (d2 < R2) & (tanS > tanH)
+        sinS = _tan_to_sin(tanS)
+        ao = ao + torch.where(hit, (1.0 - d2 / R2) * (sinS - sinH).clamp(0.0, 1.0), 0.0)
+        tanH, sinH = torch.where(hit, tanS, tanH), torch.where(hit, sinS, sinH)
+
+    out = (1.0 - ao.sum(1, keepdim=True) / D * params.ao_strength).clamp(0.0, 1.0)
+    out = torch.where(active, out, torch.ones_like(out))
+    dbg = {}
+    if debug:
+        dbg = {"num_steps": torch.where(active, numSteps, 0.0), "samples": torch.where(active, samples, 0.0),
+               "horizons": torch.where(active, torch.atan(tanH), 0.0), "radius_pixels": radiusInPixels}
+    return AOResult(ao=out, debug=dbg)
+
+
+class HBAO(nn.Module):
+    """``nn.Module`` wrapper of :func:`hbao`; ``forward(gbuffer)`` returns its :class:`AOResult`."""
+
+    def __init__(self, params: HBAOParams = HBAOParams(), debug: bool = False) -> None:
+        super().__init__()
+        self.params, self.debug = params, debug
+
+    def forward(self, gbuffer: GBuffer, generator: Optional[torch.Generator] = None) -> AOResult:
+        return hbao(gbuffer, self.params, generator=generator, debug=self.debug)
+
+
+#: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
+METHOD = Method("hbao", hbao, HBAOParams, HBAO, order=30)

@@ -1,0 +1,276 @@
+"""Hemisphere SSAO: the normal-oriented kernel of seed 002 §1–§2.2 (Chapman / three.js ``SSAOShader``).
+
+Per pixel (the article's fragment shader, vectorised over pixels *and* samples as ``(B, K, H, W)``):
+
+1. ``viewPosition`` from the depth buffer with ``getViewPosition`` (inverse projection), or straight from
+   ``view_z`` (``position_from="view_z"``); ``viewNormal`` from the normal buffer (ssbench stores floats in
+   [−1, 1], so the shader's ``2·rgb − 1`` unpacking is not needed).
+2. ``random`` from the 4×4 noise texture (``NEAREST``, ``REPEAT``); Gram–Schmidt gives
+   ``tangent = normalize(random − n·(random·n))``, ``bitangent = n × tangent`` and ``kernelMatrix = (t, b, n)``.
+3. For each kernel point ``samplePoint = viewPosition + kernelMatrix·Kernel[i]·KernelRadius`` is projected
+   (view → NDC → uv with the :class:`~ssbench.camera.Camera`), the depth texel under it is fetched
+   (``NEAREST``, ``CLAMP_TO_EDGE``) and both are compared in linear depth
+   ``viewZToOrthographicDepth`` ∈ [0, 1]: ``delta = sampleDepth − realDepth``.
+4. A sample occludes if ``MinDistance < delta < MaxDistance``; ``occlusion = clamp(count / K, 0, 1)`` and
+   ``AO = 1 − occlusion·Strength`` (clamped to [0, 1], as an 8-bit render target would).
+
+**Which AO it estimates.** Counting kernel points that lie behind the depth buffer is a *volumetric*
+estimate: as ``K`` grows and the noise turns the kernel, the count converges to the fraction of the kernel's
+point law (the half-ball of radius ``KernelRadius``, denser near the centre through ``lerp(0.1, 1, (i/N)²)``)
+that lies inside geometry. That is the ``"volume_hemisphere"`` flavour of :mod:`ssbench.reference.ao_volume`,
+which this pass is scored against — not a visibility integral over directions: a crease is darker in the
+``"uniform"`` or ``"cosine"`` flavour than in this one (a wall blocks a whole cone of directions but holds
+only a small slice of the half-ball's volume).
+
+**Edge cases, as the shader behaves.** Samples off screen read the edge texel (``CLAMP_TO_EDGE``), which
+can darken or lighten the border. Samples behind the camera (``z > 0``) flip through the perspective divide
+and read an arbitrary texel, but their ``sampleDepth < 0`` so ``delta < 0 ≤ MinDistance``: they never count.
+A sample exactly on the camera plane (``w = 0``) is nudged to ``z = −tiny`` and non-finite uvs are clamped
+(the GPU result is undefined; ours is finite). Background pixels (``mask`` False) get AO 1. ``MinDistance``
+is the article's Fig. 10 bias: it hides the false occlusion that nearest-texel depth quantisation gives
+samples lying just above a surface; the error it hides grows with distance and grazing angle (half a texel
+of depth slope), so far floors still self-occlude a little. ``MaxDistance`` rejects occluders far in front
+of the sample (halos), but at grazing angles the depth gap *behind* a surface grows as ``1/sin(elevation)``
+and real occlusion is rejected too. Distances are in normalised linear depth, so they scale with
+``far − near``; the defaults suit the catalog cameras (near 0.1, far 100: 0.01 ≈ one scene unit).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+from torch import nn
+
+from ...camera import Camera
+from ...gbuffer import GBuffer
+from ..common import AOResult, check_count, check_radius, fetch_uv, length, make_generator
+from ..gbuffer_checks import check_gbuffer, half_in_float32
+from ..sampling import hemisphere_kernel, noise_texel, noise_texture
+from ..registry import Method
+
+FLAVOUR = "volume_hemisphere"  # the ground truth this pass estimates (ssbench.reference.ao_volume)
+#: continuous parameters ``ssbench tune`` may fit: name -> (lo, hi, relative); relative ranges are multiples of the
+#: ground-truth radius (discrete ones — sample counts, noise — set the cost and stay fixed)
+TUNABLE = {"kernel_radius": (0.25, 4.0, True), "min_distance": (0.0, 0.005, False),
+           "max_distance": (0.002, 0.1, False), "strength": (0.5, 2.0, False)}
+#: where the defaults come from (shown by the report next to the parameters)
+DEFAULTS_SOURCE = ('three.js SSAOPass (32-sample kernel, 4×4 noise; https://github.com/mrdoob/three.js); distances '
+                   'scaled to the catalog scenes')
+REQUIRES = ("view_z", "normal", "mask")
+POSITION_FROM = ("depth", "view_z")
+
+
+def check_ssao_params(p) -> None:
+    """Parameter checks shared by both SSAO variants; every error names the field."""
+    check_count(p.kernel_size, "kernel_size")
+    check_radius(p.kernel_radius, "kernel_radius")
+    check_count(p.noise_size, "noise_size")
+    for name in ("min_distance", "max_distance", "strength"):
+        v = getattr(p, name)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 <= v < float("inf"):
+            raise ValueError(f"{name}: must be a finite number >= 0, got {v!r}")
+    if not p.min_distance < p.max_distance:
+        raise ValueError(f"max_distance: must exceed min_distance={p.min_distance}, got {p.max_distance}")
+    if isinstance(p.seed, bool) or not isinstance(p.seed, int) or p.seed < 0:
+        raise ValueError(f"seed: must be a non-negative integer, got {p.seed!r}")
+
+
+@dataclass(frozen=True)
+class HemisphereSSAOParams:
+    """Settings of :func:`hemisphere_ssao`, named after the article's uniforms.
+
+    Defaults: what three.js ``SSAOPass`` ships (mrdoob et al., three.js, ``examples/jsm/postprocessing/SSAOPass.js``,
+    https://github.com/mrdoob/three.js; the pass the article's demo builds on): a 32-sample kernel and a 4×4 noise
+    texture. Its distances are scene-scaled and do not carry over (``kernelRadius`` 8 and min/max distance
+    0.005/0.1 of a camera with near 100, far 700); ours suit the catalog scenes (unit-sized objects, near 0.1,
+    far 100): ``kernel_radius`` 0.5, and the range check as tight in linear depth as the article's Fig. 9.
+
+    Args:
+        kernel_size: ``KERNEL_SIZE``, samples per pixel (8, 16, 32, 64 are usual).
+        kernel_radius: ``KernelRadius``, the half-ball radius in view-space units.
+        min_distance: ``MinDistance``, smallest counted ``delta`` in linear depth (self-occlusion bias).
+        max_distance: ``MaxDistance``, largest counted ``delta`` in linear depth (range check against halos).
+        strength: ``Strength``, ``AO = 1 − occlusion · strength``.
+        noise_size: side of the rotation noise texture (the article's 4).
+        seed: seeds the kernel and the noise when no generator is passed.
+        position_from: ``"depth"`` (the article: ``getViewPosition`` from the GL depth buffer, and the
+            depth buffer is what ``getLinearDepth`` reads) or ``"view_z"`` (exact positions and depths).
+    """
+
+    kernel_size: int = 32
+    kernel_radius: float = 0.5
+    min_distance: float = 0.0005
+    max_distance: float = 0.02
+    strength: float = 1.0
+    noise_size: int = 4
+    seed: int = 0
+    position_from: str = "depth"
+
+    def __post_init__(self) -> None:
+        check_ssao_params(self)
+        if self.position_from not in POSITION_FROM:
+            raise ValueError(f"position_from: expected one of {POSITION_FROM}, got {self.position_from!r}")
+
+
+def view_position(camera: Camera, view_z: torch.Tensor, position_from: str) -> tuple[torch.Tensor, torch.Tensor]:
+    """``(viewPosition, texture)``: :math:`(B, 3, H, W)` positions and the :math:`(B, 1, H, W)` buffer
+    that ``getLinearDepth`` samples (the GL depth buffer for ``"depth"``, ``view_z`` otherwise)."""
+    uv = camera.uv_grid(view_z.dtype, view_z.device).unsqueeze(0)                # (1, 2, H, W) vUv
+    if position_from == "depth":
+        depth = camera.view_z_to_depth(view_z)                                   # getDepth(vUv)
+        return camera.view_position_from_depth(uv.expand(view_z.shape[0], -1, -1, -1), depth), depth
+    return camera.uv_to_view(uv, view_z), view_z
+
+
+#: bytes of the per-sample blocks a pass may hold at once (about a core's L2): the SSAO passes march a band of
+#: image rows at a time, so their time per pixel does not jump once an image's blocks leave the cache
+BLOCK_BYTES = 1 << 20
+
+
+def row_bands(height: int, width: int, samples: int, itemsize: int, budget: int = BLOCK_BYTES) -> list[slice]:
+    """Slices of image rows whose ``(B, 3, samples, rows, width)`` sample blocks fit in ``budget`` bytes.
+
+    Example:
+        >>> row_bands(10, 100, 16, 4, budget=4 * 3 * 16 * 100 * 4)
+        [slice(0, 4, None), slice(4, 8, None), slice(8, 10, None)]
+    """
+    rows = max(1, budget // max(1, 3 * samples * width * itemsize))
+    return [slice(r0, min(height, r0 + rows)) for r0 in range(0, height, rows)]
+
+
+def range_check_count(camera: Camera, sample_point: torch.Tensor, texture: torch.Tensor, from_depth: bool,
+                      min_distance: float, max_distance: float) -> torch.Tensor:
+    """The shader's sample loop body for all samples at once: project, fetch, compare, count.
+
+    Args:
+        sample_point: :math:`(B, 3, K, H, W)` view-space ``samplePoint``.
+        texture: :math:`(B, 1, H, W)` GL depth buffer (``from_depth``) or view z.
+
+    Returns:
+        :math:`(B, 1, H, W)` integer count of samples with ``min_distance < delta < max_distance``.
+    """
+    z = sample_point[:, 2:3]                                                     # (B, 1, K, H, W)
+    # NOTE: w = -z = 0 would divide by zero; the GPU result is undefined, ours reads as "just in front"
+    z_proj = torch.where(z == 0, torch.full_like(z, -torch.finfo(z.dtype).tiny), z)
+    ndc = camera.view_to_ndc(torch.cat([sample_point[:, :2], z_proj], 1), dim=1)  # (B, 3, K, H, W)
+    uv = torch.nan_to_num(camera.ndc_to_uv(ndc[:, :2]))                          # (B, 2, K, H, W) samplePointUv
+    real = fetch_uv(texture, uv)                                                 # (B, 1, K, H, W) NEAREST, clamp
+    if from_depth:
+        real = camera.depth_to_view_z(real)                                      # perspectiveDepthToViewZ
+    real_depth = camera.view_z_to_orthographic_depth(real)                       # realDepth
+    sample_depth = camera.view_z_to_orthographic_depth(z)                        # sampleDepth
+    delta = sample_depth - real_depth
+    return ((delta > min_distance) & (delta < max_distance)).sum(2)              # (B, 1, H, W)
+
+
+def occlusion_to_ao(count: torch.Tensor, kernel_size: int, strength: float, mask: torch.Tensor,
+                    dtype: torch.dtype) -> torch.Tensor:
+    """``1 − clamp(count / K, 0, 1) · Strength``, clamped to [0, 1]; 1 off ``mask``."""
+    occlusion = (count.to(dtype) / float(kernel_size)).clamp(0.0, 1.0)
+    ao = (1.0 - occlusion * strength).clamp(0.0, 1.0)
+    return torch.where(mask, ao, torch.ones_like(ao))
+
+
+def ssao_result(count: torch.Tensor, p, mask: torch.Tensor, *, dtype: torch.dtype, debug: bool,
+                row: torch.Tensor, col: torch.Tensor, kernel: torch.Tensor, noise: torch.Tensor) -> AOResult:
+    """AO from the range-check ``count`` plus, with ``debug``, the per-pixel sample count, noise index,
+    kernel and noise (shared by both SSAO passes)."""
+    ao = occlusion_to_ao(count, p.kernel_size, p.strength, mask, dtype)
+    extra = {}
+    if debug:
+        extra = {"samples": torch.where(mask, count, torch.zeros_like(count)),
+                 "noise_index": (row * p.noise_size + col).expand(mask.shape),
+                 "kernel": kernel, "noise": noise}
+    return AOResult(ao=ao, debug=extra)
+
+
+@half_in_float32
+def hemisphere_ssao(gbuffer: GBuffer, params: HemisphereSSAOParams = HemisphereSSAOParams(), *,
+                    generator: torch.Generator | None = None, debug: bool = False) -> AOResult:
+    r"""Hemisphere SSAO of seed 002 §2.2 (see the module docstring for the algorithm and edge cases).
+
+    .. math::
+        \mathrm{AO} = 1 - \mathrm{Strength}\cdot\frac{1}{K}\sum_{i<K}
+        [\mathrm{MinDistance} < \ell(s_i) - \ell_{\mathrm{buf}}(\mathrm{uv}(s_i)) < \mathrm{MaxDistance}]
+
+    with :math:`s_i = P + R\,(t, b, n)\,k_i` and :math:`\ell` the linear depth.
+
+    Args:
+        gbuffer: needs ``view_z`` :math:`(B, 1, H, W)`, unit ``normal`` :math:`(B, 3, H, W)` and ``mask``
+            :math:`(B, 1, H, W)` (bool). Computation runs in ``view_z``'s dtype and device.
+        params: :class:`HemisphereSSAOParams`.
+        generator: draws the kernel, then the noise; default: a CPU generator seeded with ``params.seed``.
+        debug: also return ``debug["samples"]`` (:math:`(B, 1, H, W)` samples that passed the range
+            check), ``debug["noise_index"]`` (:math:`(B, 1, H, W)` noise texel ``row · size + col`` used
+            for the TBN frame), ``debug["kernel"]`` and ``debug["noise"]``.
+
+    Returns:
+        :class:`~ssbench.passes.common.AOResult` with ``ao`` :math:`(B, 1, H, W)` in [0, 1].
+
+    Raises:
+        ValueError: naming the argument, for missing channels, wrong shapes or dtypes, non-unit normals.
+
+    Example:
+        >>> from ssbench.camera import Camera
+        >>> cam = Camera.from_look_at((0, 0, 0), (0, 0, -1), (0, 1, 0), 60.0, 8, 6, 0.1, 100.0)
+        >>> z = torch.full((1, 1, 6, 8), -2.0)
+        >>> n = torch.zeros(1, 3, 6, 8); n[:, 2] = 1
+        >>> g = GBuffer(cam, view_z=z, normal=n, mask=torch.ones(1, 1, 6, 8, dtype=torch.bool))
+        >>> out = hemisphere_ssao(g)
+        >>> out.ao.shape, float(out.ao.min())
+        (torch.Size([1, 1, 6, 8]), 1.0)
+    """
+    if not isinstance(params, HemisphereSSAOParams):
+        raise TypeError(f"params: expected HemisphereSSAOParams, got {type(params).__name__}")
+    check_gbuffer(gbuffer, REQUIRES)
+    cam, p = gbuffer.camera, params
+    n, mask = gbuffer.normal.to(gbuffer.view_z.dtype), gbuffer.mask
+    dtype, device = n.dtype, n.device
+    g = make_generator(p.seed, generator)
+    kernel = hemisphere_kernel(p.kernel_size, g).to(dtype=dtype, device=device)    # (K, 3) Kernel[i]
+    noise = noise_texture(p.noise_size, g).to(dtype=dtype, device=device)          # (3, S, S)
+
+    # ---- §2.2 viewPosition, viewNormal ------------------------------------------------------------
+    position, texture = view_position(cam, gbuffer.view_z, p.position_from)       # (B, 3, H, W)
+
+    # ---- §2.2 random rotation, Gram–Schmidt, kernelMatrix = (tangent, bitangent, normal) ------------
+    col, row = noise_texel(cam.uv_grid(dtype, device), cam.width, cam.height, p.noise_size)   # (H, W)
+    random = noise[:, row, col].unsqueeze(0)                                       # (1, 3, H, W)
+    tangent = random - n * (random * n).sum(1, keepdim=True)                      # (B, 3, H, W)
+    tangent = tangent / length(tangent).clamp_min(torch.finfo(dtype).tiny)
+    bitangent = torch.cross(n, tangent, dim=1)
+
+    # ---- §2.2 sample loop, all K samples of a band of rows at once (the working set stays cache-sized) -
+    kx, ky, kz = (kernel[:, c].reshape(1, 1, -1, 1, 1) for c in range(3))          # (1, 1, K, 1, 1)
+    count = torch.empty(n.shape[0], 1, cam.height, cam.width, dtype=torch.int64, device=device)
+    for rs in row_bands(cam.height, cam.width, p.kernel_size, n.element_size()):
+        sample_vector = (tangent[..., rs, :].unsqueeze(2) * kx + bitangent[..., rs, :].unsqueeze(2) * ky) \
+            + n[..., rs, :].unsqueeze(2) * kz
+        sample_point = position[..., rs, :].unsqueeze(2) + sample_vector * p.kernel_radius   # (B, 3, K, h, W)
+        count[..., rs, :] = range_check_count(cam, sample_point, texture, p.position_from == "depth",
+                                              p.min_distance, p.max_distance)      # (B, 1, h, W)
+    return ssao_result(count, p, mask, dtype=dtype, debug=debug, row=row, col=col, kernel=kernel, noise=noise)
+
+
+class HemisphereSSAO(nn.Module):
+    """Module form of :func:`hemisphere_ssao`; ``forward(gbuffer)`` returns an :class:`AOResult`.
+
+    Shape:
+        - Input: a :class:`~ssbench.gbuffer.GBuffer` with ``view_z``, ``normal``, ``mask``.
+        - Output: ``ao`` :math:`(B, 1, H, W)`.
+
+    Example:
+        >>> HemisphereSSAO(HemisphereSSAOParams(kernel_size=8)).params.kernel_size
+        8
+    """
+
+    def __init__(self, params: HemisphereSSAOParams = HemisphereSSAOParams(), debug: bool = False) -> None:
+        super().__init__()
+        self.params, self.debug = params, debug
+
+    def forward(self, gbuffer: GBuffer, generator: torch.Generator | None = None) -> AOResult:
+        return hemisphere_ssao(gbuffer, self.params, generator=generator, debug=self.debug)
+
+
+#: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
+METHOD = Method("ssao", hemisphere_ssao, HemisphereSSAOParams, HemisphereSSAO, order=20)

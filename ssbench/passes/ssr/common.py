@@ -1,0 +1,94 @@
+"""Shared pieces of the SSR passes (seed 000): the hit buffer, termination codes, the reflection ray.
+
+Every SSR pass returns an :class:`SSRResult`: the reflection colour *and* a raw hit buffer, so the
+classification in ``ssbench.metrics.ssr`` can compare what the pass found with the exact mirror hit.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Optional
+
+import torch
+
+from ..common import length
+
+# Termination reasons (``SSRResult.termination``, int8)
+NO_RAY = 0          #: background, non-reflective, or non-finite origin (depth precision exhausted): no ray
+HIT = 1             #: thickness test passed (after refinement)
+OFF_SCREEN = 2      #: the ray left the screen
+MAX_DISTANCE = 3    #: reached MaxRayDistance / the clipped end point without a hit
+OUT_OF_STEPS = 4    #: the iteration budget ran out before the end point (NOT a hit)
+BEHIND_CAMERA = 5   #: the ray crossed the near plane toward the camera (clipped away)
+TERMINATION_NAMES = {NO_RAY: "no ray", HIT: "hit", OFF_SCREEN: "off screen", MAX_DISTANCE: "max distance",
+                     OUT_OF_STEPS: "out of steps", BEHIND_CAMERA: "behind camera"}
+
+
+@dataclass(frozen=True)
+class SSRResult:
+    """Output of an SSR pass; all tensors share B, H, W.
+
+    Attributes:
+        color: :math:`(B, 3, H, W)` reflected colour with fades applied (0 where no hit).
+        hit: :math:`(B, 1, H, W)` bool, raw hit (before fades).
+        hit_pixel: :math:`(B, 2, H, W)` continuous pixel coordinates ``(px, py)`` of the hit (NaN-free: −1 where
+            no hit).
+        hit_view: :math:`(B, 3, H, W)` view-space hit point (0 where no hit).
+        steps: :math:`(B, 1, H, W)` int32 marching steps taken (refinement included).
+        termination: :math:`(B, 1, H, W)` int8 code, see :data:`TERMINATION_NAMES`.
+        fade: :math:`(B, 1, H, W)` combined fade weight in [0, 1] (1 = no fade) applied to ``color``.
+        raw_color: :math:`(B, 3, H, W)` colour at the raw hit without fades.
+        debug: extras, e.g. ``"visits"`` (per-pixel visit counts of a chosen ray), ``"ray_end"``.
+    """
+
+    color: torch.Tensor
+    hit: torch.Tensor
+    hit_pixel: torch.Tensor
+    hit_view: torch.Tensor
+    steps: torch.Tensor
+    termination: torch.Tensor
+    fade: torch.Tensor
+    raw_color: torch.Tensor
+    debug: dict = field(default_factory=dict)
+
+
+def reflect(incident: torch.Tensor, normal: torch.Tensor, dim: int = 1) -> torch.Tensor:
+    """GLSL ``reflect(I, N) = I − 2·dot(N, I)·N`` (seed 000 §1.1); ``normal`` must be unit length."""
+    return incident - 2.0 * (normal * incident).sum(dim, keepdim=True) * normal
+
+
+def reflection_rays(position: torch.Tensor, normal: torch.Tensor) -> torch.Tensor:
+    """Unit view-space reflection directions of the eye rays: ``reflect(normalize(P), N)`` (seed 000 §1.1).
+
+    Args:
+        position: :math:`(B, 3, H, W)` view-space positions (the eye is at the origin).
+        normal: :math:`(B, 3, H, W)` unit view-space normals.
+    """
+    incident = position / length(position).clamp_min(torch.finfo(position.dtype).tiny)
+    r = reflect(incident, normal)
+    return r / length(r).clamp_min(torch.finfo(r.dtype).tiny)
+
+
+def clip_ray_length(origin_z: torch.Tensor, dir_z: torch.Tensor, max_distance: float,
+                    near: float) -> torch.Tensor:
+    """Ray length clipped so the end point stays in front of the near plane (seed 000 §1.2, appendix A).
+
+    ``rayLength = (P.z + R.z·maxDistance > −near) ? (−near − P.z) / R.z : maxDistance`` — rays heading toward
+    the camera stop just before the near plane instead of crossing ``w = 0``.
+    """
+    end_z = origin_z + dir_z * max_distance
+    crossing = end_z > -near
+    safe = torch.where(dir_z.abs() > 0, dir_z, torch.ones_like(dir_z))
+    clipped = ((-near - origin_z) / safe).clamp_min(0.0)
+    return torch.where(crossing, torch.minimum(clipped, torch.full_like(clipped, max_distance)),
+                       torch.full_like(clipped, max_distance))
+
+
+def empty_result(like: torch.Tensor, debug: Optional[dict] = None) -> SSRResult:
+    """An all-miss result shaped like ``like`` :math:`(B, *, H, W)` (for tests and degenerate inputs)."""
+    B, _, H, W = like.shape
+    z = lambda c: torch.zeros(B, c, H, W, dtype=like.dtype, device=like.device)   # noqa: E731
+    return SSRResult(color=z(3), hit=torch.zeros(B, 1, H, W, dtype=torch.bool, device=like.device),
+                     hit_pixel=z(2) - 1, hit_view=z(3),
+                     steps=torch.zeros(B, 1, H, W, dtype=torch.int32, device=like.device),
+                     termination=torch.zeros(B, 1, H, W, dtype=torch.int8, device=like.device),
+                     fade=z(1) + 1, raw_color=z(3), debug=debug or {})

@@ -1,0 +1,339 @@
+"""Screen-space reflections by perspective-correct DDA (McGuire & Mara 2014), after seed 000 §2.2 and G3D.
+
+The mirror ray (``reflection_rays``) is clipped at the near plane (``clip_ray_length``); both ends are projected
+to **pixels** (``H = M_pix·(c, 1)``, ``k = 1/H.w``, ``Q = c·k``, ``P = H.xy·k``); ``P0 → P1`` is walked one
+``pixelStride`` at a time along its major axis (``permute`` swaps x and y for steep lines). ``Q`` and ``k`` are
+linear in screen space (appendix A), so the ray's view z at a sample is ``Q.z / k``:
+
+.. math::
+    \\{\\text{rayZMin}, \\text{rayZMax}\\} = \\{\\frac{Q.z \\mp \\tfrac12 dQ.z}{k \\mp \\tfrac12 dk}\\}, \\qquad
+    \\text{hit} \\iff \\text{rayZMax} \\ge \\text{sceneZMax} - \\text{zThickness} \\wedge
+    \\text{rayZMin} \\le \\text{sceneZMax}
+
+**The half step** (which the article admits not understanding) makes the tested interval the ray's z extent over
+the sample's own footprint ``[P − ½dP, P + ½dP]`` (one pixel column at stride 1): ``rayZMax`` is z half a step
+ahead, ``rayZMin`` the previous step's (``prevZMaxEstimate``), swapped for rays toward the camera. Each texel is a
+solid box ``[sceneZMax − zThickness, sceneZMax]``. ``rayZMax`` is clamped to the segment's z range (G3D): half a
+step past the end ``k`` can reach 0.
+
+Fixes and choices (against McGuire & Mara 2014, G3D's ``screenSpaceRayTrace.glsl`` and kode80;
+``ssbench/REFERENCES.md``):
+
+* ``P`` is in pixels (py down, ``CONVENTIONS.md``): the 0.01 px nudge and the stride are pixels, not NDC units.
+  ``pixel_stride`` is pixels per step near the camera, ``1 + s·(pixel_stride − 1)``, ``s = 1 − min(1, −rayOrg.z /
+  PixelStrideZCutoff)`` (kode80's ``1 + s·PixelStride`` is one more than its comment says). The PDF's
+  ``dP += pixelStride`` is ``*=`` (web twin, G3D). ``fit_stride_to_steps`` (ours) raises each ray's stride to
+  ``ceil(|P1 − P0|_major / max_steps)`` (after near clipping), so ``max_steps`` samples span the whole segment:
+  ``OUT_OF_STEPS`` only if sample ``max_steps`` lands exactly on ``P1``; the cutoff scales only the
+  ``pixel_stride`` floor, so it never shrinks a stride below the fitted one.
+* The article and G3D start the interval at the origin (``zB = Q0.z``, homogeneous, in the text; ``rayOrg.z``
+  in code), which self-hits a wall facing the camera on step 1; here ``prevZMaxEstimate`` starts at the first
+  sample's footprint edge ``z(P0 + (jitter + ½)·dP)``.
+* The loop advances before it tests (the origin pixel is never sampled) and stops at ``P1`` (G3D). The hit point
+  is ``Q/k`` with ``Q.xy = Q0.xy + dQ.xy·n`` for the ``n`` advances made (the article's ``count = i`` lags one).
+* Past ``P1`` → ``MAX_DISTANCE`` (``BEHIND_CAMERA`` if the near plane clipped the ray); off screen →
+  ``OFF_SCREEN``; budget spent → ``OUT_OF_STEPS``, never a hit. Background texels (−far) are never hit.
+  (ours) A sample whose centre passes ``stop`` = ``P1`` or the viewport edge, whichever comes first, while its
+  footprint starts before it, is still tested once over the shortened footprint ``[P − ½dP, stop]``, fetched at
+  that part's centre; the reason, if it misses, is the full step's. Without it the strip between the last
+  footprint and the edge (up to ½ stride, e.g. a target in row 0) was never tested, and which targets were
+  caught depended on the stride's phase (K = 64 missed more than K = 32 under ``fit_stride_to_steps``).
+* Refinement only where the stride exceeds 1 px (as both anchors): ``"binary"`` is the article's ±stride walk
+  over the hit sample's footprint (the article backs off a whole step and misses crossings in the far half, which
+  the coarse test accepts) with the predicate "ray at or behind the probe's texel" (:func:`refine_hits`);
+  ``"remarch"`` is G3D's: back off one stride, walk single pixels up to ``1.4·stride`` until ``rayZMin ≤
+  sceneZMax``.
+* Jitter: every pixel draws ``U[0, 1)·jitter`` strides from the seeded generator (the article dithers
+  ``mod((x + y)/4, 1)``). Fades as the article and :mod:`.linear`: vignette at ``vUv``, circular at the hit.
+* Limits (pinned in the tests): one sample per major-axis pixel line, so pixels whose corner the segment clips
+  are skipped (Fig. 11's "no oversampling", not a supercover: :mod:`.dda_supercover` walks every crossed
+  pixel once, :mod:`.visits` draws both); a stride wider than a feature steps over it
+  (punch-through); a ray grazing the surface it hits stops up to ~½/slope px early (texels are flat boxes).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Optional
+
+import torch
+from torch import nn
+
+from ...camera import Camera
+from ...gbuffer import GBuffer
+from ..common import check_count, fetch, length, make_generator
+from ..gbuffer_checks import check_gbuffer, half_in_float32
+from .common import (BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult,
+                         clip_ray_length, reflection_rays)
+from .dda_refine import count_visits, fetch_cell, refine_hits, ray_view_z
+from .fade import EDGE_FADE_MODES, distance_fade, edge_fade
+from ..registry import Method
+
+REQUIRES = ("view_z", "normal", "mask", "color")
+#: where the defaults come from (shown by the report next to the parameters)
+DEFAULTS_SOURCE = ('McGuire & Mara, "Efficient GPU Screen-Space Ray Tracing", JCGT 3(4), 2014, as kode80 and '
+                   'mebiusbox/ssr ship it (thickness 0.1, max distance 10, stride 1, 4 bisections)')
+#: the parameters that play the shared roles of an equal-settings comparison (:func:`ssbench.evaluate.equal_settings`)
+EQUAL_SETTINGS = {"thickness": "z_thickness", "ray_length": "max_ray_distance"}
+REFINEMENTS = ("binary", "remarch", "none")
+
+
+@dataclass(frozen=True)
+class DDASSRParams:
+    """Parameters of :func:`ssr_dda`: the article's / G3D's names snake-cased (defaults: kode80, mebiusbox).
+
+    Attributes:
+        max_ray_distance: ``MaxRayDistance``, view-space ray length before near-plane clipping.
+        max_steps: ``Iterations`` / ``maxSteps``, the most DDA samples per ray.
+        pixel_stride: pixels per step near the camera (≥ 1); ``pixel_stride_z_cutoff``: ``PixelStrideZCutoff``,
+            origins at ``z ≤ −cutoff`` step 1 px (``math.inf``: ``pixel_stride`` everywhere).
+        fit_stride_to_steps: per ray, stride = max(that stride, ``ceil(major-axis px of the clipped segment /
+            max_steps)``): the budget always reaches ``P1`` (at the default ``pixel_stride=1``: ``max(1, ceil(…))``).
+        z_thickness: ``zThickness`` / ``PixelZSize``, view-space depth of every depth texel.
+        jitter: the start moves ``jitter·U[0, 1)`` strides along the ray (0 = off); ``seed`` seeds it.
+        binary_search_iterations, refinement: ``"binary"`` (article, that many probes), ``"remarch"`` (G3D) or
+            ``"none"``.
+        edge_distance, edge_exponent, edge_fade_mode, fade_distance, fade_exponent: fades (§1.4–1.5, :mod:`.fade`).
+    """
+
+    max_ray_distance: float = 10.0
+    max_steps: int = 256
+    pixel_stride: float = 1.0
+    pixel_stride_z_cutoff: float = 100.0
+    fit_stride_to_steps: bool = False
+    z_thickness: float = 0.1
+    jitter: float = 0.0
+    binary_search_iterations: int = 4
+    refinement: str = "binary"
+    edge_distance: float = 50.0
+    edge_exponent: float = 1.0
+    edge_fade_mode: str = "vignette"
+    fade_distance: float = 10.0
+    fade_exponent: float = 1.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        check_count(self.max_steps, "max_steps")
+        n = self.binary_search_iterations
+        if isinstance(n, bool) or not isinstance(n, int) or n < 0:
+            raise ValueError(f"binary_search_iterations: must be an integer >= 0, got {n!r}")
+        if not isinstance(self.fit_stride_to_steps, bool):
+            raise ValueError(f"fit_stride_to_steps: must be a bool, got {self.fit_stride_to_steps!r}")
+        for name, lo, strict in (("max_ray_distance", 0, 1), ("pixel_stride", 1, 0), ("pixel_stride_z_cutoff", 0, 1),
+                                 ("z_thickness", 0, 0), ("jitter", 0, 0), ("edge_distance", 0, 0),
+                                 ("edge_exponent", 0, 1), ("fade_distance", 0, 1), ("fade_exponent", 0, 1)):
+            v = getattr(self, name)
+            ok = not isinstance(v, bool) and isinstance(v, (int, float)) and v == v and v >= lo
+            if not ok or (strict and v == lo) or (v == math.inf and name != "pixel_stride_z_cutoff"):
+                raise ValueError(f"{name}: must be a finite number {'>' if strict else '>='} {lo}, got {v!r}")
+        for name, allowed in (("refinement", REFINEMENTS), ("edge_fade_mode", EDGE_FADE_MODES)):
+            if getattr(self, name) not in allowed:
+                raise ValueError(f"{name}: expected one of {allowed}, got {getattr(self, name)!r}")
+
+
+def project_to_pixel_matrix(camera: Camera, dtype=torch.float64, device=None) -> torch.Tensor:
+    """G3D's ``projectToPixelMatrix``: ``gluPerspective`` then NDC → pixels, so ``H.xy / H.w = view_to_pixel``."""
+    W, H = camera.width, camera.height                  # NOTE: the row flip, py = (0.5 − 0.5·ndc.y)·H
+    S = torch.tensor([[W / 2, 0, 0, W / 2], [0, -H / 2, 0, H / 2], [0, 0, 1, 0], [0, 0, 0, 1]], dtype=torch.float64)
+    return (S @ camera.projection_matrix()).to(dtype=dtype, device=device)
+
+
+def jitter_fractions(params: DDASSRParams, shape, generator: torch.Generator) -> torch.Tensor:
+    """``jitter·U[0, 1)`` per pixel, float64 :math:`(B, 1, H, W)`; one ``torch.rand`` call (twin draws the same)."""
+    return torch.rand(tuple(shape), generator=generator, dtype=torch.float64) * params.jitter
+
+
+def check_inputs(gbuffer: GBuffer, params: DDASSRParams) -> None:
+    """Type checks of ``params`` and the shared G-buffer contract (:func:`~ssbench.passes.gbuffer_checks.check_gbuffer`)."""
+    if not isinstance(params, DDASSRParams):
+        raise TypeError(f"params: expected DDASSRParams, got {type(params).__name__}")
+    check_gbuffer(gbuffer, REQUIRES, finite=("color",), meta_ok=False)
+
+
+def dda_rays(gbuffer: GBuffer, params: DDASSRParams, jitter: torch.Tensor):
+    """Per-ray set-up (article §2.2 up to the loop) of every ``mask`` pixel as flat tensors; also ``sel``, P0, P1."""
+    cam, vz = gbuffer.camera, gbuffer.view_z
+    B, _, H, W = vz.shape
+    dt, dev = vz.dtype, vz.device
+    pos = cam.uv_to_view(cam.uv_grid(dt, dev).unsqueeze(0), vz)                   # (B, 3, H, W) rayOrg
+    R = reflection_rays(pos, gbuffer.normal.to(dt))                               # (B, 3, H, W) rayDir
+    # geometry nearer than the near plane cannot be in a depth buffer (its rays would start behind w = 0)
+    sel = (gbuffer.mask & (vz <= -cam.near))[:, 0].reshape(-1).nonzero().squeeze(1)   # (N,) flat b·H·W + j·W + i
+    o, d = pos.permute(0, 2, 3, 1).reshape(-1, 3)[sel], R.permute(0, 2, 3, 1).reshape(-1, 3)[sel]   # (N, 3)
+    end = o + d * clip_ray_length(o[:, 2], d[:, 2], params.max_ray_distance, cam.near)[:, None]   # rayEnd
+    M = project_to_pixel_matrix(cam, dt, dev)
+    hom = lambda c: c[:, :1] * M[:, 0] + c[:, 1:2] * M[:, 1] + c[:, 2:3] * M[:, 2] + M[:, 3]   # noqa: E731  M·(c, 1)
+    H0, H1 = hom(o), hom(end)                                                     # (N, 4) homogeneous
+    k0, k1 = 1.0 / H0[:, 3], 1.0 / H1[:, 3]
+    Q0, Q1 = o * k0[:, None], end * k1[:, None]
+    P0, P1 = H0[:, :2] * k0[:, None], H1[:, :2] * k1[:, None]                     # pixels (py down)
+    P1 = P1 + torch.where(((P1 - P0) ** 2).sum(1) < 0.0001, 0.01, 0.0)[:, None]  # degenerate-line nudge
+    delta = P1 - P0
+    permute = delta[:, 0].abs() < delta[:, 1].abs()                               # more-vertical line
+    sw = lambda v: torch.where(permute[:, None], v.flip(1), v)                    # noqa: E731  (.yx)
+    delta, P0p, P1p = sw(delta), sw(P0), sw(P1)
+    stepDir = torch.sign(delta[:, 0])
+    invdx = stepDir / delta[:, 0]
+    dQ, dk = (Q1 - Q0) * invdx[:, None], (k1 - k0) * invdx
+    dP = torch.stack([stepDir, delta[:, 1] * invdx], 1)
+    # where the segment leaves the viewport, as a signed major coordinate u = P.x·stepDir (permuted frame)
+    Wm, Hm = torch.where(permute, float(H), float(W)), torch.where(permute, float(W), float(H))
+    u0, y0, slope = P0p[:, 0] * stepDir, P0p[:, 1], delta[:, 1] * invdx            # minor px per unit of u
+    exit_ = torch.minimum(torch.where(stepDir > 0, Wm, 0.0) * stepDir,
+                          torch.where(slope > 0, u0 + (Hm - y0) / slope,
+                                      torch.where(slope < 0, u0 - y0 / slope, math.inf)))
+    strideScalar = 1.0 - torch.clamp(-o[:, 2] / params.pixel_stride_z_cutoff, max=1.0)
+    pixelStride = 1.0 + strideScalar * (params.pixel_stride - 1.0)
+    if params.fit_stride_to_steps:                                                # max_steps samples reach P1
+        pixelStride = torch.maximum(pixelStride, torch.ceil(delta[:, 0].abs() / params.max_steps))
+    dP, dQ, dk = dP * pixelStride[:, None], dQ * pixelStride[:, None], dk * pixelStride
+    j = jitter.to(dtype=dt, device=dev).reshape(-1)[sel]
+    P0p, Q0, k0 = P0p + dP * j[:, None], Q0 + dQ * j[:, None], k0 + dk * j
+    zlo, zhi = torch.minimum(o[:, 2], end[:, 2]), torch.maximum(o[:, 2], end[:, 2])
+    s = dict(i=torch.arange(sel.numel(), device=dev), b=sel // (H * W), Px=P0p[:, 0], Py=P0p[:, 1], Qz=Q0[:, 2], k=k0,
+             n=torch.zeros_like(k0), dPx=dP[:, 0], dPy=dP[:, 1], dQz=dQ[:, 2], dk=dk, end=P1p[:, 0] * stepDir,
+             stepDir=stepDir, permute=permute, zlo=zlo, zhi=zhi, stride=pixelStride, Q0x=Q0[:, 0], Q0y=Q0[:, 1],
+             dQx=dQ[:, 0], dQy=dQ[:, 1], clipped=o[:, 2] + d[:, 2] * params.max_ray_distance > -cam.near)
+    s["stop"] = torch.minimum(s["end"], exit_)                                      # P1 or the viewport edge
+    s["prevZ"] = ray_view_z(Q0[:, 2] + 0.5 * dQ[:, 2], k0 + 0.5 * dk, zlo, zhi)          # footprint edge of sample 1
+    return s, sel, P0, P1
+
+
+def dda_march(s: dict, tex, params: DDASSRParams, H: int, W: int, visits: Optional[torch.Tensor]) -> dict:
+    """The DDA loop; per-ray outputs by ``s["i"]``. Finished rays freeze (``alive``), dropped when 1/8 of ``s``."""
+    N, f = s["i"].numel(), dict(dtype=s["k"].dtype, device=s["k"].device)
+    out = dict(term=torch.full((N,), OUT_OF_STEPS, dtype=torch.int8, device=f["device"]),
+               steps=torch.zeros(N, dtype=torch.int32, device=f["device"]),
+               P=torch.full((N, 2), -1.0, **f), Q=torch.zeros(N, 3, **f), k=torch.ones(N, **f))
+    s["alive"], dead = torch.ones(N, dtype=torch.bool, device=f["device"]), 0
+    for _ in range(params.max_steps):
+        if s["i"].numel() == dead:
+            break
+        s["Px"], s["Py"], s["Qz"], s["k"] = s["Px"] + s["dPx"], s["Py"] + s["dPy"], s["Qz"] + s["dQz"], s["k"] + s["dk"]
+        s["n"] = s["n"] + 1.0
+        u = s["Px"] * s["stepDir"]
+        beyond = s["alive"] & (u > s["stop"])                                    # centre past P1 / the edge
+        f = ((s["stop"] - u) / s["stride"] + 0.5).clamp(0.0, 1.0)                # footprint share before stop
+        partial = beyond & (f > 0)                                               # last, shortened footprint
+        past = beyond & ~partial                                                 # nothing left to test: ended
+        back = torch.where(partial, 0.5 * (1.0 - f), 0.0)                        # centre of [P − ½dP, stop]
+        s["Px"], s["Py"], s["Qz"], s["k"] = (s["Px"] - s["dPx"] * back, s["Py"] - s["dPy"] * back,
+                                             s["Qz"] - s["dQz"] * back, s["k"] - s["dk"] * back)
+        s["n"] = s["n"] - back
+        half = torch.where(partial, 0.5 * f, 0.5)
+        on, t, sceneZMax, m = fetch_cell(s, s, tex, H, W)
+        off, live = s["alive"] & ~past & ~on, s["alive"] & ~past & on             # live: this sample is fetched
+        rayZMin = s["prevZ"]
+        rayZMax = ray_view_z(s["dQz"] * half + s["Qz"], s["dk"] * half + s["k"], s["zlo"], s["zhi"])   # footprint end
+        s["prevZ"] = rayZMax
+        rayZMin, rayZMax = torch.minimum(rayZMin, rayZMax), torch.maximum(rayZMin, rayZMax)   # swap
+        hit = live & m & (rayZMax >= sceneZMax - params.z_thickness) & (rayZMin <= sceneZMax)
+        count_visits(out, visits, s["i"], t, live)
+        hi = hit.nonzero().squeeze(1)
+        if hi.numel():
+            h = {key: v.index_select(0, hi) for key, v in s.items()}
+            refine_hits(h, tex, params, H, W, out, visits)
+            out["P"][h["i"]] = torch.where(h["permute"][:, None], torch.stack([h["Py"], h["Px"]], 1),
+                                           torch.stack([h["Px"], h["Py"]], 1))
+            out["Q"][h["i"]] = torch.stack([h["Q0x"] + h["dQx"] * h["n"], h["Q0y"] + h["dQy"] * h["n"], h["Qz"]], 1)
+            out["k"][h["i"]] = h["k"]
+        ended = torch.where(s["clipped"], BEHIND_CAMERA, MAX_DISTANCE)               # past P1
+        term = torch.where(u > s["end"], ended, OFF_SCREEN)                          # the full step's centre
+        term = torch.where(off, OFF_SCREEN, torch.where(hit, HIT, term))
+        done = past | off | hit | partial
+        di = done.nonzero().squeeze(1)
+        if di.numel():
+            out["term"][s["i"][di]] = term[di].to(torch.int8)
+            s["alive"], dead = s["alive"] & ~done, dead + di.numel()
+            if 8 * dead >= s["i"].numel():                                        # compact
+                keep = s["alive"].nonzero().squeeze(1)
+                s, dead = {key: v.index_select(0, keep) for key, v in s.items()}, 0
+    return out
+
+
+@half_in_float32
+def ssr_dda(gbuffer: GBuffer, params: DDASSRParams = DDASSRParams(), *, generator: Optional[torch.Generator] = None,
+            debug: bool = False) -> SSRResult:
+    """Screen-space reflections by perspective-correct DDA (seed 000 §2.2), vectorised over pixels.
+
+    Args:
+        gbuffer: needs ``view_z``, ``normal`` (unit, view space), ``mask`` and ``color``, all :math:`(B, C, H, W)`.
+        params: :class:`DDASSRParams`.
+        generator: draws the jitter (default: a CPU generator seeded with ``params.seed``).
+        debug: add ``visits`` :math:`(B, 1, H, W)` (depth fetches per texel over all rays, refinement included)
+            and ``ray_end`` :math:`(B, 2, H, W)` (``P1`` in pixels after the nudge, −1 off ``mask``).
+
+    Returns:
+        :class:`~ssbench.passes.ssr.common.SSRResult`; ``color`` is ``gbuffer.color`` at the hit texel times
+        ``edge_fade · distance_fade(|hit_view − rayOrg|)`` (``ssbench.passes.ssr.fade``); ``steps`` counts depth
+        fetches (DDA samples and refinement probes).
+
+    Raises:
+        ValueError: missing channels, bad values (the message names the argument).
+
+    Example:
+        >>> from ssbench.camera import Camera
+        >>> cam = Camera.from_look_at((0, 0, 0), (0, 0, -1), (0, 1, 0), 60.0, 8, 6, 0.1, 10.0)
+        >>> n = torch.zeros(1, 3, 6, 8); n[:, 2] = 1
+        >>> g = GBuffer(cam, view_z=torch.full((1, 1, 6, 8), -2.0), normal=n,
+        ...             mask=torch.ones(1, 1, 6, 8, dtype=torch.bool), color=torch.ones(1, 3, 6, 8))
+        >>> r = ssr_dda(g)                          # a wall facing the camera reflects toward the camera
+        >>> r.hit.any().item(), r.termination.unique().tolist(), r.color.shape
+        (False, [2], torch.Size([1, 3, 6, 8]))
+    """
+    check_inputs(gbuffer, params)
+    B, _, H, W = gbuffer.view_z.shape
+    jitter = jitter_fractions(params, (B, 1, H, W), make_generator(params.seed, generator))
+    s, sel, P0, P1 = dda_rays(gbuffer, params, jitter)
+    visits = torch.zeros(B * H * W, dtype=torch.int32, device=gbuffer.view_z.device) if debug else None
+    o = dda_march(s, (gbuffer.view_z.reshape(-1), gbuffer.mask.reshape(-1)), params, H, W, visits)
+    return assemble(gbuffer, params, sel, P1, o, visits)
+
+
+def assemble(gbuffer: GBuffer, params, sel: torch.Tensor, P1: torch.Tensor, o: dict,
+             visits: Optional[torch.Tensor]) -> SSRResult:
+    """Per-ray march outputs ``o`` (``term``, ``steps``, ``P``, ``Q``, ``k``) of the rays ``sel`` → the
+    :class:`SSRResult` images: colour at the hit texel, fades (``params``' edge/distance fields), ``debug``
+    (``visits``, ``ray_end``) when ``visits`` is given. Shared by :func:`ssr_dda` and the supercover DDA."""
+    cam, (B, _, H, W) = gbuffer.camera, gbuffer.view_z.shape
+    dt, dev = gbuffer.view_z.dtype, gbuffer.view_z.device
+
+    def image(values, fill, dtype=dt):                                            # per-ray (N, C) -> (B, C, H, W)
+        x = torch.full((B * H * W, values.shape[1]), fill, dtype=dtype, device=dev)
+        x[sel] = values.to(dtype)
+        return x.reshape(B, H, W, -1).permute(0, 3, 1, 2).contiguous()
+
+    is_hit = (o["term"] == HIT)[:, None]
+    term, steps = image(o["term"][:, None], NO_RAY, torch.int8), image(o["steps"][:, None], 0, torch.int32)
+    hit_pixel = image(torch.where(is_hit, o["P"], -1.0), -1.0)
+    hit_view = image(torch.where(is_hit, o["Q"] / o["k"][:, None], 0.0), 0.0)
+    hit = term == HIT                                                             # (B, 1, H, W)
+    # the texel is floored in the march's own dtype: a hit at 8.999999999999998 must not round to 9 first
+    texel = image(torch.where(is_hit, o["P"], 0.0).floor(), 0.0, torch.float64)
+    col, row = texel[:, 0].clamp(0, W - 1).long(), texel[:, 1].clamp(0, H - 1).long()
+    lo, hi = texel.to(dt), torch.nextafter((texel + 1).to(dt), texel.to(dt))      # and hit_pixel stays in it
+    hit_pixel = torch.where(hit, torch.minimum(torch.maximum(hit_pixel, lo), hi), hit_pixel)
+    raw = torch.where(hit, fetch(gbuffer.color.to(dt), col, row), 0.0)            # (B, 3, H, W)
+    origin = cam.uv_to_view(cam.uv_grid(dt, dev).unsqueeze(0), gbuffer.view_z)
+    at = hit_pixel if params.edge_fade_mode == "circular" else cam.pixel_centers(dt, dev)[None]   # hit / vUv
+    fade = edge_fade(at, W, H, params.edge_distance, params.edge_exponent, params.edge_fade_mode) * \
+        distance_fade(length(hit_view - origin), params.fade_distance, params.fade_exponent)
+    fade = torch.where(hit, fade, 0.0)
+    dbg = {"visits": visits.reshape(B, 1, H, W), "ray_end": image(P1, -1.0)} if visits is not None else {}
+    return SSRResult(color=raw * fade, hit=hit, hit_pixel=hit_pixel, hit_view=hit_view, steps=steps,
+                     termination=term, fade=fade, raw_color=raw, debug=dbg)
+
+
+class DDASSR(nn.Module):
+    """``nn.Module`` wrapper of :func:`ssr_dda`; ``forward(gbuffer)`` returns its :class:`SSRResult`."""
+
+    def __init__(self, params: DDASSRParams = DDASSRParams(), debug: bool = False) -> None:
+        super().__init__()
+        self.params, self.debug = params, debug
+
+    def forward(self, gbuffer: GBuffer, generator: Optional[torch.Generator] = None) -> SSRResult:
+        return ssr_dda(gbuffer, self.params, generator=generator, debug=self.debug)
+
+
+#: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
+METHOD = Method("dda", ssr_dda, DDASSRParams, DDASSR, order=20)

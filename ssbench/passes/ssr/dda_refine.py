@@ -1,0 +1,75 @@
+"""Texel access and hit refinement of the DDA (:mod:`.dda`, seed 000 §2.2): ``texelFetch`` in the permuted
+frame, the perspective-correct z ``Q.z / k``, fetch counting for the visit maps, and the two refinements of a
+strided hit (the article's binary search, G3D's 1-pixel re-march). Split out of :mod:`.dda` for length;
+the supercover DDA (:mod:`.dda_supercover`) shares ``ray_view_z`` and ``count_visits``.
+"""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import torch
+
+if TYPE_CHECKING:                                        # (ssr_dda imports this module)
+    from .dda import DDASSRParams
+
+
+def fetch_cell(s: dict, at: dict, tex, H: int, W: int):
+    """``(on_screen, flat texel, sceneZMax, mask)`` at ``hitPixel = permute ? P.yx : P`` (``texelFetch``)."""
+    px, py = torch.where(s["permute"], at["Py"], at["Px"]), torch.where(s["permute"], at["Px"], at["Py"])
+    on = (px >= 0) & (px < W) & (py >= 0) & (py < H)
+    t = s["b"] * (H * W) + py.floor().clamp(0, H - 1).long() * W + px.floor().clamp(0, W - 1).long()
+    return on, t, tex[0][t], tex[1][t]
+
+
+def ray_view_z(Qz, k, lo, hi):
+    """Perspective-correct view z ``Q.z / k``, clamped to the segment's z range (finite where ``k`` ≤ 0)."""
+    return torch.minimum(torch.maximum(Qz / k.clamp_min(torch.finfo(k.dtype).tiny), lo), hi)
+
+
+def count_visits(out: dict, visits, i, t, active) -> None:
+    """Add the fetches of ``active`` rays to their step counts and to the visit map."""
+    out["steps"].index_add_(0, i, active.int())
+    if visits is not None:
+        visits.index_add_(0, t[active], torch.ones_like(t[active], dtype=visits.dtype))
+
+
+def refine_hits(h: dict, tex, params: "DDASSRParams", H: int, W: int, out: dict, visits) -> None:
+    """Refine hits in place (``h``: rays at their coarse hit ``P``) where the stride exceeds 1 px.
+
+    ``"binary"`` bisects the footprint ``[P − ½dP, P + ½dP]`` and keeps the nearest probe with the ray at or behind
+    its texel; if none is, the far end when the ray is within ``z_thickness`` in front of its texel there (texel
+    quantisation), else ``P`` (a thin feature the probes stepped off). ``"remarch"`` walks pixels from ``P − dP``.
+    """
+    binary, keys, need = params.refinement == "binary", ("Px", "Py", "Qz", "k", "n"), h["stride"] > 1.0
+    rounds = params.binary_search_iterations if binary else int(1.4 * float(h["stride"].max()))
+    if params.refinement == "none" or rounds == 0 or not bool(need.any()):
+        return
+    h["dn"], inv, back = torch.ones_like(h["k"]), 1.0 / h["stride"], (0.5 if binary else 1.0)
+    cur = {key: h[key] - h["d" + key] * back for key in keys}                    # footprint start / last miss
+    best, found = {key: h[key] for key in keys}, torch.zeros_like(need)           # the coarse hit by default
+    original = h["stride"] * 0.5
+    stride = original if binary else torch.ones_like(inv)                        # pixels (article §1.3; G3D)
+    for r in range(1, rounds + 1):
+        cur = {key: cur[key] + h["d" + key] * inv * stride for key in keys}
+        on, t, sceneZMax, m = fetch_cell(h, cur, tex, H, W)
+        if binary:
+            active = need & on
+            behind = active & m & (ray_view_z(cur["Qz"], cur["k"], h["zlo"], h["zhi"]) <= sceneZMax)
+            original = original * 0.5
+            stride = torch.where(behind, -original, original)
+        else:
+            active = need & on & ~found & (r <= 1.4 * h["stride"])
+            zA = ray_view_z(cur["Qz"] - 0.5 * h["dQz"] * inv, cur["k"] - 0.5 * h["dk"] * inv, h["zlo"], h["zhi"])
+            zB = ray_view_z(cur["Qz"] + 0.5 * h["dQz"] * inv, cur["k"] + 0.5 * h["dk"] * inv, h["zlo"], h["zhi"])
+            behind = active & m & (torch.minimum(zA, zB) <= sceneZMax)
+        take = behind & (~found | (cur["n"] <= best["n"]))                         # the nearest probe behind
+        best, found = {key: torch.where(take, cur[key], best[key]) for key in keys}, found | behind
+        count_visits(out, visits, h["i"], t, active)
+    if binary:                                  # no probe behind: the far end, if the ray is just in front there
+        far = {key: h[key] + h["d" + key] * 0.5 for key in keys}
+        on, t, sceneZMax, m = fetch_cell(h, far, tex, H, W)
+        active = need & on & ~found
+        use = active & m & (ray_view_z(far["Qz"], far["k"], h["zlo"], h["zhi"]) <= sceneZMax + params.z_thickness)
+        best = {key: torch.where(use, far[key], best[key]) for key in keys}
+        count_visits(out, visits, h["i"], t, active)
+    h.update(best)

@@ -1,0 +1,322 @@
+"""Linear view-space SSR march, transcribed from the seed article (seed 000 §1.1–1.5).
+
+``rayOrg`` from the depth buffer, ``rayDir = reflect(normalize(rayOrg), N)`` (``reflection_rays``), the end
+point clipped at the near plane (``clip_ray_length``), then ``Iterations`` equal view-space steps
+``deltaStep = (rayEnd − rayOrg) / Iterations``. Each sample ``Q`` is projected (``clip = P·(Q, 1)``,
+``hitPixel = clip.xy / clip.w · 0.5 + 0.5``) and tested against the depth buffer read ``NEAREST``:
+``dist = Q.z − sceneZMax`` (ray z minus depth-buffer view z, both negative); **hit iff
+``dist < 0 && dist > −Thickness``**: the sample is behind the visible surface by less than ``Thickness``. A hit is
+refined by bisection (§1.3); ``color`` = hit texel's colour × fades (§1.4–1.5, :mod:`.fade`), ``raw_color``
+unfaded.
+
+**Back-face depth (§1.2, Fig. 7)**: hit iff ``back_z − Thickness < Q.z < sceneZ`` (kode80's
+``zB ≤ frontZ && zA ≥ backZ − pixelZSize``). Back depth works only for closed objects, so the article combines
+it with the fixed width: ``Thickness`` extends the object behind its back face. ``back_z = −inf`` (open
+surfaces) is infinitely thick; off-``mask`` texels use ``back = sceneZ`` (a cleared back-face buffer holds the
+far plane). ``back_z`` is read as view z (no GL-depth round trip).
+
+**Departures from the article's code** (pinned in ``tests/passes/ssr/test_linear.py``):
+
+* *Termination.* ``OFF_SCREEN`` when a sample's uv leaves [0, 1]² (the shader reads clamp-to-edge texels on);
+  ``MAX_DISTANCE`` / ``BEHIND_CAMERA`` after the last sample of an unclipped / near-plane-clipped ray;
+  ``OUT_OF_STEPS`` (never a hit) when ``iterations > max_iterations`` (the shader's ``MAX_ITERATIONS``) ends
+  the loop before the end point; ``NO_RAY`` off ``mask``.
+* *Bisection.* The text's ``deltaStep /= BinarySearchIterations`` with ``pixelStride·0.5`` strides searches only
+  part of the step; like the demo source (``/= PixelStride``) we probe the mid-point of the last step, then
+  ±1/4, ±1/8, … (back after a hit). The first step's bracket starts at ``rayOrg``; the reported hit is the
+  **last probe that passed** (the shader keeps the last probe even if it failed).
+* *Jitter* (off by default; §1 has none): ``ξ ~ U[0, 1)`` per pixel, start at ``rayOrg − jitter·ξ·deltaStep``,
+  so the march never passes the clipped end point.
+* No self-hit guard (as the article): a sample behind its own or the next texel's centre depth hits the surface
+  the ray starts on — common on grazing floors when a step is shorter than a texel's footprint.
+* Fades as the article: circular edge fade at the hit's uv, vignette at ``vUv`` (the reflecting pixel's own
+  uv), distance fade at ``length(rayOrg − hitPoint)``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional
+
+import torch
+from torch import nn
+
+from ...gbuffer import GBuffer
+from ..common import make_generator, uv_to_texel
+from ..gbuffer_checks import check_gbuffer, half_in_float32
+from .common import (BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult,
+                         clip_ray_length, reflection_rays)
+from .fade import EDGE_FADE_MODES, check_positive, distance_fade, edge_fade
+from ..registry import Method
+
+REQUIRES = ("view_z", "normal", "mask", "color")
+REQUIRES_BACKFACE = REQUIRES + ("back_z",)
+#: where the defaults come from (shown by the report next to the parameters)
+DEFAULTS_SOURCE = ("the article's demo (mebiusbox/ssr: Iterations 50, 4 bisections, PixelZSize 1, MaxRayDistance 20)")
+#: the parameters that play the shared roles of an equal-settings comparison (:func:`ssbench.evaluate.equal_settings`)
+EQUAL_SETTINGS = {"thickness": "thickness", "ray_length": "max_ray_distance"}
+POSITION_FROM = ("depth", "view_z", "position")
+MAX_BINARY_SEARCH_ITERATIONS = 64  # the shader's loop bound
+
+
+def _integer(v, name: str, lo: int) -> None:
+    if isinstance(v, bool) or not isinstance(v, int) or v < lo:
+        raise ValueError(f"{name}: must be an integer >= {lo}, got {v!r}")
+
+
+@dataclass(frozen=True)
+class LinearSSRParams:
+    """Parameters of :func:`ssr_linear`: the article's uniforms snake-cased, defaults from its demo (``ssr.html``).
+
+    Attributes:
+        max_ray_distance: ``MaxRayDistance``, view-space ray length before near-plane clipping.
+        iterations: ``Iterations``, equal steps over the (clipped) ray.
+        thickness: ``Thickness`` (the demo's ``PixelZSize``), view-space depth tolerance behind a surface.
+        use_back_face_depth: test against ``(back_z − thickness, sceneZ)`` (§1.2, Fig. 7; needs ``back_z``).
+        binary_search_iterations: ``BinarySearchIterations`` (0 = no refinement; at most 64 run).
+        edge_distance, edge_exponent, edge_fade_mode: §1.4 (``"vignette"``, the demo's, or ``"circular"``).
+        fade_distance, fade_exponent: ``FadeDistance``, ``FadeExponent`` (§1.5).
+        jitter, seed: start-offset jitter in [0, 1] steps (0 = off) and its seed when no generator is passed.
+        position_from: ``"depth"`` (``getViewPosition`` and ``getViewZ(getDepth(uv))`` of the GL depth buffer,
+            as the article), ``"view_z"`` (no depth round trip) or ``"position"`` (``rayOrg`` from ``position``).
+        max_iterations: ``MAX_ITERATIONS``, the shader's loop bound (300).
+    """
+
+    max_ray_distance: float = 20.0
+    iterations: int = 50
+    thickness: float = 1.0
+    use_back_face_depth: bool = False
+    binary_search_iterations: int = 4
+    edge_distance: float = 50.0
+    edge_exponent: float = 1.0
+    edge_fade_mode: str = "vignette"
+    fade_distance: float = 10.0
+    fade_exponent: float = 1.0
+    jitter: float = 0.0
+    seed: int = 0
+    position_from: str = "depth"
+    max_iterations: int = 300
+
+    def __post_init__(self) -> None:
+        for name in ("max_ray_distance", "thickness", "fade_distance", "fade_exponent", "edge_exponent"):
+            check_positive(getattr(self, name), name)
+        check_positive(self.edge_distance, "edge_distance", allow_zero=True)
+        check_positive(self.jitter, "jitter", allow_zero=True)
+        if self.jitter > 1:
+            raise ValueError(f"jitter: must lie in [0, 1] steps, got {self.jitter!r}")
+        for name, lo in (("iterations", 1), ("max_iterations", 1), ("binary_search_iterations", 0), ("seed", 0)):
+            _integer(getattr(self, name), name, lo)
+        if not isinstance(self.use_back_face_depth, bool):
+            raise ValueError(f"use_back_face_depth: expected a bool, got {self.use_back_face_depth!r}")
+        if self.edge_fade_mode not in EDGE_FADE_MODES:
+            raise ValueError(f"edge_fade_mode: expected one of {EDGE_FADE_MODES}, got {self.edge_fade_mode!r}")
+        if self.position_from not in POSITION_FROM:
+            raise ValueError(f"position_from: expected one of {POSITION_FROM}, got {self.position_from!r}")
+
+
+def required_channels(params: LinearSSRParams) -> tuple[str, ...]:
+    """The G-buffer channels :func:`ssr_linear` reads with ``params``."""
+    req = REQUIRES_BACKFACE if params.use_back_face_depth else REQUIRES
+    return req + (("position",) if params.position_from == "position" else ())
+
+
+def jitter_noise(params: LinearSSRParams, generator: Optional[torch.Generator], shape) -> Optional[torch.Tensor]:
+    """:math:`(B, 1, H, W)` float64 ``ξ ~ U[0, 1)`` (one ``torch.rand``; the teaching twin draws it too), or None."""
+    if params.jitter == 0:
+        return None
+    return torch.rand(shape, generator=make_generator(params.seed, generator), dtype=torch.float64)
+
+
+def check_inputs(gbuffer: GBuffer, params: LinearSSRParams) -> None:
+    """Type checks of ``params`` and the shared G-buffer contract (:func:`~ssbench.passes.gbuffer_checks.check_gbuffer`)."""
+    if not isinstance(params, LinearSSRParams):
+        raise TypeError(f"params: expected LinearSSRParams, got {type(params).__name__}")
+    check_gbuffer(gbuffer, required_channels(params), finite=("color", "back_z", "position"),
+                  meta_ok=False)
+
+
+def _flat(t: torch.Tensor) -> torch.Tensor:                                      # (B, C, H, W) -> (B·H·W, C)
+    return t.permute(0, 2, 3, 1).reshape(-1, t.shape[1])
+
+
+@half_in_float32
+def ssr_linear(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(), *,
+               generator: Optional[torch.Generator] = None, debug: bool = False,
+               trace_pixel: Optional[tuple[int, int]] = None) -> SSRResult:
+    """Screen-space reflections by a linear view-space march (seed 000 §1), vectorised over rays.
+
+    .. math::
+        Q_i = O + (i + 1 - j\\xi)\\,\\frac{E - O}{N}, \\qquad
+        \\text{hit} \\iff -T < Q_i.z - z_{\\text{scene}}(\\pi(Q_i)) < 0
+
+    Args:
+        gbuffer: :data:`REQUIRES` (+ ``back_z`` with back-face depth, ``position`` with
+            ``position_from="position"``), all :math:`(B, C, H, W)`; ``mask`` bool.
+        params: :class:`LinearSSRParams`.
+        generator: draws the jitter (default: a CPU generator seeded with ``params.seed``).
+        debug: also return ``visits`` :math:`(B, 1, H, W)` int32 (how many samples, refinement included, read
+            each texel: the visit map of the article's Fig. 11), ``ray_length`` :math:`(B, 1, H, W)` (after
+            near-plane clipping) and ``jitter`` (ξ or ``None``).
+        trace_pixel: ``(col, row)``: ``debug["trace"][b]`` holds that pixel's samples in order: ``view``
+            :math:`(K, 3)`, ``pixel`` :math:`(K, 2)`, ``hit`` :math:`(K,)` bool, ``refine`` :math:`(K,)` bool.
+
+    Returns:
+        :class:`~ssbench.passes.ssr.common.SSRResult`; ``steps`` counts samples (an off-screen one included) plus
+        refinement probes.
+
+    Raises:
+        ValueError: missing channels, bad shapes, dtypes or values (the message names the argument).
+
+    Example:
+        >>> from ssbench.camera import Camera
+        >>> cam = Camera.from_look_at((0, 0, 0), (0, 0, -1), (0, 1, 0), 60.0, 8, 6, 0.1, 10.0)
+        >>> z, n = torch.full((1, 1, 6, 8), -2.0), torch.zeros(1, 3, 6, 8); n[:, 2] = 1   # a wall facing the eye
+        >>> r = ssr_linear(GBuffer(cam, view_z=z, normal=n, mask=z < 0, color=n))
+        >>> r.color.shape, bool(r.hit.any())                           # rays come back toward the eye
+        (torch.Size([1, 3, 6, 8]), False)
+    """
+    check_inputs(gbuffer, params)
+    cam, view_z, mask = gbuffer.camera, gbuffer.view_z, gbuffer.mask
+    B, _, H, W = view_z.shape
+    dtype, dev, HW = view_z.dtype, view_z.device, H * W
+    T, N_it = float(params.thickness), params.iterations
+
+    # ---- rayOrg, sceneZ texture and the reflection vector (§1.1) ----
+    uv0 = cam.uv_grid(dtype, dev).unsqueeze(0).expand(B, -1, -1, -1)              # (B, 2, H, W) vUv
+    if params.position_from == "depth":
+        depth = cam.view_z_to_depth(view_z)                                       # DepthSampler
+        rayOrg, sceneZ = cam.view_position_from_depth(uv0, depth), cam.depth_to_view_z(depth)
+    elif params.position_from == "view_z":
+        rayOrg, sceneZ = cam.uv_to_view(uv0, view_z), view_z
+    else:
+        rayOrg, sceneZ = gbuffer.position, view_z
+    rayDir = reflection_rays(rayOrg, gbuffer.normal)                              # (B, 3, H, W)
+    back = torch.where(mask, gbuffer.back_z, view_z) if params.use_back_face_depth else None
+
+    # ---- near-plane clip, equal steps, jitter (§1.2) ----
+    rayLength = clip_ray_length(rayOrg[:, 2:3], rayDir[:, 2:3], params.max_ray_distance, cam.near)
+    rayEnd = rayOrg + rayDir * rayLength
+    deltaStep = (rayEnd - rayOrg) / N_it
+    xi = jitter_noise(params, generator, (B, 1, H, W))
+    Q = rayOrg if xi is None else rayOrg - deltaStep * (params.jitter * xi.to(dtype=dtype, device=dev))
+
+    # ---- flatten the marched rays: per-ray state tensors of length n ----
+    # a pixel starts a ray where it holds geometry whose origin and direction are finite numbers (the origin
+    # read back from a depth buffer whose precision is exhausted, e.g. near/far = 1e-30/1e30, is ±inf)
+    # (and, as in the DDA marchers, not from geometry nearer than the near plane: no depth buffer holds it)
+    ok = mask & (view_z <= -cam.near) & torch.isfinite(rayOrg).all(1, keepdim=True) \
+        & torch.isfinite(deltaStep).all(1, keepdim=True)
+    ray = ok.reshape(-1).nonzero().squeeze(1)                                     # (n,) flat pixel ids
+    n = ray.numel()                                                               # rays marched
+    O, dS, Q = _flat(rayOrg)[ray], _flat(deltaStep)[ray], _flat(Q)[ray]           # (n, 3)
+    clipped = (rayLength < params.max_ray_distance).reshape(-1)[ray]
+    base = (ray // HW) * HW                                                       # batch offset of each ray
+    zs, bk, ms = sceneZ.reshape(-1), (back.reshape(-1) if back is not None else None), mask.reshape(-1)
+    visits = torch.zeros(B * HW, dtype=torch.int64, device=dev)
+    trace_ids = {}
+    if trace_pixel is not None:
+        pid = torch.arange(B, device=dev) * HW + trace_pixel[1] * W + trace_pixel[0]
+        trace_ids = {int(b): int(k) for b, k in zip(*torch.nonzero(ray[None] == pid[:, None], as_tuple=True))}
+    trace = {b: [] for b in trace_ids}                                            # b -> [(Q, hit, refine)]
+
+    def project(q, base_q):                       # clip = P·(Q, 1); hitPixel = clip.xy / clip.w · 0.5 + 0.5
+        uv = cam.ndc_to_uv(cam.view_to_ndc(q, dim=-1)[:, :2])                       # (m, 2) uv, v up
+        col, row = uv_to_texel(uv, H, W, dim=1)                                     # NEAREST, CLAMP_TO_EDGE
+        return uv, base_q + row * W + col
+
+    def intersects(z, t):                          # rayIntersectsDepth (§1.2), dist = z − sceneZMax
+        dist = z - zs[t]                           # a cleared background texel is never hit (three.js
+        if bk is None:                             # SSRShader: if (-vZ >= cameraFar) continue)
+            return (dist < 0) & (dist > -T) & ms[t]
+        return (dist < 0) & (z > bk[t] - T) & ms[t]   # back-face interval [back − T, front)
+
+    def record(ids, q, hit, refine):
+        for b, k in trace_ids.items():
+            trace[b] += [(q[s], bool(hit[s]), refine) for s in (ids == k).nonzero().squeeze(1).tolist()]
+
+    # ---- the march (§1.2): only live rays are updated ----
+    term, steps = torch.full((n,), NO_RAY, dtype=torch.int8, device=dev), torch.zeros(n, dtype=torch.int32, device=dev)
+    hit_i, hitQ = torch.full((n,), -1, device=dev), torch.zeros(n, 3, dtype=dtype, device=dev)   # hit step, sample
+    ids, Qa, n_run = torch.arange(n, device=dev), Q, min(N_it, params.max_iterations)
+    for i in range(n_run):
+        if ids.numel() == 0:
+            break
+        Qa = Qa + dS[ids]                                                         # Q += deltaStep
+        uv, t = project(Qa, base[ids])
+        steps[ids] += 1
+        on = ((uv >= 0) & (uv <= 1)).all(1)
+        term[ids[~on]] = OFF_SCREEN
+        hit = on & intersects(Qa[:, 2], t)
+        if trace_ids:
+            record(ids, Qa, hit, False)
+        visits += torch.bincount(t[on], minlength=B * HW)
+        term[ids[hit]], hit_i[ids[hit]], hitQ[ids[hit]] = HIT, i, Qa[hit]
+        keep = on & ~hit
+        ids, Qa = ids[keep], Qa[keep]
+    end = torch.where(clipped[ids], BEHIND_CAMERA, MAX_DISTANCE)                  # reached the end point
+    term[ids] = (end if n_run == N_it else torch.full_like(end, OUT_OF_STEPS)).to(torch.int8)  # or the loop bound
+
+    # ---- binary search refinement (§1.3): bisect the last step, keep the last probe that hit ----
+    h = (term == HIT).nonzero().squeeze(1)
+    best, n_bs = hitQ[h], min(params.binary_search_iterations, MAX_BINARY_SEARCH_ITERATIONS)
+    if n_bs > 0 and h.numel() > 0:
+        first = (hit_i[h] == 0).unsqueeze(1)
+        Qb = torch.where(first, O[h], best - dS[h])                               # Q −= deltaStep (≥ rayOrg)
+        step = torch.where(first, best - O[h], dS[h])
+        originalStride = 0.5
+        stride = torch.full((h.numel(), 1), originalStride, dtype=dtype, device=dev)        # (m, 1)
+        for _ in range(n_bs):
+            Qb = Qb + step * stride
+            uv, t = project(Qb, base[h])
+            hb = intersects(Qb[:, 2], t)
+            if trace_ids:
+                record(h, Qb, hb, True)
+            visits += torch.bincount(t, minlength=B * HW)
+            best = torch.where(hb.unsqueeze(1), Qb, best)
+            originalStride *= 0.5
+            stride = torch.where(hb, -originalStride, originalStride).unsqueeze(1).to(dtype)
+        steps[h] += n_bs
+
+    # ---- colour at the hit texel and fades (§1.4, §1.5) ----
+    uv, t = project(best, base[h])
+    hit_pixel = cam.uv_to_pixel(uv, dim=-1)                                       # (m, 2)
+    raw = _flat(gbuffer.color)[t]                                                 # (m, 3)
+    circular = params.edge_fade_mode == "circular"                # circular at the hit, vignette at vUv
+    at = hit_pixel if circular else _flat(cam.pixel_centers(dtype, dev)[None])[ray[h] % HW]
+    edge = edge_fade(at, W, H, params.edge_distance, params.edge_exponent, params.edge_fade_mode)
+    fade = edge * distance_fade((O[h] - best).norm(dim=1, keepdim=True), params.fade_distance,
+                                params.fade_exponent)
+
+    def scatter(values, rows, fill, C, dt):       # per-ray values -> (B, C, H, W)
+        out = torch.full((B * HW, C), fill, dtype=dt, device=dev)
+        out[rows] = values.reshape(len(rows), C).to(dt)
+        return out.reshape(B, H, W, C).permute(0, 3, 1, 2).contiguous()
+
+    rh = ray[h]
+    termination = scatter(term, ray, NO_RAY, 1, torch.int8)
+    dbg = {}
+    if debug or trace_pixel is not None:
+        dbg = {"visits": visits.to(torch.int32).reshape(B, 1, H, W), "ray_length": rayLength, "jitter": xi}
+    if trace_pixel is not None:
+        dbg["trace"] = {b: {"view": torch.stack([s[0] for s in v]), "hit": torch.tensor([s[1] for s in v]),
+                            "refine": torch.tensor([s[2] for s in v])} for b, v in trace.items() if v}
+        for d in dbg["trace"].values():
+            d["pixel"] = cam.view_to_pixel(d["view"], dim=-1)
+    return SSRResult(color=scatter(raw * fade, rh, 0.0, 3, dtype), hit=termination == HIT,
+                     hit_pixel=scatter(hit_pixel, rh, -1.0, 2, dtype), hit_view=scatter(best, rh, 0.0, 3, dtype),
+                     steps=scatter(steps, ray, 0, 1, torch.int32), termination=termination,
+                     fade=scatter(fade, rh, 1.0, 1, dtype), raw_color=scatter(raw, rh, 0.0, 3, dtype), debug=dbg)
+
+
+class LinearSSR(nn.Module):
+    """``nn.Module`` wrapper of :func:`ssr_linear`; ``forward(gbuffer)`` returns its :class:`SSRResult`."""
+
+    def __init__(self, params: LinearSSRParams = LinearSSRParams(), debug: bool = False) -> None:
+        super().__init__()
+        self.params, self.debug = params, debug
+
+    def forward(self, gbuffer: GBuffer, generator: Optional[torch.Generator] = None) -> SSRResult:
+        return ssr_linear(gbuffer, self.params, generator=generator, debug=self.debug)
+
+
+#: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
+METHOD = Method("linear", ssr_linear, LinearSSRParams, LinearSSR, order=10)

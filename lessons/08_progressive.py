@@ -122,9 +122,9 @@ check("初期化: t' starts at d_f = t_far on every pixel", torch.equal(state.t_
 FRAMES_1 = 12
 seq = []                                             # (state before, result) per frame
 for k in range(FRAMES_1):
-    res, new_state = progressive(shell, rays, state, params, torch.Generator().manual_seed(100 + k))
+    res = progressive(shell, rays, params, state=state, generator=torch.Generator().manual_seed(100 + k))
     seq.append((state, res))
-    state = new_state
+    state = res.state                                # 保存: t' := t, handed to the next frame
 close = lambda r: r.hit & ((r.t - truth.t).abs() <= 1e-3 * truth.t)        # noqa: E731  found the first root
 found_at = torch.full((H, W), FRAMES_1 + 1)
 for k in range(FRAMES_1 - 1, -1, -1):
@@ -352,8 +352,8 @@ plt.show()
 # %%
 errs, bounds_ok = {}, True
 for m in (0, 2, 5, 10, 20):
-    r_m, _ = progressive(shell, rays, state, ProgressiveParams(steps=N, epsilon=EPS, refine_iterations=m),
-                         torch.Generator().manual_seed(999))
+    r_m = progressive(shell, rays, ProgressiveParams(steps=N, epsilon=EPS, refine_iterations=m), state=state,
+                      generator=torch.Generator().manual_seed(999))
     half = 0.5 * (r_m.debug["bracket"][:, 1:] - r_m.debug["bracket"][:, :1])
     e = (r_m.t - truth.t).abs()
     sel = close(seq[-1][1]) & r_m.hit                            # pixels whose first root is stored
@@ -513,10 +513,12 @@ g1, g2 = torch.Generator().manual_seed(1), torch.Generator().manual_seed(2)
 st1 = st2 = None
 hist = []
 for k in range(FRAMES_2):
-    r1, st1 = progressive(surf_m, rays_m, st1, params, g1)
+    r1 = progressive(surf_m, rays_m, params, state=st1, generator=g1)
+    st1 = r1.state
     o_, d_, act = reflection_bundle(rays_m, r1)
     act = act & (r1.object_index == 1)                                   # mirror rays from the slab
-    r2, st2 = progressive_secondary(surf_m, o_, d_, T_MAX, st2, params, g2, active=act)
+    r2 = progressive_secondary(surf_m, o_, d_, T_MAX, params, state=st2, generator=g2, active=act)
+    st2 = r2.state
     hist.append((r1, r2, act))
 
 # the truth for the last frame's mirror rays: a dense march of the same rays (marching core, 1000 samples)

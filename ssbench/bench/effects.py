@@ -161,20 +161,22 @@ class Effect:
 def ao_samples(method: str, params, module=None) -> int:
     """Depth texels an AO pass reads per pixel in its main loop (small constant extras ignored).
 
-    A pass module may define ``samples_per_pixel(params)``; otherwise: ``kernel_size`` (Crytek, hemisphere
-    SSAO), ``num_directions × num_steps`` (HBAO), ``2 × slices × steps`` (GTAO, both sides of each slice).
+    The method's module declares it as ``samples_per_pixel(params)`` (``module``: the pass module; ``None``
+    looks the method up). A module without one falls back on its parameter names: ``num_directions ×
+    num_steps``, else ``kernel_size``.
 
     Example:
         >>> from ssbench.passes.ao.hbao import HBAOParams
         >>> ao_samples("hbao", HBAOParams(num_directions=4, num_steps=3))
         12
     """
+    if module is None:
+        from ..passes import AO_METHODS, ao_method
+        module = importlib.import_module(ao_method(method)[0].__module__) if method in AO_METHODS else None
     hook = getattr(module, "samples_per_pixel", None)
     if callable(hook):
         return int(hook(params))
     names = {f.name for f in dataclasses.fields(params)}
-    if method == "gtao" or {"slice_count", "steps_per_slice"} <= names:
-        return 2 * params.slices * params.steps
     if {"num_directions", "num_steps"} <= names:
         return params.num_directions * params.num_steps
     if "kernel_size" in names:
@@ -244,23 +246,18 @@ def implicit_bench(evaluation, method: str, params: Mapping, seed: int) -> Bench
     hit-distance image (0 where no hit).
     """
     import dataclasses as dc
-    import inspect
 
     from ..evaluate import resolve_params
-    from ..passes import implicit_method
+    from ..passes import declared, implicit_method
     fn, params_cls = implicit_method(method)
     p = resolve_params(params_cls, params, method)
     if "seed" in {f.name for f in dc.fields(p)} and "seed" not in params:
         p = dc.replace(p, seed=seed)
     surf, cam = evaluation.scene.surface(0), evaluation.cameras[0]
-    sig = inspect.signature(fn).parameters
+    jittered = getattr(p, "jitter", False) and not declared(fn, "STATEFUL", False)
 
-    def call():
-        if "state" in sig:
-            return fn(surf, cam, None, p)
-        if getattr(p, "jitter", False) and "generator" in sig:
-            return fn(surf, cam, p, torch.Generator().manual_seed(seed))
-        return fn(surf, cam, p)
+    def call():                           # the progressive method from an empty state: its first frame
+        return fn(surf, cam, p, generator=torch.Generator().manual_seed(seed) if jittered else None)
 
     res = evaluation.result
     depth = torch.where(res.hit, res.t, torch.zeros_like(res.t)).float()

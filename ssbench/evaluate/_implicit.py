@@ -29,7 +29,6 @@ jitter per frame when its ``jitter`` is on), traces the certified reference (``s
 from __future__ import annotations
 
 import dataclasses
-import inspect
 import math
 import statistics
 import time
@@ -110,7 +109,7 @@ def _cpu(result, drop: tuple = ()):
            if isinstance(getattr(result, f.name), torch.Tensor)}
     dbg = {k: (v.detach().cpu() if isinstance(v, torch.Tensor) else v) for k, v in (result.debug or {}).items()
            if k not in drop}
-    return dataclasses.replace(result, **out, debug=dbg)
+    return dataclasses.replace(result, **out, debug=dbg, state=None)     # the caller keeps the state
 
 
 def _first_under(rates, level: float = 0.01) -> Optional[int]:
@@ -156,7 +155,7 @@ def run_implicit(scene, method: str, params=None, *, frames: int = 1, width: Opt
     """
     from ..implicit.scene import load
     from ..metrics import implicit as M
-    from ..passes import implicit_method
+    from ..passes import declared, implicit_method
     from ..passes.implicit.common import TERMINATION_NAMES, camera_rays
     from ..reference.implicit import implicit as trace
 
@@ -175,8 +174,8 @@ def run_implicit(scene, method: str, params=None, *, frames: int = 1, width: Opt
     if keep not in KEEP:
         raise ValueError(f"keep: expected one of {', '.join(KEEP)}, got {keep!r}")
     sc = load(scene)
-    sig = inspect.signature(fn).parameters
-    stateful, jittered = "state" in sig, bool(getattr(p, "jitter", False)) and "generator" in sig
+    stateful = bool(declared(fn, "STATEFUL", False))
+    jittered = not stateful and bool(getattr(p, "jitter", False))
     n_steps = getattr(p, "steps", None)
 
     results, truths, classes, cameras, traced = {}, {}, {}, {}, {}
@@ -192,12 +191,9 @@ def run_implicit(scene, method: str, params=None, *, frames: int = 1, width: Opt
         surf = sc.surface(k)
         cameras[k] = cam
         t0 = time.perf_counter()
-        if stateful:
-            res, state = fn(surf, cam, state, p, dtype=dtype, device=device)
-        elif jittered:
-            res = fn(surf, cam, p, torch.Generator().manual_seed(p.seed * 1_000_003 + k), dtype=dtype, device=device)
-        else:
-            res = fn(surf, cam, p, dtype=dtype, device=device)
+        gen = torch.Generator().manual_seed(p.seed * 1_000_003 + k) if jittered else None
+        res = fn(surf, cam, p, state=state, generator=gen, dtype=dtype, device=device)
+        state = res.state
         sync_device(device)
         secs.append(time.perf_counter() - t0)
         res = _cpu(res)

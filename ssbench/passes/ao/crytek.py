@@ -153,5 +153,11 @@ class CrytekSSAO(nn.Module):
         return crytek_ssao(gbuffer, self.params, generator=generator, debug=self.debug)
 
 
+def samples_per_pixel(params) -> int:
+    """Depth texels the main loop reads per pixel (one depth texel per kernel point): the floor's gather count
+    (:func:`ssbench.bench.effects.ao_samples`)."""
+    return int(params.kernel_size)
+
+
 #: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
 METHOD = Method("crytek", crytek_ssao, CrytekSSAOParams, CrytekSSAO, order=10)

@@ -293,5 +293,11 @@ class GTAO(nn.Module):
         return gtao(gbuffer, self.params, generator=generator, debug=debug, bent_normals=bent_normals)
 
 
+def samples_per_pixel(params) -> int:
+    """Depth texels the main loop reads per pixel (one depth texel per step on both sides of every slice): the floor's gather count
+    (:func:`ssbench.bench.effects.ao_samples`)."""
+    return int(2 * params.slices * params.steps)
+
+
 #: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
 METHOD = Method("gtao", gtao, GTAOParams, GTAO, order=40)

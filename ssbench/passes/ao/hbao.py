@@ -283,5 +283,11 @@ class HBAO(nn.Module):
         return hbao(gbuffer, self.params, generator=generator, debug=self.debug)
 
 
+def samples_per_pixel(params) -> int:
+    """Depth texels the main loop reads per pixel (one depth texel per step of every direction): the floor's gather count
+    (:func:`ssbench.bench.effects.ao_samples`)."""
+    return int(params.num_directions * params.num_steps)
+
+
 #: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
 METHOD = Method("hbao", hbao, HBAOParams, HBAO, order=30)

@@ -272,5 +272,11 @@ class HemisphereSSAO(nn.Module):
         return hemisphere_ssao(gbuffer, self.params, generator=generator, debug=self.debug)
 
 
+def samples_per_pixel(params) -> int:
+    """Depth texels the main loop reads per pixel (one depth texel per kernel point): the floor's gather count
+    (:func:`ssbench.bench.effects.ao_samples`)."""
+    return int(params.kernel_size)
+
+
 #: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
 METHOD = Method("ssao", hemisphere_ssao, HemisphereSSAOParams, HemisphereSSAO, order=20)

@@ -19,7 +19,7 @@ A *surface* is any object with (``ssbench.implicit.ImplicitSurface`` is the real
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import Any, Optional
 
 import torch
 
@@ -48,7 +48,11 @@ class ImplicitResult:
         termination: :math:`(B, 1, H, W)` int8 code, see :data:`TERMINATION_NAMES`.
         normal: :math:`(B, 3, H, W)` unit world-space normal ∇f/|∇f| at the hit (0 where no hit).
         object_index: :math:`(B, 1, H, W)` int32 index of the object hit (−1 where no hit).
-        debug: extras (e.g. ``"bracket"`` (B, 2, H, W) the interval left after bisection (not the coarser one the march found), ``"invalidated"`` mask).
+        debug: extras (e.g. ``"bracket"`` (B, 2, H, W) the interval left after bisection (not the coarser one
+            the march found), ``"invalidated"`` mask).
+        state: what the caster carries to the next frame, to be passed back as ``state=`` (the progressive
+            method's :class:`~ssbench.passes.implicit.progressive.ProgressiveState`); ``None`` for the stateless
+            casters.
     """
 
     t: torch.Tensor
@@ -59,6 +63,7 @@ class ImplicitResult:
     normal: torch.Tensor
     object_index: torch.Tensor
     debug: dict = field(default_factory=dict)
+    state: Optional[Any] = None
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -77,6 +82,13 @@ def as_rays(camera, jitter: Optional[torch.Tensor] = None, dtype: Optional[torch
     if not isinstance(camera, Camera):
         raise TypeError(f"camera: expected a Camera or CameraRays, got {type(camera).__name__}")
     return camera_rays(camera, batch=batch, jitter=jitter, dtype=dtype or torch.float32, device=device)
+
+
+def check_stateless(state, caster: str) -> None:
+    """``ValueError`` naming ``state`` unless it is ``None``: ``caster`` keeps nothing between frames (the
+    argument is there so every caster takes the same call)."""
+    if state is not None:
+        raise ValueError(f"state: {caster} is stateless and takes state=None, got {type(state).__name__}")
 
 
 def check_surface(surface, name: str = "surface") -> None:

@@ -24,7 +24,7 @@ import torch
 from torch import nn
 
 from ..common import make_generator
-from .common import (HIT, MISS, ImplicitResult, as_rays, bisect, check_surface, finish, flat)
+from .common import (HIT, MISS, ImplicitResult, as_rays, bisect, check_stateless, check_surface, finish, flat)
 from ..registry import Method
 
 __all__ = ["METHOD", "FixedStepParams", "fixed_step", "march_lattice", "FixedStep"]
@@ -113,9 +113,9 @@ def march_lattice(surface, origin: torch.Tensor, direction: torch.Tensor, offset
     return found, lo, hi, steps
 
 
-def fixed_step(surface, camera, params: FixedStepParams = FixedStepParams(), generator: Optional[torch.Generator]
-               = None, jitter: Optional[torch.Tensor] = None, *, dtype: Optional[torch.dtype] = None,
-               device=None) -> ImplicitResult:
+def fixed_step(surface, camera, params: FixedStepParams = FixedStepParams(), *, state: None = None,
+               generator: Optional[torch.Generator] = None, jitter: Optional[torch.Tensor] = None,
+               dtype: Optional[torch.dtype] = None, device=None) -> ImplicitResult:
     r"""Fixed-step march over ``[0, t_far]`` with ``N`` steps, first sign change, bisection (seed 004, 背景).
 
     Args:
@@ -123,6 +123,7 @@ def fixed_step(surface, camera, params: FixedStepParams = FixedStepParams(), gen
         camera: a :class:`~ssbench.camera.Camera` or :class:`~.common.CameraRays` with
             :math:`(B, 3, H, W)` rays.
         params: :class:`FixedStepParams`.
+        state: must be ``None`` (the march keeps nothing between frames; the implicit casters share one call).
         generator: draws ``R`` when ``params.jitter`` (default: CPU generator seeded with ``params.seed``).
         jitter: optional :math:`(B, 2, 1, 1)` or :math:`(B, 2, H, W)` sub-pixel camera offsets (with a Camera).
         dtype, device: of the rays built from a Camera (default float32).
@@ -141,6 +142,7 @@ def fixed_step(surface, camera, params: FixedStepParams = FixedStepParams(), gen
         (torch.Size([1, 1, 6, 8]), 12, 65)
     """
     check_surface(surface)
+    check_stateless(state, "fixed_step")
     if not isinstance(params, FixedStepParams):
         raise TypeError(f"params: expected FixedStepParams, got {type(params).__name__}")
     rays = as_rays(camera, jitter, dtype, device)
@@ -173,7 +175,7 @@ class FixedStep(nn.Module):
 
     def forward(self, surface, camera, generator: Optional[torch.Generator] = None,
                 jitter: Optional[torch.Tensor] = None) -> ImplicitResult:
-        return fixed_step(surface, camera, self.params, generator, jitter)
+        return fixed_step(surface, camera, self.params, generator=generator, jitter=jitter)
 
 
 #: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)

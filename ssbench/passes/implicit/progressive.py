@@ -35,6 +35,7 @@ supersampling is :func:`ssbench.passes.implicit.gbuffer.supersample`.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Iterator, Optional, Union
@@ -49,7 +50,10 @@ from .common import (HIT, INVALIDATED, MISS, CameraRays, ImplicitResult, as_rays
 from .fixed import check_int, march_lattice
 from ..registry import Method
 
-__all__ = ["METHOD", "ProgressiveParams", "ProgressiveState", "progressive", "progressive_secondary",
+#: the caster carries ``t'`` between frames (``result.state`` → ``state=``): evaluations run its frames in order
+STATEFUL = True
+
+__all__ = ["METHOD", "STATEFUL", "ProgressiveParams", "ProgressiveState", "progressive", "progressive_secondary",
            "reflection_bundle", "run_progressive", "txaa_jitter", "silhouette_mask", "Progressive"]
 
 
@@ -143,7 +147,7 @@ def _core(surface, o, d, t_far, t_prime, found_prev, R, params: ProgressiveParam
     return found, 0.5 * (lo + hi), evaluations, steps, term, invalid, torch.stack([lo, hi], 1)
 
 
-def _run(surface, o, d, t_far, shape, state, params, generator, active) -> tuple[ImplicitResult, ProgressiveState]:
+def _run(surface, o, d, t_far, shape, state, params, generator, active) -> ImplicitResult:
     check_surface(surface)
     if not isinstance(params, ProgressiveParams):
         raise TypeError(f"params: expected ProgressiveParams, got {type(params).__name__}")
@@ -166,26 +170,27 @@ def _run(surface, o, d, t_far, shape, state, params, generator, active) -> tuple
            "bracket": unflat(bracket, shape), "R": unflat(R, shape)}
     res = finish(shape, origin=o, direction=d, t_far=t_far, surface=surface, hit=hit, t=t, evaluations=ev,
                  steps=st, termination=term, debug=dbg)
-    return res, ProgressiveState(res.t.clone(), state.frame + 1, res.hit.clone())      # 2.5 t' := t
+    return dataclasses.replace(res, state=ProgressiveState(res.t.clone(), state.frame + 1, res.hit.clone()))  # 2.5
 
 
-def progressive(surface, camera, state: Optional[ProgressiveState] = None,
-                params: ProgressiveParams = ProgressiveParams(), generator: Optional[torch.Generator] = None,
-                jitter: Optional[torch.Tensor] = None, *, dtype: Optional[torch.dtype] = None,
-                device=None) -> tuple[ImplicitResult, ProgressiveState]:
+def progressive(surface, camera, params: ProgressiveParams = ProgressiveParams(), *,
+                state: Optional[ProgressiveState] = None, generator: Optional[torch.Generator] = None,
+                jitter: Optional[torch.Tensor] = None, dtype: Optional[torch.dtype] = None,
+                device=None) -> ImplicitResult:
     r"""One frame of the article's progressive method (seed 004, 手法 2.1–2.5) for camera rays.
 
     Args:
         surface: the surface protocol at this frame.
         camera: :class:`~ssbench.camera.Camera` (plus ``jitter``) or :class:`~.common.CameraRays`.
-        state: :class:`ProgressiveState` of the previous frame (None: step 1, ``t' := d_f``).
         params: :class:`ProgressiveParams`.
+        state: the previous frame's ``result.state`` (None: step 1, ``t' := d_f``).
         generator: draws ``R`` :math:`(B, 1, H, W)` (one ``torch.rand``, float64).
         jitter: :math:`(B, 2, 1, 1)` sub-pixel camera offset, e.g. :func:`txaa_jitter` (with a Camera).
         dtype, device: of the rays built from a Camera (default: the state's dtype, else float32).
 
     Returns:
-        ``(result, new_state)``; ``result.debug``: ``"invalidated"`` :math:`(B, 1, H, W)` bool (2.2 fired),
+        :class:`~.common.ImplicitResult` whose ``state`` (a :class:`ProgressiveState`, 2.5 ``t' := t``) is the
+        next frame's ``state=``; ``result.debug``: ``"invalidated"`` :math:`(B, 1, H, W)` bool (2.2 fired),
         ``"t_prime_before"``, ``"bracket"`` :math:`(B, 2, H, W)`, ``"R"``. ``evaluations`` counts both casts,
         the bisection and the normal's gradient.
 
@@ -195,9 +200,9 @@ def progressive(surface, camera, state: Optional[ProgressiveState] = None,
         >>> cam = Camera.from_look_at((0, 0, 4), (0, 0, 0), (0, 1, 0), 45.0, 8, 6, 0.1, 10.0)
         >>> ball = FunctionSurface(lambda p: p.norm(dim=-1) - 1.0)
         >>> g = torch.Generator().manual_seed(0)
-        >>> r, s = progressive(ball, cam, None, ProgressiveParams(), g, dtype=torch.float64)
-        >>> r, s = progressive(ball, cam, s, ProgressiveParams(), g)
-        >>> int(r.hit.sum()), s.frame, bool(r.debug["invalidated"].any())
+        >>> r = progressive(ball, cam, ProgressiveParams(), generator=g, dtype=torch.float64)
+        >>> r = progressive(ball, cam, ProgressiveParams(), state=r.state, generator=g)
+        >>> int(r.hit.sum()), r.state.frame, bool(r.debug["invalidated"].any())
         (12, 2, False)
     """
     if dtype is None and state is not None:
@@ -210,22 +215,21 @@ def progressive(surface, camera, state: Optional[ProgressiveState] = None,
 
 
 def progressive_secondary(surface, origins: torch.Tensor, directions: torch.Tensor,
-                          t_max: Union[float, torch.Tensor], state: Optional[ProgressiveState] = None,
-                          params: ProgressiveParams = ProgressiveParams(),
-                          generator: Optional[torch.Generator] = None,
-                          active: Optional[torch.Tensor] = None) -> tuple[ImplicitResult, ProgressiveState]:
+                          t_max: Union[float, torch.Tensor], params: ProgressiveParams = ProgressiveParams(), *,
+                          state: Optional[ProgressiveState] = None, generator: Optional[torch.Generator] = None,
+                          active: Optional[torch.Tensor] = None) -> ImplicitResult:
     r"""The progressive method on an arbitrary ray bundle with its own ``t'`` buffer (補足: 二次レイ).
 
     Args:
         origins: :math:`(B, 3, H, W)` world ray origins (offset them off the surface they leave).
         directions: :math:`(B, 3, H, W)` world directions (normalised here; ``t`` is in world units).
         t_max: the ray's ``d_f``: a number or :math:`(B, 1, H, W)`.
-        state: the bundle's own :class:`ProgressiveState` (None: ``t' := t_max``).
+        state: the bundle's own previous ``result.state`` (None: ``t' := t_max``).
         active: :math:`(B, 1, H, W)` bool, pixels that cast a ray (e.g. the primary hits); others are MISS
             with 0 evaluations.
 
     Returns:
-        ``(result, new_state)`` as :func:`progressive`.
+        :class:`~.common.ImplicitResult` with the bundle's next ``state``, as :func:`progressive`.
     """
     for name, x in (("origins", origins), ("directions", directions)):
         if not isinstance(x, torch.Tensor) or x.dim() != 4 or x.shape[1] != 3:
@@ -295,7 +299,8 @@ def run_progressive(scene_or_callables, frames, params: ProgressiveParams = Prog
         cam = camera_at(k)
         jit = txaa_jitter(g_j, 1, dtype) if jitter_mode == "txaa" else None
         rays = camera_rays(cam, jitter=jit, dtype=dtype, device=device)
-        res, state = progressive(surface_at(k), rays, state, params, g_r)
+        res = progressive(surface_at(k), rays, params, state=state, generator=g_r)
+        state = res.state
         res.debug.update(camera=cam, rays=rays)
         yield k, res, state
 
@@ -313,7 +318,8 @@ class Progressive(nn.Module):
 
     def forward(self, surface, camera, generator: Optional[torch.Generator] = None,
                 jitter: Optional[torch.Tensor] = None) -> ImplicitResult:
-        res, self.state = progressive(surface, camera, self.state, self.params, generator, jitter)
+        res = progressive(surface, camera, self.params, state=self.state, generator=generator, jitter=jitter)
+        self.state = res.state
         return res
 
 

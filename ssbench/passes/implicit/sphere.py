@@ -25,8 +25,8 @@ from typing import Optional
 import torch
 from torch import nn
 
-from .common import (HIT, MISS, OUT_OF_STEPS, ImplicitResult, as_rays, bisect, check_surface, finish,
-                              flat, unflat)
+from .common import (HIT, MISS, OUT_OF_STEPS, ImplicitResult, as_rays, bisect, check_stateless, check_surface,
+                     finish, flat, unflat)
 from .fixed import check_int
 from ..registry import Method
 
@@ -71,9 +71,9 @@ class SphereTraceParams:
         check_int(self.refine_iterations, "refine_iterations", 0)
 
 
-def sphere_trace(surface, camera, params: SphereTraceParams = SphereTraceParams(), *,
-                 jitter: Optional[torch.Tensor] = None, dtype: Optional[torch.dtype] = None,
-                 device=None) -> ImplicitResult:
+def sphere_trace(surface, camera, params: SphereTraceParams = SphereTraceParams(), *, state: None = None,
+                 generator: Optional[torch.Generator] = None, jitter: Optional[torch.Tensor] = None,
+                 dtype: Optional[torch.dtype] = None, device=None) -> ImplicitResult:
     r"""Sphere tracing with a declared Lipschitz bound, optionally over-relaxed (Hart; Keinert et al.).
 
     .. math::
@@ -84,6 +84,8 @@ def sphere_trace(surface, camera, params: SphereTraceParams = SphereTraceParams(
         camera: a :class:`~ssbench.camera.Camera` or :class:`~.common.CameraRays`,
             :math:`(B, 3, H, W)` rays.
         params: :class:`SphereTraceParams`.
+        state: must be ``None`` (stateless; the implicit casters share one call).
+        generator: unused (sphere tracing draws nothing); accepted so every caster takes the same call.
         jitter, dtype, device: sub-pixel offsets and ray dtype/device when ``camera`` is a Camera.
 
     Returns:
@@ -104,6 +106,7 @@ def sphere_trace(surface, camera, params: SphereTraceParams = SphereTraceParams(
         (12, False)
     """
     check_surface(surface)
+    check_stateless(state, "sphere_trace")
     if not isinstance(params, SphereTraceParams):
         raise TypeError(f"params: expected SphereTraceParams, got {type(params).__name__}")
     lam = params.lipschitz if params.lipschitz is not None else getattr(surface, "lipschitz", None)

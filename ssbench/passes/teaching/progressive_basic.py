@@ -20,6 +20,7 @@ implicit/test_progressive.py``). Use the vectorised pass for anything but tiny i
 """
 from __future__ import annotations
 
+import dataclasses
 from typing import Optional
 
 import torch
@@ -73,19 +74,20 @@ def refine(surface, o: list, d: list, t_lo: float, t_hi: float, iterations: int)
     return 0.5 * (t_lo + t_hi)
 
 
-def progressive_basic(surface, camera, state: Optional[ProgressiveState] = None,
-                      params: ProgressiveParams = ProgressiveParams(),
-                      generator: Optional[torch.Generator] = None) -> tuple[ImplicitResult, ProgressiveState]:
-    """One frame of the progressive method per pixel, in float64; returns ``(result, new_state)`` like
-    :func:`~ssbench.passes.implicit.progressive.progressive` (``debug`` holds ``"invalidated"`` only).
+def progressive_basic(surface, camera, params: ProgressiveParams = ProgressiveParams(), *,
+                      state: Optional[ProgressiveState] = None,
+                      generator: Optional[torch.Generator] = None) -> ImplicitResult:
+    """One frame of the progressive method per pixel, in float64, called and returning like
+    :func:`~ssbench.passes.implicit.progressive.progressive` (``result.state`` for the next frame; ``debug``
+    holds ``"invalidated"`` only).
 
     Example:
         >>> from ssbench.camera import Camera
         >>> from ssbench.passes.implicit.common import FunctionSurface
         >>> cam = Camera.from_look_at((0, 0, 4), (0, 0, 0), (0, 1, 0), 45.0, 4, 3, 0.1, 10.0)
         >>> ball = FunctionSurface(lambda p: p.norm(dim=-1) - 1.0)
-        >>> r, s = progressive_basic(ball, cam)
-        >>> int(r.hit.sum()), s.frame
+        >>> r = progressive_basic(ball, cam)
+        >>> int(r.hit.sum()), r.state.frame
         (2, 1)
     """
     rays = camera_rays(camera, dtype=torch.float64)
@@ -119,4 +121,5 @@ def progressive_basic(surface, camera, state: Optional[ProgressiveState] = None,
                  evaluations=as_t("evaluations", torch.int32), steps=as_t("steps", torch.int32),
                  termination=as_t("termination", torch.int8),
                  debug={"invalidated": as_t("invalidated", torch.bool).reshape(B, H, W, 1).permute(0, 3, 1, 2)})
-    return res, ProgressiveState(res.t.clone(), state.frame + 1, res.hit.clone())      # 保存: t' := t
+    return dataclasses.replace(res, state=ProgressiveState(res.t.clone(), state.frame + 1,      # 保存: t' := t
+                                                           res.hit.clone()))

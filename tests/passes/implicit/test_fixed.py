@@ -119,7 +119,7 @@ def test_jitter_is_seeded_and_changes_the_samples():
     rays = camera_rays(cam(24, 18), dtype=torch.float64)
     p = FixedStepParams(steps=32, jitter=True)
     g = lambda s: torch.Generator().manual_seed(s)                 # noqa: E731
-    a, b, c = (fixed_step(shell(0.01), rays, p, g(s)) for s in (1, 1, 2))
+    a, b, c = (fixed_step(shell(0.01), rays, p, generator=g(s)) for s in (1, 1, 2))
     assert torch.equal(a.t, b.t) and torch.equal(a.debug["R"], b.debug["R"])
     assert not torch.equal(a.debug["R"], c.debug["R"])
     assert torch.equal(fixed_step(shell(0.01), rays, FixedStepParams(steps=32, jitter=True, seed=1)).t, a.t)
@@ -162,3 +162,23 @@ def test_bad_input():
         fixed_step(object(), cam())
     with pytest.raises(TypeError, match="params"):
         fixed_step(BALL, cam(), {"steps": 3})
+
+
+def test_every_caster_takes_one_call_and_returns_its_state():
+    """``(surface, camera, params, *, state=None, generator=None)`` for fixed step, sphere tracing and the
+    progressive method, found through the registry; only the stateful one hands a state back, and handing a
+    state to a stateless one is an error naming ``state``."""
+    from ssbench.passes import IMPLICIT_METHODS, declared, implicit_method
+    rays = camera_rays(cam(12, 9), dtype=torch.float64)
+    surf = FunctionSurface(lambda q: q.norm(dim=-1) - 1.0, lipschitz=1.0)
+    for name in IMPLICIT_METHODS:
+        fn, params_cls = implicit_method(name)
+        res = fn(surf, rays, params_cls(), state=None, generator=torch.Generator().manual_seed(0))
+        assert int(res.hit.sum()) > 0, name
+        if declared(fn, "STATEFUL", False):
+            again = fn(surf, rays, params_cls(), state=res.state, generator=torch.Generator().manual_seed(1))
+            assert res.state is not None and again.state.frame == res.state.frame + 1, name
+        else:
+            assert res.state is None, name
+            with pytest.raises(ValueError, match="state"):
+                fn(surf, rays, params_cls(), state=object())

@@ -82,10 +82,11 @@ def first_below(curve, level=0.01):
 
 def test_frame_one_is_the_jittered_fixed_step():
     rays = camera_rays(CAM, dtype=torch.float64)
-    prog, state = progressive(SHELL, rays, None, ProgressiveParams(steps=N), gen(5))
-    fixed = fixed_step(SHELL, rays, FixedStepParams(steps=N, jitter=True), gen(5))
+    prog = progressive(SHELL, rays, ProgressiveParams(steps=N), generator=gen(5))
+    fixed = fixed_step(SHELL, rays, FixedStepParams(steps=N, jitter=True), generator=gen(5))
     for name in ("t", "hit", "evaluations", "steps", "normal"):
         assert torch.equal(getattr(prog, name), getattr(fixed, name)), name
+    state = prog.state
     assert state.frame == 1 and torch.equal(state.t_prime, prog.t) and torch.equal(state.found, prog.hit)
 
 
@@ -93,7 +94,7 @@ def test_frame_one_punch_through_matches_fixed_step_statistically():
     rays = camera_rays(CAM, dtype=torch.float64)
     first, on, cf, *_ = shell_geometry(rays)
     fixed = punch_through(fixed_step(SHELL, rays, FixedStepParams(steps=N)), first, on)   # over pixels
-    prog = [punch_through(progressive(SHELL, rays, None, ProgressiveParams(steps=N), gen(s))[0], first, on)
+    prog = [punch_through(progressive(SHELL, rays, ProgressiveParams(steps=N), generator=gen(s)), first, on)
             for s in range(8)]                                                          # over seeds too
     mean = sum(prog) / len(prog)
     pixels = on.sum().item()
@@ -107,7 +108,8 @@ def test_frame_one_punch_through_matches_fixed_step_statistically():
 def _run(surface, rays, frames, seed, params=ProgressiveParams(steps=N)):
     g, state, out = gen(seed), None, []
     for _ in range(frames):
-        res, state = progressive(surface, rays, state, params, g)
+        res = progressive(surface, rays, params, state=state, generator=g)
+        state = res.state
         out.append(res)
     return out, state
 
@@ -166,11 +168,13 @@ def test_moved_object_stale_pixels_are_invalidated_and_new_ones_found():
     before, after = (-0.5, 0.0, 0.0), (0.7, 0.2, 0.0)
     g, state = gen(3), None
     for _ in range(3):
-        res, state = progressive(ball_and_wall(before), rays, state, ProgressiveParams(steps=N), g)
+        res = progressive(ball_and_wall(before), rays, ProgressiveParams(steps=N), state=state, generator=g)
+        state = res.state
     t0, c0, ball0 = truth_ball_and_wall(rays, before, 0.6)
     sure = c0 >= rays.t_far / N                                    # a lattice sample must land inside
     assert bool(((res.t - t0).abs() < 1e-6)[sure].all())
-    res, state = progressive(ball_and_wall(after), rays, state, ProgressiveParams(steps=N), g)
+    res = progressive(ball_and_wall(after), rays, ProgressiveParams(steps=N), state=state, generator=g)
+    state = res.state
     t1, c1, ball1 = truth_ball_and_wall(rays, after, 0.6)
     lost = ball0 & ~ball1 & (c1 >= rays.t_far / N)                 # the ball left; the wall is behind
     assert lost.sum().item() > 50
@@ -218,8 +222,8 @@ def test_determinism_dtypes_and_module():
     assert m.state.frame == 3
     m.reset()
     assert m.state is None
-    d1, _ = progressive(SHELL, CAM, None, ProgressiveParams(steps=N, seed=4), dtype=torch.float64)
-    d2, _ = progressive(SHELL, CAM, None, ProgressiveParams(steps=N, seed=4), dtype=torch.float64)
+    d1 = progressive(SHELL, CAM, ProgressiveParams(steps=N, seed=4), dtype=torch.float64)
+    d2 = progressive(SHELL, CAM, ProgressiveParams(steps=N, seed=4), dtype=torch.float64)
     assert torch.equal(d1.debug["R"], d2.debug["R"])               # no generator: seeded by (seed, frame)
 
 
@@ -236,8 +240,9 @@ def test_secondary_rays_keep_their_own_estimate():
     active = active & on_floor
     g, state, t_max = gen(1), None, 10.0
     for _ in range(3):
-        sec, state = progressive_secondary(scene, origins, dirs, t_max, state, ProgressiveParams(steps=N), g,
-                                           active=active)
+        sec = progressive_secondary(scene, origins, dirs, t_max, ProgressiveParams(steps=N), state=state,
+                                    generator=g, active=active)
+        state = sec.state
     o, d = origins.permute(0, 2, 3, 1), dirs.permute(0, 2, 3, 1)
     t0, t1, ok = sphere_roots(o, d, torch.tensor(small_c, dtype=torch.float64), 0.5)
     sure = active & (ok & (t1 - t0 >= t_max / N) & (t0 > 0)).unsqueeze(1)
@@ -326,7 +331,7 @@ def test_bad_input():
     rays = camera_rays(CAM, dtype=torch.float64)
     bad = ProgressiveState(torch.ones(1, 1, 3, 3, dtype=torch.float64))
     with pytest.raises(ValueError, match="state"):
-        progressive(SHELL, rays, bad)
+        progressive(SHELL, rays, state=bad)
     with pytest.raises(ValueError, match="jitter_mode"):
         next(run_progressive((lambda k: SHELL, lambda k: CAM), 1, jitter_mode="taa", progress=False))
     s0 = ProgressiveState.initial(CAM, dtype=torch.float64)
@@ -347,8 +352,10 @@ def test_teaching_twin_equals_vectorised_over_frames():
     for frame in range(4):
         x = 0.4 * frame                                                   # the ball moves right
         ball = FunctionSurface(lambda q, x=x: (q - torch.tensor([x, 0.0, 0.0], dtype=q.dtype)).norm(dim=-1) - 1.0)
-        ra, a = progressive(ball, cam, a, p, dtype=torch.float64)
-        rb, b = progressive_basic(ball, cam, b, p)
+        ra = progressive(ball, cam, p, state=a, dtype=torch.float64)
+        rb = progressive_basic(ball, cam, p, state=b)
+        a, b = ra.state, rb.state
+        assert torch.equal(a.t_prime, b.t_prime) and torch.equal(a.found, b.found) and a.frame == b.frame == frame + 1
         for name in ("t", "hit", "termination", "evaluations", "steps"):
             assert torch.equal(getattr(ra, name), getattr(rb, name)), (frame, name)
         assert torch.equal(ra.debug["invalidated"], rb.debug["invalidated"])

@@ -32,8 +32,10 @@ def resolve_params(params_cls: type, params: Union[None, Mapping[str, Any], Any]
 
 
 def params_as_dict(p) -> dict:
+    """The fields of parameter dataclass ``p`` as a dict (tuples as lists): its own fields first, then the
+    keyword-only ones it inherits (e.g. the SSR fades of ``FadeParams``)."""
     out = {}
-    for f in dataclasses.fields(p):
+    for f in sorted(dataclasses.fields(p), key=lambda f: bool(f.kw_only)):
         v = getattr(p, f.name)
         out[f.name] = list(v) if isinstance(v, tuple) else v
     return out

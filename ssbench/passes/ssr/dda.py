@@ -66,7 +66,7 @@ from ..gbuffer_checks import check_gbuffer, half_in_float32
 from .common import (BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult,
                          clip_ray_length, reflection_rays)
 from .dda_refine import count_visits, fetch_cell, refine_hits, ray_view_z
-from .fade import EDGE_FADE_MODES, distance_fade, edge_fade
+from .fade import FadeParams
 from ..registry import Method
 
 REQUIRES = ("view_z", "normal", "mask", "color")
@@ -79,7 +79,7 @@ REFINEMENTS = ("binary", "remarch", "none")
 
 
 @dataclass(frozen=True)
-class DDASSRParams:
+class DDASSRParams(FadeParams):
     """Parameters of :func:`ssr_dda`: the article's / G3D's names snake-cased (defaults: kode80, mebiusbox).
 
     Attributes:
@@ -93,7 +93,8 @@ class DDASSRParams:
         jitter: the start moves ``jitter·U[0, 1)`` strides along the ray (0 = off); ``seed`` seeds it.
         binary_search_iterations, refinement: ``"binary"`` (article, that many probes), ``"remarch"`` (G3D) or
             ``"none"``.
-        edge_distance, edge_exponent, edge_fade_mode, fade_distance, fade_exponent: fades (§1.4–1.5, :mod:`.fade`).
+        edge_distance, edge_exponent, edge_fade_mode, fade_distance, fade_exponent: the fades (§1.4–1.5),
+            inherited keyword-only from :class:`~ssbench.passes.ssr.fade.FadeParams`.
     """
 
     max_ray_distance: float = 10.0
@@ -105,14 +106,10 @@ class DDASSRParams:
     jitter: float = 0.0
     binary_search_iterations: int = 4
     refinement: str = "binary"
-    edge_distance: float = 50.0
-    edge_exponent: float = 1.0
-    edge_fade_mode: str = "vignette"
-    fade_distance: float = 10.0
-    fade_exponent: float = 1.0
     seed: int = 0
 
     def __post_init__(self) -> None:
+        super().__post_init__()                                                   # the fades
         check_count(self.max_steps, "max_steps")
         n = self.binary_search_iterations
         if isinstance(n, bool) or not isinstance(n, int) or n < 0:
@@ -120,15 +117,13 @@ class DDASSRParams:
         if not isinstance(self.fit_stride_to_steps, bool):
             raise ValueError(f"fit_stride_to_steps: must be a bool, got {self.fit_stride_to_steps!r}")
         for name, lo, strict in (("max_ray_distance", 0, 1), ("pixel_stride", 1, 0), ("pixel_stride_z_cutoff", 0, 1),
-                                 ("z_thickness", 0, 0), ("jitter", 0, 0), ("edge_distance", 0, 0),
-                                 ("edge_exponent", 0, 1), ("fade_distance", 0, 1), ("fade_exponent", 0, 1)):
+                                 ("z_thickness", 0, 0), ("jitter", 0, 0)):
             v = getattr(self, name)
             ok = not isinstance(v, bool) and isinstance(v, (int, float)) and v == v and v >= lo
             if not ok or (strict and v == lo) or (v == math.inf and name != "pixel_stride_z_cutoff"):
                 raise ValueError(f"{name}: must be a finite number {'>' if strict else '>='} {lo}, got {v!r}")
-        for name, allowed in (("refinement", REFINEMENTS), ("edge_fade_mode", EDGE_FADE_MODES)):
-            if getattr(self, name) not in allowed:
-                raise ValueError(f"{name}: expected one of {allowed}, got {getattr(self, name)!r}")
+        if self.refinement not in REFINEMENTS:
+            raise ValueError(f"refinement: expected one of {REFINEMENTS}, got {self.refinement!r}")
 
 
 def project_to_pixel_matrix(camera: Camera, dtype=torch.float64, device=None) -> torch.Tensor:
@@ -315,9 +310,7 @@ def assemble(gbuffer: GBuffer, params, sel: torch.Tensor, P1: torch.Tensor, o: d
     hit_pixel = torch.where(hit, torch.minimum(torch.maximum(hit_pixel, lo), hi), hit_pixel)
     raw = torch.where(hit, fetch(gbuffer.color.to(dt), col, row), 0.0)            # (B, 3, H, W)
     origin = cam.uv_to_view(cam.uv_grid(dt, dev).unsqueeze(0), gbuffer.view_z)
-    at = hit_pixel if params.edge_fade_mode == "circular" else cam.pixel_centers(dt, dev)[None]   # hit / vUv
-    fade = edge_fade(at, W, H, params.edge_distance, params.edge_exponent, params.edge_fade_mode) * \
-        distance_fade(length(hit_view - origin), params.fade_distance, params.fade_exponent)
+    fade = params.fade(hit_pixel, cam.pixel_centers(dt, dev)[None], W, H, length(hit_view - origin))
     fade = torch.where(hit, fade, 0.0)
     dbg = {"visits": visits.reshape(B, 1, H, W), "ray_end": image(P1, -1.0)} if visits is not None else {}
     return SSRResult(color=raw * fade, hit=hit, hit_pixel=hit_pixel, hit_view=hit_view, steps=steps,

@@ -29,7 +29,7 @@ equal ``max_steps`` budget a diagonal ray runs out sooner. Terminations as :mod:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Optional
 
 import torch
@@ -41,7 +41,7 @@ from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS, 
 from ..gbuffer_checks import half_in_float32
 from .dda import (DEFAULTS_SOURCE, EQUAL_SETTINGS, REQUIRES, DDASSRParams, count_visits, dda_rays, ray_view_z, check_inputs,
                       assemble)
-from .fade import EDGE_FADE_MODES
+from .fade import FadeParams
 from ..registry import Method
 
 __all__ = ["METHOD", "REQUIRES", "EQUAL_SETTINGS", "DEFAULTS_SOURCE", "SupercoverDDASSRParams",
@@ -49,14 +49,15 @@ __all__ = ["METHOD", "REQUIRES", "EQUAL_SETTINGS", "DEFAULTS_SOURCE", "Supercove
 
 
 @dataclass(frozen=True)
-class SupercoverDDASSRParams:
+class SupercoverDDASSRParams(FadeParams):
     """Parameters of :func:`ssr_dda_supercover`, named as :class:`~ssbench.passes.ssr.dda.DDASSRParams`.
 
     Attributes:
         max_ray_distance: ``MaxRayDistance``, view-space ray length before near-plane clipping.
         max_steps: the most pixels fetched per ray (a budget in depth reads, like the DDA's ``maxSteps``).
         z_thickness: ``zThickness``, view-space depth of every depth texel.
-        edge_distance, edge_exponent, edge_fade_mode, fade_distance, fade_exponent: fades (§1.4–1.5, :mod:`.fade`).
+        edge_distance, edge_exponent, edge_fade_mode, fade_distance, fade_exponent: the fades (§1.4–1.5),
+            inherited keyword-only from :class:`~ssbench.passes.ssr.fade.FadeParams`.
 
     There is no stride, jitter or refinement: the walk is one pixel at a time and the hit is exact in its cell.
     """
@@ -64,24 +65,17 @@ class SupercoverDDASSRParams:
     max_ray_distance: float = 10.0
     max_steps: int = 256
     z_thickness: float = 0.1
-    edge_distance: float = 50.0
-    edge_exponent: float = 1.0
-    edge_fade_mode: str = "vignette"
-    fade_distance: float = 10.0
-    fade_exponent: float = 1.0
 
     def __post_init__(self) -> None:
+        super().__post_init__()                                                   # the fades
         check_count(self.max_steps, "max_steps")
-        if self.edge_fade_mode not in EDGE_FADE_MODES:
-            raise ValueError(f"edge_fade_mode: expected one of {EDGE_FADE_MODES}, got {self.edge_fade_mode!r}")
         self.dda()                                                                 # the DDA checks the numbers
 
     def dda(self) -> DDASSRParams:
         """The :class:`DDASSRParams` whose set-up this pass shares (stride 1, no jitter)."""
         return DDASSRParams(max_ray_distance=self.max_ray_distance, max_steps=self.max_steps, pixel_stride=1.0,
-                            z_thickness=self.z_thickness, jitter=0.0, edge_distance=self.edge_distance,
-                            edge_exponent=self.edge_exponent, edge_fade_mode=self.edge_fade_mode,
-                            fade_distance=self.fade_distance, fade_exponent=self.fade_exponent)
+                            z_thickness=self.z_thickness, jitter=0.0,
+                            **{f.name: getattr(self, f.name) for f in fields(FadeParams)})
 
 
 def cell_setup(s: dict) -> dict:

@@ -18,6 +18,8 @@ Defaults are the article demo's uniforms (``mebiusbox/ssr`` ``ssr.html``: ``Edge
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import torch
 
 EDGE_FADE_MODES = ("circular", "vignette")
@@ -101,3 +103,37 @@ def distance_fade(ray_distance: torch.Tensor, fade_distance: float = 10.0,
     check_positive(fade_exponent, "fade_exponent")
     d = ray_distance.abs()                                      # a length; abs() keeps pow real for −0.0
     return torch.clamp(1.0 - torch.pow(d / fade_distance, fade_exponent), 0.0, 1.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class FadeParams:
+    """The fades every SSR pass applies (§1.4–1.5), shared by their parameter classes (which inherit these fields,
+    keyword-only, so ``--param fade_distance=…`` and the rows stay flat).
+
+    Attributes:
+        edge_distance, edge_exponent: ``EdgeDistance`` (≥ 0), ``EdgeExponent`` (> 0) of the §1.4 vignette.
+        edge_fade_mode: ``"vignette"`` (the demo's) or ``"circular"``.
+        fade_distance, fade_exponent: ``FadeDistance``, ``FadeExponent`` (§1.5), both > 0.
+    """
+
+    edge_distance: float = 50.0
+    edge_exponent: float = 1.0
+    edge_fade_mode: str = "vignette"
+    fade_distance: float = 10.0
+    fade_exponent: float = 1.0
+
+    def __post_init__(self) -> None:
+        check_positive(self.edge_distance, "edge_distance", allow_zero=True)
+        for name in ("edge_exponent", "fade_distance", "fade_exponent"):
+            check_positive(getattr(self, name), name)
+        if self.edge_fade_mode not in EDGE_FADE_MODES:
+            raise ValueError(f"edge_fade_mode: expected one of {EDGE_FADE_MODES}, got {self.edge_fade_mode!r}")
+
+    def fade(self, hit_pixel: torch.Tensor, pixel_centre: torch.Tensor, width: int, height: int,
+             distance: torch.Tensor) -> torch.Tensor:
+        """``edge · distance`` fade: the edge term at ``hit_pixel`` (``"circular"``) or at the ray's own pixel
+        centre ``pixel_centre`` (``"vignette"``, the demo's ``vUv``), both :math:`(B, 2, *S)`; ``distance`` is
+        :math:`(B, 1, *S)` ``|rayOrg − hitPoint|``. Returns :math:`(B, 1, *S)` in [0, 1]."""
+        at = hit_pixel if self.edge_fade_mode == "circular" else pixel_centre
+        return edge_fade(at, width, height, self.edge_distance, self.edge_exponent, self.edge_fade_mode) * \
+            distance_fade(distance, self.fade_distance, self.fade_exponent)

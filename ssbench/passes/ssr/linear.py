@@ -45,7 +45,7 @@ from ..common import make_generator, uv_to_texel
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from .common import (BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult,
                          clip_ray_length, reflection_rays)
-from .fade import EDGE_FADE_MODES, check_positive, distance_fade, edge_fade
+from .fade import FadeParams, check_positive
 from ..registry import Method
 
 REQUIRES = ("view_z", "normal", "mask", "color")
@@ -64,7 +64,7 @@ def _integer(v, name: str, lo: int) -> None:
 
 
 @dataclass(frozen=True)
-class LinearSSRParams:
+class LinearSSRParams(FadeParams):
     """Parameters of :func:`ssr_linear`: the article's uniforms snake-cased, defaults from its demo (``ssr.html``).
 
     Attributes:
@@ -73,8 +73,8 @@ class LinearSSRParams:
         thickness: ``Thickness`` (the demo's ``PixelZSize``), view-space depth tolerance behind a surface.
         use_back_face_depth: test against ``(back_z − thickness, sceneZ)`` (§1.2, Fig. 7; needs ``back_z``).
         binary_search_iterations: ``BinarySearchIterations`` (0 = no refinement; at most 64 run).
-        edge_distance, edge_exponent, edge_fade_mode: §1.4 (``"vignette"``, the demo's, or ``"circular"``).
-        fade_distance, fade_exponent: ``FadeDistance``, ``FadeExponent`` (§1.5).
+        edge_distance, edge_exponent, edge_fade_mode, fade_distance, fade_exponent: the fades (§1.4–1.5),
+            inherited keyword-only from :class:`~ssbench.passes.ssr.fade.FadeParams`.
         jitter, seed: start-offset jitter in [0, 1] steps (0 = off) and its seed when no generator is passed.
         position_from: ``"depth"`` (``getViewPosition`` and ``getViewZ(getDepth(uv))`` of the GL depth buffer,
             as the article), ``"view_z"`` (no depth round trip) or ``"position"`` (``rayOrg`` from ``position``).
@@ -86,20 +86,15 @@ class LinearSSRParams:
     thickness: float = 1.0
     use_back_face_depth: bool = False
     binary_search_iterations: int = 4
-    edge_distance: float = 50.0
-    edge_exponent: float = 1.0
-    edge_fade_mode: str = "vignette"
-    fade_distance: float = 10.0
-    fade_exponent: float = 1.0
     jitter: float = 0.0
     seed: int = 0
     position_from: str = "depth"
     max_iterations: int = 300
 
     def __post_init__(self) -> None:
-        for name in ("max_ray_distance", "thickness", "fade_distance", "fade_exponent", "edge_exponent"):
+        super().__post_init__()                                                   # the fades
+        for name in ("max_ray_distance", "thickness"):
             check_positive(getattr(self, name), name)
-        check_positive(self.edge_distance, "edge_distance", allow_zero=True)
         check_positive(self.jitter, "jitter", allow_zero=True)
         if self.jitter > 1:
             raise ValueError(f"jitter: must lie in [0, 1] steps, got {self.jitter!r}")
@@ -107,8 +102,6 @@ class LinearSSRParams:
             _integer(getattr(self, name), name, lo)
         if not isinstance(self.use_back_face_depth, bool):
             raise ValueError(f"use_back_face_depth: expected a bool, got {self.use_back_face_depth!r}")
-        if self.edge_fade_mode not in EDGE_FADE_MODES:
-            raise ValueError(f"edge_fade_mode: expected one of {EDGE_FADE_MODES}, got {self.edge_fade_mode!r}")
         if self.position_from not in POSITION_FROM:
             raise ValueError(f"position_from: expected one of {POSITION_FROM}, got {self.position_from!r}")
 
@@ -280,11 +273,8 @@ def ssr_linear(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(), *,
     uv, t = project(best, base[h])
     hit_pixel = cam.uv_to_pixel(uv, dim=-1)                                       # (m, 2)
     raw = _flat(gbuffer.color)[t]                                                 # (m, 3)
-    circular = params.edge_fade_mode == "circular"                # circular at the hit, vignette at vUv
-    at = hit_pixel if circular else _flat(cam.pixel_centers(dtype, dev)[None])[ray[h] % HW]
-    edge = edge_fade(at, W, H, params.edge_distance, params.edge_exponent, params.edge_fade_mode)
-    fade = edge * distance_fade((O[h] - best).norm(dim=1, keepdim=True), params.fade_distance,
-                                params.fade_exponent)
+    centre = _flat(cam.pixel_centers(dtype, dev)[None])[ray[h] % HW]              # vUv of each ray's pixel
+    fade = params.fade(hit_pixel, centre, W, H, (O[h] - best).norm(dim=1, keepdim=True))
 
     def scatter(values, rows, fill, C, dt):       # per-ray values -> (B, C, H, W)
         out = torch.full((B * HW, C), fill, dtype=dt, device=dev)

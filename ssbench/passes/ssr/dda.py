@@ -66,6 +66,7 @@ from ..gbuffer_checks import check_gbuffer, half_in_float32
 from .common import (BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult,
                          clip_ray_length, reflection_rays)
 from .dda_refine import count_visits, fetch_cell, refine_hits, ray_view_z
+from .dda_state import DDARays, MarchOutput
 from .fade import FadeParams
 from ..registry import Method
 
@@ -146,7 +147,8 @@ def check_inputs(gbuffer: GBuffer, params: DDASSRParams) -> None:
 
 
 def dda_rays(gbuffer: GBuffer, params: DDASSRParams, jitter: torch.Tensor):
-    """Per-ray set-up (article §2.2 up to the loop) of every ``mask`` pixel as flat tensors; also ``sel``, P0, P1."""
+    """Per-ray set-up (article §2.2 up to the loop) of every ``mask`` pixel that starts a ray: ``(DDARays, sel, P0,
+    P1)``, ``sel`` the rays' flat pixel indices ``b·H·W + j·W + i`` and ``P0``, ``P1`` their end points in pixels."""
     cam, vz = gbuffer.camera, gbuffer.view_z
     B, _, H, W = vz.shape
     dt, dev = vz.dtype, vz.device
@@ -185,64 +187,61 @@ def dda_rays(gbuffer: GBuffer, params: DDASSRParams, jitter: torch.Tensor):
     j = jitter.to(dtype=dt, device=dev).reshape(-1)[sel]
     P0p, Q0, k0 = P0p + dP * j[:, None], Q0 + dQ * j[:, None], k0 + dk * j
     zlo, zhi = torch.minimum(o[:, 2], end[:, 2]), torch.maximum(o[:, 2], end[:, 2])
-    s = dict(i=torch.arange(sel.numel(), device=dev), b=sel // (H * W), Px=P0p[:, 0], Py=P0p[:, 1], Qz=Q0[:, 2], k=k0,
-             n=torch.zeros_like(k0), dPx=dP[:, 0], dPy=dP[:, 1], dQz=dQ[:, 2], dk=dk, end=P1p[:, 0] * stepDir,
-             stepDir=stepDir, permute=permute, zlo=zlo, zhi=zhi, stride=pixelStride, Q0x=Q0[:, 0], Q0y=Q0[:, 1],
-             dQx=dQ[:, 0], dQy=dQ[:, 1], clipped=o[:, 2] + d[:, 2] * params.max_ray_distance > -cam.near)
-    s["stop"] = torch.minimum(s["end"], exit_)                                      # P1 or the viewport edge
-    s["prevZ"] = ray_view_z(Q0[:, 2] + 0.5 * dQ[:, 2], k0 + 0.5 * dk, zlo, zhi)          # footprint edge of sample 1
+    end = P1p[:, 0] * stepDir
+    s = DDARays(i=torch.arange(sel.numel(), device=dev), b=sel // (H * W), Px=P0p[:, 0], Py=P0p[:, 1], Qz=Q0[:, 2],
+                k=k0, n=torch.zeros_like(k0), dPx=dP[:, 0], dPy=dP[:, 1], dQz=dQ[:, 2], dk=dk, stride=pixelStride,
+                Q0x=Q0[:, 0], Q0y=Q0[:, 1], dQx=dQ[:, 0], dQy=dQ[:, 1], end=end,
+                stop=torch.minimum(end, exit_),                                   # P1 or the viewport edge
+                stepDir=stepDir, permute=permute, zlo=zlo, zhi=zhi,
+                prevZ=ray_view_z(Q0[:, 2] + 0.5 * dQ[:, 2], k0 + 0.5 * dk, zlo, zhi),   # footprint edge of sample 1
+                clipped=o[:, 2] + d[:, 2] * params.max_ray_distance > -cam.near)
     return s, sel, P0, P1
 
 
-def dda_march(s: dict, tex, params: DDASSRParams, H: int, W: int, visits: Optional[torch.Tensor]) -> dict:
-    """The DDA loop; per-ray outputs by ``s["i"]``. Finished rays freeze (``alive``), dropped when 1/8 of ``s``."""
-    N, f = s["i"].numel(), dict(dtype=s["k"].dtype, device=s["k"].device)
-    out = dict(term=torch.full((N,), OUT_OF_STEPS, dtype=torch.int8, device=f["device"]),
-               steps=torch.zeros(N, dtype=torch.int32, device=f["device"]),
-               P=torch.full((N, 2), -1.0, **f), Q=torch.zeros(N, 3, **f), k=torch.ones(N, **f))
-    s["alive"], dead = torch.ones(N, dtype=torch.bool, device=f["device"]), 0
+def dda_march(s: DDARays, tex, params: DDASSRParams, H: int, W: int, visits: Optional[torch.Tensor]) -> MarchOutput:
+    """The DDA loop; per-ray outputs by ``s.i``. Finished rays freeze (``alive``), dropped when 1/8 of ``s``."""
+    N = s.count
+    out = MarchOutput.empty(N, s.k.dtype, s.k.device, OUT_OF_STEPS)
+    s.alive, dead = torch.ones(N, dtype=torch.bool, device=s.k.device), 0
     for _ in range(params.max_steps):
-        if s["i"].numel() == dead:
+        if s.count == dead:
             break
-        s["Px"], s["Py"], s["Qz"], s["k"] = s["Px"] + s["dPx"], s["Py"] + s["dPy"], s["Qz"] + s["dQz"], s["k"] + s["dk"]
-        s["n"] = s["n"] + 1.0
-        u = s["Px"] * s["stepDir"]
-        beyond = s["alive"] & (u > s["stop"])                                    # centre past P1 / the edge
-        f = ((s["stop"] - u) / s["stride"] + 0.5).clamp(0.0, 1.0)                # footprint share before stop
+        s.Px, s.Py, s.Qz, s.k = s.Px + s.dPx, s.Py + s.dPy, s.Qz + s.dQz, s.k + s.dk
+        s.n = s.n + 1.0
+        u = s.Px * s.stepDir
+        beyond = s.alive & (u > s.stop)                                          # centre past P1 / the edge
+        f = ((s.stop - u) / s.stride + 0.5).clamp(0.0, 1.0)                      # footprint share before stop
         partial = beyond & (f > 0)                                               # last, shortened footprint
         past = beyond & ~partial                                                 # nothing left to test: ended
         back = torch.where(partial, 0.5 * (1.0 - f), 0.0)                        # centre of [P − ½dP, stop]
-        s["Px"], s["Py"], s["Qz"], s["k"] = (s["Px"] - s["dPx"] * back, s["Py"] - s["dPy"] * back,
-                                             s["Qz"] - s["dQz"] * back, s["k"] - s["dk"] * back)
-        s["n"] = s["n"] - back
+        s.Px, s.Py, s.Qz, s.k = s.Px - s.dPx * back, s.Py - s.dPy * back, s.Qz - s.dQz * back, s.k - s.dk * back
+        s.n = s.n - back
         half = torch.where(partial, 0.5 * f, 0.5)
-        on, t, sceneZMax, m = fetch_cell(s, s, tex, H, W)
-        off, live = s["alive"] & ~past & ~on, s["alive"] & ~past & on             # live: this sample is fetched
-        rayZMin = s["prevZ"]
-        rayZMax = ray_view_z(s["dQz"] * half + s["Qz"], s["dk"] * half + s["k"], s["zlo"], s["zhi"])   # footprint end
-        s["prevZ"] = rayZMax
+        on, t, sceneZMax, m = fetch_cell(s.permute, s.b, s.Px, s.Py, tex, H, W)
+        off, live = s.alive & ~past & ~on, s.alive & ~past & on                  # live: this sample is fetched
+        rayZMin = s.prevZ
+        rayZMax = ray_view_z(s.dQz * half + s.Qz, s.dk * half + s.k, s.zlo, s.zhi)   # footprint end
+        s.prevZ = rayZMax
         rayZMin, rayZMax = torch.minimum(rayZMin, rayZMax), torch.maximum(rayZMin, rayZMax)   # swap
         hit = live & m & (rayZMax >= sceneZMax - params.z_thickness) & (rayZMin <= sceneZMax)
-        count_visits(out, visits, s["i"], t, live)
+        count_visits(out, visits, s.i, t, live)
         hi = hit.nonzero().squeeze(1)
         if hi.numel():
-            h = {key: v.index_select(0, hi) for key, v in s.items()}
+            h = s.select(hi)
             refine_hits(h, tex, params, H, W, out, visits)
-            out["P"][h["i"]] = torch.where(h["permute"][:, None], torch.stack([h["Py"], h["Px"]], 1),
-                                           torch.stack([h["Px"], h["Py"]], 1))
-            out["Q"][h["i"]] = torch.stack([h["Q0x"] + h["dQx"] * h["n"], h["Q0y"] + h["dQy"] * h["n"], h["Qz"]], 1)
-            out["k"][h["i"]] = h["k"]
-        ended = torch.where(s["clipped"], BEHIND_CAMERA, MAX_DISTANCE)               # past P1
-        term = torch.where(u > s["end"], ended, OFF_SCREEN)                          # the full step's centre
+            out.P[h.i] = torch.where(h.permute[:, None], torch.stack([h.Py, h.Px], 1), torch.stack([h.Px, h.Py], 1))
+            out.Q[h.i] = torch.stack([h.Q0x + h.dQx * h.n, h.Q0y + h.dQy * h.n, h.Qz], 1)
+            out.k[h.i] = h.k
+        ended = torch.where(s.clipped, BEHIND_CAMERA, MAX_DISTANCE)                 # past P1
+        term = torch.where(u > s.end, ended, OFF_SCREEN)                            # the full step's centre
         term = torch.where(off, OFF_SCREEN, torch.where(hit, HIT, term))
         done = past | off | hit | partial
         di = done.nonzero().squeeze(1)
         if di.numel():
-            out["term"][s["i"][di]] = term[di].to(torch.int8)
-            s["alive"], dead = s["alive"] & ~done, dead + di.numel()
-            if 8 * dead >= s["i"].numel():                                        # compact
-                keep = s["alive"].nonzero().squeeze(1)
-                s, dead = {key: v.index_select(0, keep) for key, v in s.items()}, 0
+            out.term[s.i[di]] = term[di].to(torch.int8)
+            s.alive, dead = s.alive & ~done, dead + di.numel()
+            if 8 * dead >= s.count:                                                 # compact
+                s, dead = s.select(s.alive.nonzero().squeeze(1)), 0
     return out
 
 
@@ -285,9 +284,9 @@ def ssr_dda(gbuffer: GBuffer, params: DDASSRParams = DDASSRParams(), *, generato
     return assemble(gbuffer, params, sel, P1, o, visits)
 
 
-def assemble(gbuffer: GBuffer, params, sel: torch.Tensor, P1: torch.Tensor, o: dict,
+def assemble(gbuffer: GBuffer, params, sel: torch.Tensor, P1: torch.Tensor, o: MarchOutput,
              visits: Optional[torch.Tensor]) -> SSRResult:
-    """Per-ray march outputs ``o`` (``term``, ``steps``, ``P``, ``Q``, ``k``) of the rays ``sel`` → the
+    """Per-ray march outputs ``o`` (:class:`~ssbench.passes.ssr.dda_state.MarchOutput`) of the rays ``sel`` → the
     :class:`SSRResult` images: colour at the hit texel, fades (``params``' edge/distance fields), ``debug``
     (``visits``, ``ray_end``) when ``visits`` is given. Shared by :func:`ssr_dda` and the supercover DDA."""
     cam, (B, _, H, W) = gbuffer.camera, gbuffer.view_z.shape
@@ -298,13 +297,13 @@ def assemble(gbuffer: GBuffer, params, sel: torch.Tensor, P1: torch.Tensor, o: d
         x[sel] = values.to(dtype)
         return x.reshape(B, H, W, -1).permute(0, 3, 1, 2).contiguous()
 
-    is_hit = (o["term"] == HIT)[:, None]
-    term, steps = image(o["term"][:, None], NO_RAY, torch.int8), image(o["steps"][:, None], 0, torch.int32)
-    hit_pixel = image(torch.where(is_hit, o["P"], -1.0), -1.0)
-    hit_view = image(torch.where(is_hit, o["Q"] / o["k"][:, None], 0.0), 0.0)
+    is_hit = (o.term == HIT)[:, None]
+    term, steps = image(o.term[:, None], NO_RAY, torch.int8), image(o.steps[:, None], 0, torch.int32)
+    hit_pixel = image(torch.where(is_hit, o.P, -1.0), -1.0)
+    hit_view = image(torch.where(is_hit, o.Q / o.k[:, None], 0.0), 0.0)
     hit = term == HIT                                                             # (B, 1, H, W)
     # the texel is floored in the march's own dtype: a hit at 8.999999999999998 must not round to 9 first
-    texel = image(torch.where(is_hit, o["P"], 0.0).floor(), 0.0, torch.float64)
+    texel = image(torch.where(is_hit, o.P, 0.0).floor(), 0.0, torch.float64)
     col, row = texel[:, 0].clamp(0, W - 1).long(), texel[:, 1].clamp(0, H - 1).long()
     lo, hi = texel.to(dt), torch.nextafter((texel + 1).to(dt), texel.to(dt))      # and hit_pixel stays in it
     hit_pixel = torch.where(hit, torch.minimum(torch.maximum(hit_pixel, lo), hi), hit_pixel)

@@ -9,15 +9,18 @@ from typing import TYPE_CHECKING
 
 import torch
 
+from .dda_state import DDARays, MarchOutput
+
 if TYPE_CHECKING:                                        # (ssr_dda imports this module)
     from .dda import DDASSRParams
 
 
-def fetch_cell(s: dict, at: dict, tex, H: int, W: int):
-    """``(on_screen, flat texel, sceneZMax, mask)`` at ``hitPixel = permute ? P.yx : P`` (``texelFetch``)."""
-    px, py = torch.where(s["permute"], at["Py"], at["Px"]), torch.where(s["permute"], at["Px"], at["Py"])
+def fetch_cell(permute: torch.Tensor, b: torch.Tensor, Px: torch.Tensor, Py: torch.Tensor, tex, H: int, W: int):
+    """``(on_screen, flat texel, sceneZMax, mask)`` at ``hitPixel = permute ? P.yx : P`` (``texelFetch``) of the
+    rays in batch items ``b``; ``tex`` is ``(view_z, mask)`` flattened."""
+    px, py = torch.where(permute, Py, Px), torch.where(permute, Px, Py)
     on = (px >= 0) & (px < W) & (py >= 0) & (py < H)
-    t = s["b"] * (H * W) + py.floor().clamp(0, H - 1).long() * W + px.floor().clamp(0, W - 1).long()
+    t = b * (H * W) + py.floor().clamp(0, H - 1).long() * W + px.floor().clamp(0, W - 1).long()
     return on, t, tex[0][t], tex[1][t]
 
 
@@ -26,50 +29,53 @@ def ray_view_z(Qz, k, lo, hi):
     return torch.minimum(torch.maximum(Qz / k.clamp_min(torch.finfo(k.dtype).tiny), lo), hi)
 
 
-def count_visits(out: dict, visits, i, t, active) -> None:
+def count_visits(out: MarchOutput, visits, i, t, active) -> None:
     """Add the fetches of ``active`` rays to their step counts and to the visit map."""
-    out["steps"].index_add_(0, i, active.int())
+    out.steps.index_add_(0, i, active.int())
     if visits is not None:
         visits.index_add_(0, t[active], torch.ones_like(t[active], dtype=visits.dtype))
 
 
-def refine_hits(h: dict, tex, params: "DDASSRParams", H: int, W: int, out: dict, visits) -> None:
+def refine_hits(h: DDARays, tex, params: "DDASSRParams", H: int, W: int, out: MarchOutput, visits) -> None:
     """Refine hits in place (``h``: rays at their coarse hit ``P``) where the stride exceeds 1 px.
 
     ``"binary"`` bisects the footprint ``[P − ½dP, P + ½dP]`` and keeps the nearest probe with the ray at or behind
     its texel; if none is, the far end when the ray is within ``z_thickness`` in front of its texel there (texel
     quantisation), else ``P`` (a thin feature the probes stepped off). ``"remarch"`` walks pixels from ``P − dP``.
     """
-    binary, keys, need = params.refinement == "binary", ("Px", "Py", "Qz", "k", "n"), h["stride"] > 1.0
-    rounds = params.binary_search_iterations if binary else int(1.4 * float(h["stride"].max()))
+    binary, keys, need = params.refinement == "binary", ("Px", "Py", "Qz", "k", "n"), h.stride > 1.0
+    rounds = params.binary_search_iterations if binary else int(1.4 * float(h.stride.max()))
     if params.refinement == "none" or rounds == 0 or not bool(need.any()):
         return
-    h["dn"], inv, back = torch.ones_like(h["k"]), 1.0 / h["stride"], (0.5 if binary else 1.0)
-    cur = {key: h[key] - h["d" + key] * back for key in keys}                    # footprint start / last miss
-    best, found = {key: h[key] for key in keys}, torch.zeros_like(need)           # the coarse hit by default
-    original = h["stride"] * 0.5
+    inv, back = 1.0 / h.stride, (0.5 if binary else 1.0)
+    at = {key: getattr(h, key) for key in keys}                                   # the coarse hit
+    step = {"Px": h.dPx, "Py": h.dPy, "Qz": h.dQz, "k": h.dk, "n": torch.ones_like(h.k)}   # per stride
+    cur = {key: at[key] - step[key] * back for key in keys}                      # footprint start / last miss
+    best, found = dict(at), torch.zeros_like(need)                                # the coarse hit by default
+    original = h.stride * 0.5
     stride = original if binary else torch.ones_like(inv)                        # pixels (article §1.3; G3D)
     for r in range(1, rounds + 1):
-        cur = {key: cur[key] + h["d" + key] * inv * stride for key in keys}
-        on, t, sceneZMax, m = fetch_cell(h, cur, tex, H, W)
+        cur = {key: cur[key] + step[key] * inv * stride for key in keys}
+        on, t, sceneZMax, m = fetch_cell(h.permute, h.b, cur["Px"], cur["Py"], tex, H, W)
         if binary:
             active = need & on
-            behind = active & m & (ray_view_z(cur["Qz"], cur["k"], h["zlo"], h["zhi"]) <= sceneZMax)
+            behind = active & m & (ray_view_z(cur["Qz"], cur["k"], h.zlo, h.zhi) <= sceneZMax)
             original = original * 0.5
             stride = torch.where(behind, -original, original)
         else:
-            active = need & on & ~found & (r <= 1.4 * h["stride"])
-            zA = ray_view_z(cur["Qz"] - 0.5 * h["dQz"] * inv, cur["k"] - 0.5 * h["dk"] * inv, h["zlo"], h["zhi"])
-            zB = ray_view_z(cur["Qz"] + 0.5 * h["dQz"] * inv, cur["k"] + 0.5 * h["dk"] * inv, h["zlo"], h["zhi"])
+            active = need & on & ~found & (r <= 1.4 * h.stride)
+            zA = ray_view_z(cur["Qz"] - 0.5 * h.dQz * inv, cur["k"] - 0.5 * h.dk * inv, h.zlo, h.zhi)
+            zB = ray_view_z(cur["Qz"] + 0.5 * h.dQz * inv, cur["k"] + 0.5 * h.dk * inv, h.zlo, h.zhi)
             behind = active & m & (torch.minimum(zA, zB) <= sceneZMax)
         take = behind & (~found | (cur["n"] <= best["n"]))                         # the nearest probe behind
         best, found = {key: torch.where(take, cur[key], best[key]) for key in keys}, found | behind
-        count_visits(out, visits, h["i"], t, active)
+        count_visits(out, visits, h.i, t, active)
     if binary:                                  # no probe behind: the far end, if the ray is just in front there
-        far = {key: h[key] + h["d" + key] * 0.5 for key in keys}
-        on, t, sceneZMax, m = fetch_cell(h, far, tex, H, W)
+        far = {key: at[key] + step[key] * 0.5 for key in keys}
+        on, t, sceneZMax, m = fetch_cell(h.permute, h.b, far["Px"], far["Py"], tex, H, W)
         active = need & on & ~found
-        use = active & m & (ray_view_z(far["Qz"], far["k"], h["zlo"], h["zhi"]) <= sceneZMax + params.z_thickness)
+        use = active & m & (ray_view_z(far["Qz"], far["k"], h.zlo, h.zhi) <= sceneZMax + params.z_thickness)
         best = {key: torch.where(use, far[key], best[key]) for key in keys}
-        count_visits(out, visits, h["i"], t, active)
-    h.update(best)
+        count_visits(out, visits, h.i, t, active)
+    for key in keys:
+        setattr(h, key, best[key])

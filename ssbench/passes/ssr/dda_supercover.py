@@ -39,13 +39,14 @@ from ...gbuffer import GBuffer
 from ..common import check_count
 from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS, SSRResult
 from ..gbuffer_checks import half_in_float32
-from .dda import (DEFAULTS_SOURCE, EQUAL_SETTINGS, REQUIRES, DDASSRParams, count_visits, dda_rays, ray_view_z, check_inputs,
-                      assemble)
+from .dda import (DEFAULTS_SOURCE, EQUAL_SETTINGS, REQUIRES, DDASSRParams, assemble, check_inputs, count_visits,
+                  dda_rays, ray_view_z)
+from .dda_state import DDARays, MarchOutput
 from .fade import FadeParams
 from ..registry import Method
 
 __all__ = ["METHOD", "REQUIRES", "EQUAL_SETTINGS", "DEFAULTS_SOURCE", "SupercoverDDASSRParams",
-           "ssr_dda_supercover", "SupercoverDDASSR", "cell_setup"]
+           "ssr_dda_supercover", "SupercoverDDASSR", "CellWalk", "cell_setup"]
 
 
 @dataclass(frozen=True)
@@ -78,77 +79,89 @@ class SupercoverDDASSRParams(FadeParams):
                             **{f.name: getattr(self, f.name) for f in fields(FadeParams)})
 
 
-def cell_setup(s: dict) -> dict:
-    """Per-ray traversal state from ``ssr_dda.dda_rays`` (permuted frame, ``n`` in major-axis pixels from ``P0``):
-    cell ``cx, cy``, edge parameters ``tx, ty`` (``tMaxX/Y``), ``ddy`` (``tDeltaY``; ``tDeltaX = 1``), ``sy``
-    (``stepY``; ``stepX = stepDir``), ``nEnd`` (``P1``)."""
-    sd, dPy = s["stepDir"], s["dPy"]
-    cx, cy = s["Px"].floor(), s["Py"].floor()
+@dataclass(kw_only=True)
+class CellWalk(DDARays):
+    """:class:`~ssbench.passes.ssr.dda_state.DDARays` plus the Amanatides–Woo cell state, each :math:`(N,)`
+    (permuted frame, ``n`` in major-axis pixels from ``P0``): cell ``cx, cy``; edge parameters ``tx, ty``
+    (``tMaxX/Y``); ``ddy`` (``tDeltaY``; ``tDeltaX = 1``); ``sy`` (``stepY``; ``stepX = stepDir``); ``nEnd``
+    (``P1``); ``Wm, Hm``: the image's size along the major and minor axes."""
+
+    cx: torch.Tensor
+    cy: torch.Tensor
+    tx: torch.Tensor
+    ty: torch.Tensor
+    ddy: torch.Tensor
+    sy: torch.Tensor
+    nEnd: torch.Tensor
+    Wm: torch.Tensor
+    Hm: torch.Tensor
+
+
+def cell_setup(s: DDARays, H: int, W: int) -> CellWalk:
+    """The cell walk's start from the DDA's set-up ``s`` (``ssr_dda.dda_rays`` at stride 1, no jitter)."""
+    sd, dPy = s.stepDir, s.dPy
+    cx, cy = s.Px.floor(), s.Py.floor()
     safe = torch.where(dPy != 0, dPy, 1.0)
-    ty = torch.where(dPy > 0, (cy + 1 - s["Py"]) / safe, (cy - s["Py"]) / safe)
-    return dict(cx=cx, cy=cy, tx=((cx + (sd > 0).to(cx.dtype)) - s["Px"]) * sd,
-                ty=torch.where(dPy != 0, ty, math.inf), ddy=torch.where(dPy != 0, 1.0 / safe.abs(), math.inf),
-                sy=torch.sign(dPy), nEnd=s["end"] - s["Px"] * sd)
+    ty = torch.where(dPy > 0, (cy + 1 - s.Py) / safe, (cy - s.Py) / safe)
+    return CellWalk(**{f.name: getattr(s, f.name) for f in fields(s)}, cx=cx, cy=cy,
+                    tx=((cx + (sd > 0).to(cx.dtype)) - s.Px) * sd, ty=torch.where(dPy != 0, ty, math.inf),
+                    ddy=torch.where(dPy != 0, 1.0 / safe.abs(), math.inf), sy=torch.sign(dPy), nEnd=s.end - s.Px * sd,
+                    Wm=torch.where(s.permute, float(H), float(W)), Hm=torch.where(s.permute, float(W), float(H)))
 
 
-def hit_at(h: dict, nA, nB, zA, sceneZMax):
+def hit_at(h: DDARays, nA, nB, zA, sceneZMax):
     """``n`` of the hit: ``nA`` if the ray enters the cell at or behind ``sceneZMax``, else where it crosses
     ``z = sceneZMax`` (perspective-correct: ``Q_z(n) = sceneZMax·k(n)``), clamped to ``[nA, nB]``."""
-    den = h["dQz"] - sceneZMax * h["dk"]
-    n_star = (sceneZMax * h["k"] - h["Qz"]) / torch.where(den != 0, den, 1.0)
+    den = h.dQz - sceneZMax * h.dk
+    n_star = (sceneZMax * h.k - h.Qz) / torch.where(den != 0, den, 1.0)
     n_star = torch.where((den != 0) & torch.isfinite(n_star), n_star, nA)
     return torch.where(zA <= sceneZMax, nA, torch.minimum(torch.maximum(n_star, nA), nB))
 
 
-def supercover_march(s: dict, tex, z_thickness: float, max_steps: int, H: int, W: int,
-           visits: Optional[torch.Tensor]) -> dict:
-    """The cell walk; per-ray outputs by ``s["i"]``. Finished rays freeze, dropped when 1/8 of ``s``."""
-    N, f = s["i"].numel(), dict(dtype=s["k"].dtype, device=s["k"].device)
-    out = dict(term=torch.full((N,), OUT_OF_STEPS, dtype=torch.int8, device=f["device"]),
-               steps=torch.zeros(N, dtype=torch.int32, device=f["device"]),
-               P=torch.full((N, 2), -1.0, **f), Q=torch.zeros(N, 3, **f), k=torch.ones(N, **f))
-    s = {**s, **cell_setup(s), "alive": torch.ones(N, dtype=torch.bool, device=f["device"])}
-    s["Wm"], s["Hm"] = torch.where(s["permute"], float(H), float(W)), torch.where(s["permute"], float(W), float(H))
-    dead = 0
+def supercover_march(s: DDARays, tex, z_thickness: float, max_steps: int, H: int, W: int,
+                     visits: Optional[torch.Tensor]) -> MarchOutput:
+    """The cell walk; per-ray outputs by ``s.i``. Finished rays freeze, dropped when 1/8 of ``s``."""
+    N = s.count
+    out = MarchOutput.empty(N, s.k.dtype, s.k.device, OUT_OF_STEPS)
+    c = cell_setup(s, H, W)
+    c.alive, dead = torch.ones(N, dtype=torch.bool, device=s.k.device), 0
     for _ in range(max_steps):
-        if s["i"].numel() == dead:
+        if c.count == dead:
             break
-        nA = torch.minimum(s["tx"], s["ty"])                                        # edge crossed into the cell
-        stepx, stepy = s["tx"] <= s["ty"], s["ty"] <= s["tx"]                      # both: through a corner
-        s["cx"], s["tx"] = torch.where(stepx, s["cx"] + s["stepDir"], s["cx"]), torch.where(stepx, s["tx"] + 1, s["tx"])
-        s["cy"], s["ty"] = torch.where(stepy, s["cy"] + s["sy"], s["cy"]), torch.where(stepy, s["ty"] + s["ddy"], s["ty"])
-        nB = torch.minimum(torch.minimum(s["tx"], s["ty"]), s["nEnd"])             # where it leaves (or P1)
-        past = s["alive"] & (nA >= s["nEnd"])
-        off = s["alive"] & ~past & ((s["cx"] < 0) | (s["cx"] >= s["Wm"]) | (s["cy"] < 0) | (s["cy"] >= s["Hm"]))
-        live = s["alive"] & ~past & ~off
-        px, py = torch.where(s["permute"], s["cy"], s["cx"]), torch.where(s["permute"], s["cx"], s["cy"])
-        t = s["b"] * (H * W) + py.clamp(0, H - 1).long() * W + px.clamp(0, W - 1).long()
+        nA = torch.minimum(c.tx, c.ty)                                              # edge crossed into the cell
+        stepx, stepy = c.tx <= c.ty, c.ty <= c.tx                                   # both: through a corner
+        c.cx, c.tx = torch.where(stepx, c.cx + c.stepDir, c.cx), torch.where(stepx, c.tx + 1, c.tx)
+        c.cy, c.ty = torch.where(stepy, c.cy + c.sy, c.cy), torch.where(stepy, c.ty + c.ddy, c.ty)
+        nB = torch.minimum(torch.minimum(c.tx, c.ty), c.nEnd)                       # where it leaves (or P1)
+        past = c.alive & (nA >= c.nEnd)
+        off = c.alive & ~past & ((c.cx < 0) | (c.cx >= c.Wm) | (c.cy < 0) | (c.cy >= c.Hm))
+        live = c.alive & ~past & ~off
+        px, py = torch.where(c.permute, c.cy, c.cx), torch.where(c.permute, c.cx, c.cy)
+        t = c.b * (H * W) + py.clamp(0, H - 1).long() * W + px.clamp(0, W - 1).long()
         sceneZMax, m = tex[0][t], tex[1][t]
-        zA = ray_view_z(s["Qz"] + s["dQz"] * nA, s["k"] + s["dk"] * nA, s["zlo"], s["zhi"])
-        zB = ray_view_z(s["Qz"] + s["dQz"] * nB, s["k"] + s["dk"] * nB, s["zlo"], s["zhi"])
+        zA = ray_view_z(c.Qz + c.dQz * nA, c.k + c.dk * nA, c.zlo, c.zhi)
+        zB = ray_view_z(c.Qz + c.dQz * nB, c.k + c.dk * nB, c.zlo, c.zhi)
         rayZMin, rayZMax = torch.minimum(zA, zB), torch.maximum(zA, zB)
         hit = live & m & (rayZMax >= sceneZMax - z_thickness) & (rayZMin <= sceneZMax)
-        count_visits(out, visits, s["i"], t, live)
+        count_visits(out, visits, c.i, t, live)
         hi = hit.nonzero().squeeze(1)
         if hi.numel():
-            h = {key: v.index_select(0, hi) for key, v in s.items()}
+            h = c.select(hi)
             n = hit_at(h, nA[hi], nB[hi], zA[hi], sceneZMax[hi])
-            inside = lambda v, c: torch.minimum(torch.maximum(v, c), torch.nextafter(c + 1, c))  # noqa: E731
-            x, y = inside(h["Px"] + h["stepDir"] * n, h["cx"]), inside(h["Py"] + h["dPy"] * n, h["cy"])
-            out["P"][h["i"]] = torch.where(h["permute"][:, None], torch.stack([y, x], 1), torch.stack([x, y], 1))
-            out["Q"][h["i"]] = torch.stack([h["Q0x"] + h["dQx"] * n, h["Q0y"] + h["dQy"] * n,
-                                            h["Qz"] + h["dQz"] * n], 1)
-            out["k"][h["i"]] = h["k"] + h["dk"] * n
-        ended = torch.where(s["clipped"], BEHIND_CAMERA, MAX_DISTANCE)
+            inside = lambda v, cell: torch.minimum(torch.maximum(v, cell), torch.nextafter(cell + 1, cell))  # noqa: E731
+            x, y = inside(h.Px + h.stepDir * n, h.cx), inside(h.Py + h.dPy * n, h.cy)
+            out.P[h.i] = torch.where(h.permute[:, None], torch.stack([y, x], 1), torch.stack([x, y], 1))
+            out.Q[h.i] = torch.stack([h.Q0x + h.dQx * n, h.Q0y + h.dQy * n, h.Qz + h.dQz * n], 1)
+            out.k[h.i] = h.k + h.dk * n
+        ended = torch.where(c.clipped, BEHIND_CAMERA, MAX_DISTANCE)
         term = torch.where(past, ended, torch.where(off, OFF_SCREEN, HIT))
         done = past | off | hit
         di = done.nonzero().squeeze(1)
         if di.numel():
-            out["term"][s["i"][di]] = term[di].to(torch.int8)
-            s["alive"], dead = s["alive"] & ~done, dead + di.numel()
-            if 8 * dead >= s["i"].numel():                                          # compact
-                keep = s["alive"].nonzero().squeeze(1)
-                s, dead = {key: v.index_select(0, keep) for key, v in s.items()}, 0
+            out.term[c.i[di]] = term[di].to(torch.int8)
+            c.alive, dead = c.alive & ~done, dead + di.numel()
+            if 8 * dead >= c.count:                                                 # compact
+                c, dead = c.select(c.alive.nonzero().squeeze(1)), 0
     return out
 
 
@@ -192,7 +205,7 @@ def ssr_dda_supercover(gbuffer: GBuffer, params: SupercoverDDASSRParams = Superc
     s, sel, P0, P1 = dda_rays(g64, dda, zero)
     visits = torch.zeros(B * H * W, dtype=torch.int32, device=gbuffer.view_z.device) if debug else None
     o = supercover_march(s, (g64.view_z.reshape(-1), g64.mask.reshape(-1)), params.z_thickness, params.max_steps,
-               H, W, visits)
+                         H, W, visits)
     return assemble(gbuffer, params, sel, P1, o, visits)
 
 

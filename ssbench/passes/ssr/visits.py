@@ -62,10 +62,10 @@ def visit_map(gbuffer: GBuffer, params: Union[D.DDASSRParams, S.SupercoverDDASSR
     jitter = D.jitter_fractions(dda, (B, 1, H, W), make_generator(dda.seed, generator))
     s, sel, P0, P1 = D.dda_rays(gbuffer, dda, jitter)
     r = int((sel == y * W + x).nonzero()[0, 0])
-    one = {key: v[r:r + 1] for key, v in s.items()}
-    one["i"], visits = one["i"] * 0, torch.zeros(B * H * W, dtype=torch.int32, device=gbuffer.view_z.device)
+    one = s.select(torch.tensor([r], device=s.i.device))
+    one.i, visits = one.i * 0, torch.zeros(B * H * W, dtype=torch.int32, device=gbuffer.view_z.device)
     tex = (gbuffer.view_z.reshape(-1), gbuffer.mask.reshape(-1))
     o = S.supercover_march(one, tex, params.z_thickness, params.max_steps, H, W, visits) if supercover else \
         D.dda_march(one, tex, params, H, W, visits)
     return {"visits": visits[:H * W].reshape(H, W).cpu(), "crossed": crossed_pixels(P0[r], P1[r], H, W),
-            "p0": P0[r].tolist(), "p1": P1[r].tolist(), "termination": int(o["term"][0])}
+            "p0": P0[r].tolist(), "p1": P1[r].tolist(), "termination": int(o.term[0])}

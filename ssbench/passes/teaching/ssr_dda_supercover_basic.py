@@ -16,7 +16,8 @@ import torch
 
 from ...gbuffer import GBuffer
 from ..ssr.common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS, SSRResult
-from ..ssr.dda import dda_rays, assemble, check_inputs
+from ..ssr.dda import assemble, check_inputs, dda_rays
+from ..ssr.dda_state import MarchOutput
 from ..ssr.dda_supercover import SupercoverDDASSRParams
 
 TINY = sys.float_info.min                              # torch.finfo(float64).tiny
@@ -84,17 +85,17 @@ def ssr_dda_supercover_basic(gbuffer: GBuffer,
     s, sel, P0, P1 = dda_rays(gbuffer, dda, torch.zeros(B, 1, H, W, dtype=torch.float64))
     view_z, mask = gbuffer.view_z[:, 0].tolist(), gbuffer.mask[:, 0].tolist()
     N = sel.numel()
-    o = dict(term=torch.full((N,), OUT_OF_STEPS, dtype=torch.int8), steps=torch.zeros(N, dtype=torch.int32),
-             P=torch.full((N, 2), -1.0, dtype=dt), Q=torch.zeros(N, 3, dtype=dt), k=torch.ones(N, dtype=dt))
+    o = MarchOutput.empty(N, dt, "cpu", OUT_OF_STEPS)
     for r in range(N):
-        ray = {key: v[r].item() for key, v in s.items()}
+        ray = s.ray(r)                                             # the DDA's set-up of this pixel, as floats
         term, fetches, n, X, Y = walk(ray, view_z, mask, params, H, W)
-        o["term"][r], o["steps"][r] = term, fetches
+        o.term[r], o.steps[r] = term, fetches
         if n is not None:                                          # hitPoint = Q/k, the pixel clamped into (X, Y)
             x = min(max(ray["Px"] + ray["stepDir"] * n, X), math.nextafter(X + 1, X))
             y = min(max(ray["Py"] + ray["dPy"] * n, Y), math.nextafter(Y + 1, Y))
-            o["P"][r] = torch.tensor([y, x] if ray["permute"] else [x, y], dtype=dt)
-            o["Q"][r] = torch.tensor([ray["Q0x"] + ray["dQx"] * n, ray["Q0y"] + ray["dQy"] * n,
-                                      ray["Qz"] + ray["dQz"] * n], dtype=dt)
-            o["k"][r] = ray["k"] + ray["dk"] * n
-    return assemble(gbuffer, params, sel, P1, {key: v.to(dev) for key, v in o.items()}, None)
+            o.P[r] = torch.tensor([y, x] if ray["permute"] else [x, y], dtype=dt)
+            o.Q[r] = torch.tensor([ray["Q0x"] + ray["dQx"] * n, ray["Q0y"] + ray["dQy"] * n,
+                                   ray["Qz"] + ray["dQz"] * n], dtype=dt)
+            o.k[r] = ray["k"] + ray["dk"] * n
+    o = MarchOutput(**{f: getattr(o, f).to(dev) for f in ("term", "steps", "P", "Q", "k")})
+    return assemble(gbuffer, params, sel, P1, o, None)

@@ -252,12 +252,12 @@ def test_fit_stride_spans_the_segment(kw):
     for K in (3, 8, 20):
         p = DDASSRParams(max_ray_distance=50.0, max_steps=K, fit_stride_to_steps=True, **kw)
         s, sel, P0, P1 = dda_rays(g, p, zero)
-        fixed = dda_rays(g, DDASSRParams(max_ray_distance=50.0, max_steps=K, **kw), zero)[0]["stride"]
+        fixed = dda_rays(g, DDASSRParams(max_ray_distance=50.0, max_steps=K, **kw), zero)[0].stride
         L = (P1 - P0).abs().amax(1)                                       # major-axis pixels, after clipping
-        assert torch.equal(s["stride"], torch.maximum(fixed, torch.ceil(L / K)))   # the cutoff only scales the floor
-        assert bool((s["stride"] * K >= L).all())                         # K samples reach P1 …
+        assert torch.equal(s.stride, torch.maximum(fixed, torch.ceil(L / K)))   # the cutoff only scales the floor
+        assert bool((s.stride * K >= L).all())                         # K samples reach P1 …
         if "pixel_stride" not in kw:
-            assert bool((s["stride"] <= L.clamp(min=1.0)).all())          # … and the first never jumps past it
+            assert bool((s.stride <= L.clamp(min=1.0)).all())          # … and the first never jumps past it
         assert OUT_OF_STEPS not in ssr_dda(g, p).termination.unique().tolist()
 
 

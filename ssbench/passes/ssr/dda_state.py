@@ -1,0 +1,104 @@
+"""The per-ray state of the DDA marchers (seed 000 §2.2; McGuire & Mara 2014), as dataclasses instead of dicts.
+
+:class:`DDARays` is what the set-up (:func:`~ssbench.passes.ssr.dda.dda_rays`) hands the march: every ray that
+starts, flat over ``N`` rays, in the *permuted* frame (the major axis first, G3D's ``permute``). The march
+advances ``Px, Py, Qz, k, n`` in place and drops finished rays (:meth:`DDARays.select`); it is owned by one
+march at a time. :class:`MarchOutput` is what a march returns per ray for
+:func:`~ssbench.passes.ssr.dda.assemble`.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Optional
+
+import torch
+
+__all__ = ["DDARays", "MarchOutput"]
+
+
+@dataclass
+class DDARays:
+    """Per-ray DDA state, each field an :math:`(N,)` tensor (the article's / G3D's names).
+
+    Attributes:
+        i: the ray's row in the march outputs; ``b``: its batch index.
+        Px, Py: the current sample point ``P`` in pixels (permuted); ``Qz``: homogeneous ``Q.z``; ``k``: ``1/w``;
+            ``n``: samples taken, in strides from ``P0`` (fractional after a shortened last footprint).
+        dPx, dPy, dQz, dk: their per-stride increments (``dP``, ``dQ.z``, ``dk``); ``stride``: pixels per stride.
+        Q0x, Q0y, dQx, dQy: ``Q.xy`` at the start and per stride (``Q.xy`` is rebuilt from ``n`` at a hit).
+        end: ``P1`` along the major axis, signed by ``stepDir``; ``stop``: ``end`` or the viewport edge, sooner.
+        stepDir: ±1, the major-axis direction; ``permute``: bool, the line is more vertical than horizontal.
+        zlo, zhi: the segment's view-z range (``Q.z / k`` is clamped into it); ``prevZ``: the ray's z at the
+            previous footprint edge (``rayZMin`` of the next sample).
+        clipped: bool, the ray was shortened by the near plane (ending past ``P1`` is then ``BEHIND_CAMERA``).
+        alive: bool, not finished (set by the march).
+    """
+
+    i: torch.Tensor
+    b: torch.Tensor
+    Px: torch.Tensor
+    Py: torch.Tensor
+    Qz: torch.Tensor
+    k: torch.Tensor
+    n: torch.Tensor
+    dPx: torch.Tensor
+    dPy: torch.Tensor
+    dQz: torch.Tensor
+    dk: torch.Tensor
+    stride: torch.Tensor
+    Q0x: torch.Tensor
+    Q0y: torch.Tensor
+    dQx: torch.Tensor
+    dQy: torch.Tensor
+    end: torch.Tensor
+    stop: torch.Tensor
+    stepDir: torch.Tensor
+    permute: torch.Tensor
+    zlo: torch.Tensor
+    zhi: torch.Tensor
+    prevZ: torch.Tensor
+    clipped: torch.Tensor
+    alive: Optional[torch.Tensor] = None
+
+    def select(self, index: torch.Tensor) -> "DDARays":
+        """The rays at ``index`` (a :math:`(M,)` long tensor), every field (also a subclass's) indexed."""
+        return dataclasses.replace(self, **{f.name: getattr(self, f.name).index_select(0, index)
+                                            for f in dataclasses.fields(self)
+                                            if isinstance(getattr(self, f.name), torch.Tensor)})
+
+    def ray(self, r: int) -> dict:
+        """Ray ``r`` as plain Python numbers, by field name (for the per-pixel teaching twins)."""
+        return {f.name: getattr(self, f.name)[r].item() for f in dataclasses.fields(self)
+                if isinstance(getattr(self, f.name), torch.Tensor)}
+
+    @property
+    def count(self) -> int:
+        """``N``, the rays held."""
+        return self.i.numel()
+
+
+@dataclass
+class MarchOutput:
+    """What a DDA march returns per ray (rows by :attr:`DDARays.i`).
+
+    Attributes:
+        term: :math:`(N,)` int8 termination code (``ssbench.passes.ssr.common``).
+        steps: :math:`(N,)` int32 depth fetches (samples and refinement probes).
+        P: :math:`(N, 2)` hit pixel (unpermuted, −1 without a hit); ``Q``: :math:`(N, 3)` homogeneous hit point;
+            ``k``: :math:`(N,)` its ``1/w`` (``hitPoint = Q / k``).
+    """
+
+    term: torch.Tensor
+    steps: torch.Tensor
+    P: torch.Tensor
+    Q: torch.Tensor
+    k: torch.Tensor
+
+    @classmethod
+    def empty(cls, n: int, dtype: torch.dtype, device, term: int) -> "MarchOutput":
+        """``n`` rays that have not hit: termination ``term``, no fetches, ``P = −1``, ``Q = 0``, ``k = 1``."""
+        return cls(term=torch.full((n,), term, dtype=torch.int8, device=device),
+                   steps=torch.zeros(n, dtype=torch.int32, device=device),
+                   P=torch.full((n, 2), -1.0, dtype=dtype, device=device),
+                   Q=torch.zeros(n, 3, dtype=dtype, device=device), k=torch.ones(n, dtype=dtype, device=device))

@@ -19,9 +19,12 @@ from . import ao as _ao
 from . import implicit as _implicit
 from . import ssr as _ssr
 from .common import AOResult
-from .registry import Method, face, spec
+from .registry import Method, face, merged, plugins, spec
 
-AO_METHODS: dict[str, str] = {m.name: spec(m) for m in _ao.METHODS}
+_PLUGINS = plugins()                # modules listed in SSBENCH_METHODS (ssbench.passes.registry.plugins)
+_ALL = {e: merged(pkg.METHODS, _PLUGINS, e) for e, pkg in (("ao", _ao), ("ssr", _ssr), ("implicit", _implicit))}
+
+AO_METHODS: dict[str, str] = {m.name: spec(m) for m in _ALL["ao"]}
 
 
 def ao_method(name: str):
@@ -33,7 +36,7 @@ def ao_method(name: str):
     return getattr(m, fn), getattr(m, params), getattr(m, "REQUIRES")
 
 
-SSR_METHODS: dict[str, str] = {m.name: spec(m) for m in _ssr.METHODS}
+SSR_METHODS: dict[str, str] = {m.name: spec(m) for m in _ALL["ssr"]}
 
 
 def ssr_method(name: str):
@@ -46,7 +49,7 @@ def ssr_method(name: str):
     return getattr(m, fn), getattr(m, params), getattr(m, "REQUIRES")
 
 
-IMPLICIT_METHODS: dict[str, str] = {m.name: spec(m) for m in _implicit.METHODS}
+IMPLICIT_METHODS: dict[str, str] = {m.name: spec(m) for m in _ALL["implicit"]}
 
 
 def implicit_method(name: str):
@@ -70,7 +73,7 @@ def declared(fn, name: str, default=None):
     return getattr(importlib.import_module(fn.__module__), name, default)
 
 
-_FACE = face(_ao.METHODS + _ssr.METHODS + _implicit.METHODS)   # every method's function, params and module
+_FACE = face(_ALL["ao"] + _ALL["ssr"] + _ALL["implicit"])   # every method's function, params and module
 globals().update(_FACE)
 
 __all__ = ["AOResult", "Method", "AO_METHODS", "ao_method", "SSR_METHODS", "ssr_method", "IMPLICIT_METHODS",

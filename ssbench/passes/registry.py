@@ -10,15 +10,27 @@ Nothing else lists it: :func:`discover` imports every module of the effect packa
 sweeps, tuning and the report see a new method as soon as its module exists. The rest of what a method
 declares (``REQUIRES``, ``FLAVOUR``, ``TUNABLE``, ``DEFAULTS_SOURCE`` …) sits beside ``METHOD`` in the same module
 and is read with :func:`ssbench.passes.declared`.
+
+A method kept outside the package (your own, without forking ssbench) is one importable module whose ``METHOD``
+names its effect, ``Method("mine", mine, MineParams, effect="ao")``; list it in the environment variable
+``SSBENCH_METHODS`` (comma-separated module names, read once when ``ssbench.passes`` is imported:
+:func:`plugins`), and every command sees it as if it were built in.
 """
 from __future__ import annotations
 
+import dataclasses
 import importlib
+import os
 import pkgutil
 from dataclasses import dataclass
 from typing import Callable, Optional
 
-__all__ = ["Method", "discover", "spec", "face"]
+__all__ = ["Method", "EFFECTS", "discover", "plugins", "merged", "spec", "face"]
+
+#: the effects a method can belong to (one package each under ``ssbench/passes/``)
+EFFECTS = ("ao", "ssr", "implicit")
+#: environment variable listing out-of-package method modules
+PLUGINS_ENV = "SSBENCH_METHODS"
 
 
 @dataclass(frozen=True)
@@ -32,6 +44,8 @@ class Method:
         params: its frozen parameter dataclass (defaults = what its authors ship).
         module: its thin ``nn.Module`` wrapper, if any.
         order: its place in listings and report tables (smaller first).
+        effect: ``"ao"``, ``"ssr"`` or ``"implicit"``; set from the package for built-in methods, required
+            for a module listed in ``SSBENCH_METHODS``.
     """
 
     name: str
@@ -39,17 +53,26 @@ class Method:
     params: type
     module: Optional[type] = None
     order: int = 100
+    effect: Optional[str] = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name.isidentifier():
             raise ValueError(f"name: a method name must be an identifier, got {self.name!r}")
         if not callable(self.function):
             raise TypeError(f"function: expected a callable, got {type(self.function).__name__}")
+        if not isinstance(self.params, type):
+            raise TypeError(f"params: expected the parameter class, got {type(self.params).__name__}")
+        if self.effect is not None and self.effect not in EFFECTS:
+            raise ValueError(f"effect: expected one of {', '.join(EFFECTS)}, got {self.effect!r}")
 
 
-def discover(package: str) -> list[Method]:
-    """Every :class:`Method` declared by a module of ``package`` (imported here), sorted by ``order``, then
-    name; two modules declaring one name is a ``ValueError`` naming both."""
+def _ordered(found: dict) -> list[Method]:
+    return [m for m, _ in sorted(found.values(), key=lambda mm: (mm[0].order, mm[0].name))]
+
+
+def discover(package: str, effect: str) -> list[Method]:
+    """Every :class:`Method` declared by a module of ``package`` (imported here), of ``effect``, sorted by
+    ``order``, then name; two modules declaring one name is a ``ValueError`` naming both."""
     pkg = importlib.import_module(package)
     found: dict[str, tuple[Method, str]] = {}
     for info in pkgutil.iter_modules(pkg.__path__):
@@ -57,10 +80,46 @@ def discover(package: str) -> list[Method]:
         m = getattr(mod, "METHOD", None)
         if not isinstance(m, Method):
             continue
+        if m.effect not in (None, effect):
+            raise ValueError(f"{mod.__name__}: METHOD declares effect {m.effect!r} inside the {effect!r} package")
         if m.name in found:
             raise ValueError(f"method {m.name!r} is declared by both {found[m.name][1]} and {mod.__name__}")
-        found[m.name] = (m, mod.__name__)
-    return [m for m, _ in sorted(found.values(), key=lambda mm: (mm[0].order, mm[0].name))]
+        found[m.name] = (dataclasses.replace(m, effect=effect), mod.__name__)
+    return _ordered(found)
+
+
+def plugins(value: Optional[str] = None) -> list[Method]:
+    """The methods of the modules listed in ``SSBENCH_METHODS`` (or ``value``): comma-separated importable
+    module names, each ending with a ``METHOD`` whose ``effect`` is set. Errors name the variable and module."""
+    value = os.environ.get(PLUGINS_ENV, "") if value is None else value
+    found: dict[str, tuple[Method, str]] = {}
+    for name in (n.strip() for n in value.split(",")):
+        if not name:
+            continue
+        try:
+            mod = importlib.import_module(name)
+        except ImportError as e:
+            raise ValueError(f"{PLUGINS_ENV}: cannot import {name!r} ({e})") from None
+        m = getattr(mod, "METHOD", None)
+        if not isinstance(m, Method):
+            raise ValueError(f"{PLUGINS_ENV}: module {name!r} declares no METHOD = Method(...)")
+        if m.effect is None:
+            raise ValueError(f"{PLUGINS_ENV}: {name}.METHOD must name its effect ({', '.join(EFFECTS)})")
+        if m.name in found:
+            raise ValueError(f"{PLUGINS_ENV}: method {m.name!r} is declared by both {found[m.name][1]} and {name}")
+        found[m.name] = (m, name)
+    return _ordered(found)
+
+
+def merged(built_in: list[Method], extra: list[Method], effect: str) -> list[Method]:
+    """``built_in`` plus the ``extra`` methods of ``effect``, in declared order; a name taken twice is an
+    error."""
+    names = {m.name for m in built_in}
+    clash = [m.name for m in extra if m.effect == effect and m.name in names]
+    if clash:
+        raise ValueError(f"{PLUGINS_ENV}: {', '.join(clash)} already names a built-in {effect} method")
+    both = {m.name: (m, "") for m in built_in + [m for m in extra if m.effect == effect]}
+    return _ordered(both)
 
 
 def spec(m: Method) -> str:
@@ -76,5 +135,7 @@ def face(methods: list[Method]) -> dict:
     for m in methods:
         for obj in (m.function, m.params, m.module):
             if obj is not None:
+                if out.get(obj.__name__, obj) is not obj:
+                    raise ValueError(f"method {m.name!r}: the public name {obj.__name__!r} is taken by another method")
                 out[obj.__name__] = obj
     return out

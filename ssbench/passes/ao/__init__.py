@@ -9,5 +9,5 @@ HBAO, HBAOParams``), found by :func:`~ssbench.passes.registry.discover`. Helper 
 from ..registry import discover
 
 #: the methods declared in this package, in their declared order
-METHODS = discover(__name__)
+METHODS = discover(__name__, "ao")
 __all__ = ["METHODS"]

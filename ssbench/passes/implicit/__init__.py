@@ -9,5 +9,5 @@ modules (``common``, ``analytic``, ``gbuffer``) declare nothing.
 from ..registry import discover
 
 #: the methods declared in this package, in their declared order
-METHODS = discover(__name__)
+METHODS = discover(__name__, "implicit")
 __all__ = ["METHODS"]

@@ -9,5 +9,5 @@ DDASSR, DDASSRParams``), found by :func:`~ssbench.passes.registry.discover`. Hel
 from ..registry import discover
 
 #: the methods declared in this package, in their declared order
-METHODS = discover(__name__)
+METHODS = discover(__name__, "ssr")
 __all__ = ["METHODS"]

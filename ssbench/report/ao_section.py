@@ -251,7 +251,7 @@ def _scene(run_dir, name, methods, channels, width, height, radius, rays, seed, 
                             "source": declared(ao_method(m)[0], "DEFAULTS_SOURCE", ""),
                             "cells": [fmt(row.get(k), spec) for k, _, spec in TABLE]})
     return ({"name": name, "description": sc.description, "images": images, "methods": method_rows,
-             "notes": notes, "gt_seconds": gt_s, "flavours": list(FLAVOURS),
+             "notes": notes, "gt_seconds": gt_s, "flavours": list(FLAVOURS), "width": g.width, "height": g.height,
              "gt_stderr": {w: float(r.stderr[mask].mean()) for w, r in gts.items()}}, rows)
 
 

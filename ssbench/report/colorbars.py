@@ -19,8 +19,8 @@ def colorbar_png(path: str, cmap: str, vmin: float, vmax: float, label: str, *, 
     import matplotlib
     import matplotlib.pyplot as plt
     from ..io import save_figure
-    fig, ax = plt.subplots(figsize=(3.4, 0.62))
-    fig.subplots_adjust(left=0.06, right=0.94, bottom=0.52, top=0.92)
+    fig, ax = plt.subplots(figsize=(3.4, 0.85))                  # room below the bar for ticks and the label
+    fig.subplots_adjust(left=0.06, right=0.94, bottom=0.62, top=0.94)
     norm = matplotlib.colors.Normalize(vmin=vmin, vmax=vmax)
     bar = fig.colorbar(matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap), cax=ax, orientation="horizontal")
     bar.set_ticks([vmin, 0.5 * (vmin + vmax), vmax])

@@ -1,5 +1,6 @@
 """The report in a real browser: headless Chromium loads ``index.html`` offline from ``file://`` and finds no
-missing image and no console error; a screenshot is saved (to ``$SSBENCH_SCREENSHOT_DIR`` too, when set).
+missing image and no console error, and drives the first A/B compare box (wipe both ways, swap, 2× zoom) the way
+a user would; a screenshot is saved (to ``$SSBENCH_SCREENSHOT_DIR`` too, when set).
 
 How: a copy of the page gets a small checker script as the first thing in ``<head>`` (the report itself has no
 script). It records uncaught errors, failed resource loads and ``console.error`` calls, and on ``load`` writes
@@ -39,9 +40,30 @@ CHECKER = """<script>/* ssbench browser check: test copy only */
     var imgs = Array.prototype.slice.call(document.images);
     var broken = imgs.filter(function (i) { return !i.complete || i.naturalWidth === 0; })
                      .map(function (i) { return i.getAttribute("src"); });
+    var result = {images: imgs.length, broken: broken, errors: errors};
+    var box = document.querySelector(".compare");
+    if (box) {                     /* drive the first A/B compare like a user: wipe both ways, swap, zoom */
+      var det = box.closest("details");
+      if (det) det.open = true;
+      box.scrollIntoView();
+      var wipe = box.querySelector("input.wipe"), stage = box.querySelector(".stage");
+      var shown = function () {
+        var r = stage.getBoundingClientRect(), el = document.elementFromPoint(r.left + 0.25 * r.width,
+                                                                             r.top + 0.5 * r.height);
+        return el ? el.className : null;
+      };
+      var set = function (v) { wipe.value = v; wipe.dispatchEvent(new Event("input")); return shown(); };
+      var c = {count: document.querySelectorAll(".compare").length, at0: set(0), at100: set(100)};
+      box.querySelector("button.swap").click();
+      c.after_swap = wipe.value;
+      var zoom = box.querySelector("select.zoom");
+      zoom.value = "2"; zoom.dispatchEvent(new Event("change"));
+      c.zoom2 = stage.getBoundingClientRect().width / box.querySelector("img.b").naturalWidth;
+      result.compare = c;
+    }
     var pre = document.createElement("pre");
     pre.id = "ssbench-check";
-    pre.textContent = JSON.stringify({images: imgs.length, broken: broken, errors: errors});
+    pre.textContent = JSON.stringify(result);
     document.body.appendChild(pre);
   });
 })();
@@ -131,7 +153,12 @@ def test_report_in_headless_chromium(tmp_path, monkeypatch):
     srcs = re.findall(r'<img[^>]*\ssrc="([^"]+)"', text)
     assert any(s.startswith("img/ao/") for s in srcs), "no AO section images: the check would test too little"
     out = check_page(page, tmp_path)
+    compare = out.pop("compare", None)
     assert out["images"] == len(srcs) and out["broken"] == [] and out["errors"] == [], out
+    # the A/B wipe really changes which image is shown, swap flips it, zoom is nearest-neighbour 2x
+    assert compare is not None and compare["count"] >= 4, compare           # one per AO method
+    assert compare["at0"] == "b" and compare["at100"] == "a" and compare["after_swap"] == "0", compare
+    assert abs(compare["zoom2"] - 2.0) < 0.05, compare
     png = tmp_path / "report.png"
     assert screenshot(page, png, tmp_path) == (1280, 2000)
     keep = os.environ.get("SSBENCH_SCREENSHOT_DIR")

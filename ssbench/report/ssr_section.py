@@ -12,7 +12,8 @@ G-buffer (the report's own render when it has one, else a fresh one), traces the
   classes (an unfixable target where the pass still reported a hit is its own error class); ``<method>_visits.png`` —
   ``debug["visits"]`` (depth fetches per texel, log scale, seed Fig. 11); ``<method>_error.png`` — mean
   absolute RGB error of the raw (fade-free) colour against the truth radiance (magma, saturating at
-  :data:`ERR_RANGE`);
+  :data:`ERR_RANGE`) where the pass can be blamed, grey where the target is unreachable and the pass returned
+  nothing (:func:`scored_error_rgb`);
 * ``fig11.png`` (first scene only) — one ray's reads per marcher against the pixels it crosses
   (:mod:`.ssr_fig11`, seed Fig. 11), when the linear march and both DDAs ran;
 
@@ -72,6 +73,30 @@ def magma_rgb(x: torch.Tensor, mask: torch.Tensor, vmax: float) -> np.ndarray:
     v, m = np.nan_to_num(_hw(x)), _hw(mask) > 0.5
     rgb = matplotlib.colormaps["magma"](np.clip(v / vmax, 0, 1))[..., :3]
     return (np.where(m[..., None], rgb, 0.0) * 255 + 0.5).astype(np.uint8)
+
+
+#: grey of the error maps' unscored pixels (no on-screen target, and the pass rightly returned nothing)
+UNSCORED_GREY = 0.35
+#: light grey of the error maps' pixels that cast no mirror ray (not reflective)
+NOT_REFLECTIVE_GREY = 0.85
+
+
+def scored_error_rgb(err: torch.Tensor, classes: torch.Tensor, mask: torch.Tensor, vmax: float) -> np.ndarray:
+    """``(H, W, 3)`` uint8 error map that shows only what a screen-space pass can be blamed for: ``err`` on magma
+    where the target is on screen (hit or missed) or where the pass returned a colour anyway (false, misplaced,
+    punch-through and unfixable-target hits); :data:`UNSCORED_GREY` where the target is sky, off screen,
+    occluded or a back face and the pass returned nothing (a true miss is no error); :data:`NOT_REFLECTIVE_GREY`
+    where no mirror ray is cast; background black."""
+    from ..metrics import ssr as M
+    rgb = magma_rgb(err, mask, vmax)
+    m = _hw(mask) > 0.5
+    for codes, grey in (((M.TRUE_MISS, *M.UNFIXABLE), UNSCORED_GREY), ((M.NOT_REFLECTIVE,), NOT_REFLECTIVE_GREY)):
+        sel = torch.zeros_like(classes, dtype=torch.bool)
+        for c in codes:
+            sel |= classes == c
+        q = (_hw(sel.float()) > 0.5) & m
+        rgb = np.where(q[..., None], np.uint8(grey * 255 + 0.5), rgb)
+    return rgb
 
 
 def visits_rgb(visits: torch.Tensor) -> tuple[np.ndarray, int]:
@@ -211,7 +236,8 @@ def _scene(run_dir, name, methods, channels, width, height, spp, seed, k_px, use
         row, res = ev.row, ev.result
         results[m] = res
         files = {"color": color_rgb(res.color, valid), "classes": M.class_rgb(ev.classes),
-                 "error": magma_rgb(M.color_error_map(res.raw_color, truth.radiance), valid, ERR_RANGE)}
+                 "error": scored_error_rgb(M.color_error_map(res.raw_color, truth.radiance), ev.classes, valid,
+                                           ERR_RANGE)}
         visits = ev.debug.get("visits")
         vmax = None
         if isinstance(visits, torch.Tensor) and visits.dim() == 4 and tuple(visits.shape[-2:]) == (g.height, g.width):

@@ -62,6 +62,17 @@ def implicit_method(name: str):
     return getattr(m, fn), getattr(m, params)
 
 
+def title(name: str) -> str:
+    """What method ``name`` is, in words (its declared ``Method.title``), else ``name`` itself.
+
+    Example:
+        >>> title("hbao")
+        'horizon-based AO, HBAO (Bavoil et al. 2008)'
+    """
+    m = next((m for ms in _ALL.values() for m in ms if m.name == name), None)
+    return m.title if m is not None and m.title else name
+
+
 def declared(fn, name: str, default=None):
     """What the module of pass ``fn`` declares as ``name``: the metadata a method keeps next to its code
     (``FLAVOUR``, ``TUNABLE``, ``EQUAL_SETTINGS``, ``DEFAULTS_SOURCE``, ``FRAME_PARAM``, …), else ``default``.
@@ -77,4 +88,4 @@ _FACE = face(_ALL["ao"] + _ALL["ssr"] + _ALL["implicit"])   # every method's fun
 globals().update(_FACE)
 
 __all__ = ["AOResult", "Method", "AO_METHODS", "ao_method", "SSR_METHODS", "ssr_method", "IMPLICIT_METHODS",
-           "implicit_method", "declared", *_FACE]
+           "implicit_method", "declared", "title", *_FACE]

@@ -46,6 +46,8 @@ class Method:
         order: its place in listings and report tables (smaller first).
         effect: ``"ao"``, ``"ssr"`` or ``"implicit"``; set from the package for built-in methods, required
             for a module listed in ``SSBENCH_METHODS``.
+        title: what the method is, in words, for people (reports, ``--help``): ``"horizon-based AO (HBAO)"``;
+            empty: the name is used.
     """
 
     name: str
@@ -54,6 +56,7 @@ class Method:
     module: Optional[type] = None
     order: int = 100
     effect: Optional[str] = None
+    title: str = ""
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name.isidentifier():

@@ -71,9 +71,20 @@ def _implicit_lines(imp: dict) -> list[dict]:
 _LINES = {"ao": _ao_lines, "ssr": _ssr_lines, "implicit": _implicit_lines}
 
 
+def _title(method) -> str:
+    """``ssbench.passes.title`` of a method key, or ``""`` (not a declared method, e.g. a calibration line)."""
+    try:
+        from ..passes import title
+        t = title(str(method))
+    except Exception:                                        # the summary must not crash the report
+        return ""
+    return "" if t == str(method) else t
+
+
 def glance(meta: dict) -> list[dict]:
-    """One block per section: ``{"key", "title", "available", "note", "lines": [{method, headline, seconds,
-    scenes}]}``; an unavailable section has no lines and its note. Never raises on a malformed section."""
+    """One block per section: ``{"key", "title", "available", "note", "lines": [{method, what, headline, seconds,
+    scenes}]}`` (``what``: the method in words, ``""`` when it is no declared method); an unavailable section has
+    no lines and its note. Never raises on a malformed section."""
     out = []
     for key, title in SECTIONS:
         sec = meta.get(key) or {"available": False, "note": f"{title} section not run."}
@@ -85,6 +96,8 @@ def glance(meta: dict) -> list[dict]:
                 lines = custom if isinstance(custom, list) else _LINES.get(key, lambda s: [])(sec)
                 block["lines"] = [{k: d.get(k, "–") if isinstance(d, dict) else "–"
                                    for k in ("method", "headline", "seconds", "scenes")} for d in lines]
+                for d in block["lines"]:                     # the method in words, from its declaration
+                    d["what"] = _title(d["method"])
             except Exception as e:                           # the summary must not crash the report
                 block["note"] = f"summary failed: {type(e).__name__}: {e}"
         out.append(block)
@@ -100,7 +113,8 @@ def glance_md(blocks: list[dict]) -> str:
             note = (b["note"] or "no results").replace("|", "/").replace("\n", " ")
             lines.append(f"| {b['title']} | – | {note} | – | – |")
         for d in b["lines"]:
-            lines.append(f"| {b['title']} | {d['method']} | {d['headline']} | {d['seconds']} | {d['scenes']} |")
+            what = f" ({d['what']})" if d.get("what") else ""
+            lines.append(f"| {b['title']} | {d['method']}{what} | {d['headline']} | {d['seconds']} | {d['scenes']} |")
     return "\n".join(lines) + "\n"
 
 

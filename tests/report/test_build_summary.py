@@ -50,7 +50,8 @@ IMPLICIT = {"available": True, "note": "", "frames": 40, "comparisons": [{"name"
 def test_glance_reads_each_section_and_notes_the_missing_ones():
     blocks = {b["key"]: b for b in summary.glance(_meta(ao=AO, ssr=SSR, implicit=IMPLICIT))}
     ao = {d["method"]: d for d in blocks["ao"]["lines"]}
-    assert ao["ssao"] == {"method": "ssao", "headline": "RMSE 0.2000 vs cosine GT", "seconds": "2.000", "scenes": 2}
+    assert ao["ssao"] == {"method": "ssao", "headline": "RMSE 0.2000 vs cosine GT", "seconds": "2.000", "scenes": 2,
+                          "what": "normal-oriented hemisphere SSAO (Chapman; three.js SSAOPass)"}   # its Method.title
     assert ao["gtao"]["headline"] == "RMSE – vs cosine GT"                        # NaN is not a number to show
     assert blocks["ssr"]["lines"][0]["headline"] == ("correct 50.0% · missed 25.0% · false hit 0.0% · "
                                                      "misplaced hit 6.2% · punch-through 12.5% · "
@@ -60,7 +61,7 @@ def test_glance_reads_each_section_and_notes_the_missing_ones():
     assert imp[0]["headline"].startswith("punch-through 1.00% at frame 40 · 32.0 evaluations/px")
     assert not blocks["speed"]["available"] and blocks["speed"]["note"] == "Speed section turned off."
     md = summary.glance_md(list(blocks.values()))
-    assert "| Ambient occlusion | ssao | RMSE 0.2000 vs cosine GT | 2.000 | 2 |" in md
+    assert "| Ambient occlusion | ssao (normal-oriented hemisphere SSAO (Chapman; three.js SSAOPass)) | RMSE 0.2000 vs cosine GT | 2.000 | 2 |" in md
     assert "| Tuning | – | Tuning section turned off. | – | – |" in md
 
 
@@ -69,7 +70,11 @@ def test_glance_uses_a_sections_own_lines_and_survives_a_malformed_one():
     bad = {"available": True, "rows": ["not a row"]}
     blocks = {b["key"]: b for b in summary.glance(_meta(speed=speed, ao=bad))}
     assert blocks["speed"]["lines"] == [{"method": "gtao", "headline": "2.1 ms at 1080p", "seconds": "–",
-                                         "scenes": "–"}]
+                                         "scenes": "–", "what": "ground-truth AO, GTAO (Jimenez et al. 2016; XeGTAO)"}]
+    md = summary.glance_md(list(blocks.values()))
+    assert "| gtao (ground-truth AO, GTAO (Jimenez et al. 2016; XeGTAO)) | 2.1 ms at 1080p |" in md
+    other = {b["key"]: b for b in summary.glance(_meta(speed={"available": True, "glance": [{"method": "banding"}]}))}
+    assert other["speed"]["lines"][0]["what"] == ""                          # no declared method: no words
     assert blocks["ao"]["lines"] == [] and blocks["ao"]["note"].startswith("summary failed: AttributeError")
     assert "summary failed: AttributeError" in summary.glance_md(list(blocks.values()))
 

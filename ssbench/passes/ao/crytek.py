@@ -160,4 +160,5 @@ def samples_per_pixel(params) -> int:
 
 
 #: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
-METHOD = Method("crytek", crytek_ssao, CrytekSSAOParams, CrytekSSAO, order=10)
+METHOD = Method("crytek", crytek_ssao, CrytekSSAOParams, CrytekSSAO, order=10,
+                title="Crytek sphere SSAO (Mittring 2007)")

@@ -300,4 +300,4 @@ def samples_per_pixel(params) -> int:
 
 
 #: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
-METHOD = Method("gtao", gtao, GTAOParams, GTAO, order=40)
+METHOD = Method("gtao", gtao, GTAOParams, GTAO, order=40, title="ground-truth AO, GTAO (Jimenez et al. 2016; XeGTAO)")

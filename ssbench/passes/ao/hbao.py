@@ -290,4 +290,4 @@ def samples_per_pixel(params) -> int:
 
 
 #: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
-METHOD = Method("hbao", hbao, HBAOParams, HBAO, order=30)
+METHOD = Method("hbao", hbao, HBAOParams, HBAO, order=30, title="horizon-based AO, HBAO (Bavoil et al. 2008)")

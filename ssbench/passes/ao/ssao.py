@@ -279,4 +279,5 @@ def samples_per_pixel(params) -> int:
 
 
 #: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
-METHOD = Method("ssao", hemisphere_ssao, HemisphereSSAOParams, HemisphereSSAO, order=20)
+METHOD = Method("ssao", hemisphere_ssao, HemisphereSSAOParams, HemisphereSSAO, order=20,
+                title="normal-oriented hemisphere SSAO (Chapman; three.js SSAOPass)")

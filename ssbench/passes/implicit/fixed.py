@@ -179,4 +179,4 @@ class FixedStep(nn.Module):
 
 
 #: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
-METHOD = Method("fixed", fixed_step, FixedStepParams, FixedStep, order=10)
+METHOD = Method("fixed", fixed_step, FixedStepParams, FixedStep, order=10, title="fixed-step march + bisection")

@@ -324,4 +324,5 @@ class Progressive(nn.Module):
 
 
 #: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
-METHOD = Method("progressive", progressive, ProgressiveParams, Progressive, order=30)
+METHOD = Method("progressive", progressive, ProgressiveParams, Progressive, order=30,
+                title="progressive ray casting (t\u2032 across frames)")

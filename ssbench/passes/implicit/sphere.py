@@ -209,4 +209,4 @@ class SphereTrace(nn.Module):
 
 
 #: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
-METHOD = Method("sphere", sphere_trace, SphereTraceParams, SphereTrace, order=20)
+METHOD = Method("sphere", sphere_trace, SphereTraceParams, SphereTrace, order=20, title="sphere tracing (Hart 1996)")

@@ -328,4 +328,4 @@ class DDASSR(nn.Module):
 
 
 #: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
-METHOD = Method("dda", ssr_dda, DDASSRParams, DDASSR, order=20)
+METHOD = Method("dda", ssr_dda, DDASSRParams, DDASSR, order=20, title="perspective-correct DDA (McGuire & Mara 2014)")

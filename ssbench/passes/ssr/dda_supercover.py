@@ -221,4 +221,5 @@ class SupercoverDDASSR(nn.Module):
 
 
 #: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
-METHOD = Method("dda_supercover", ssr_dda_supercover, SupercoverDDASSRParams, SupercoverDDASSR, order=30)
+METHOD = Method("dda_supercover", ssr_dda_supercover, SupercoverDDASSRParams, SupercoverDDASSR, order=30,
+                title="supercover DDA: every crossed pixel once")

@@ -309,4 +309,5 @@ class LinearSSR(nn.Module):
 
 
 #: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
-METHOD = Method("linear", ssr_linear, LinearSSRParams, LinearSSR, order=10)
+METHOD = Method("linear", ssr_linear, LinearSSRParams, LinearSSR, order=10,
+                title="linear view-space march (mebiusbox 2022)")

@@ -41,6 +41,34 @@ CHECKER = """<script>/* ssbench browser check: test copy only */
     var broken = imgs.filter(function (i) { return !i.complete || i.naturalWidth === 0; })
                      .map(function (i) { return i.getAttribute("src"); });
     var result = {images: imgs.length, broken: broken, errors: errors};
+    var vw = document.documentElement.clientWidth, name = function (el) {
+      return el.tagName.toLowerCase() + (el.id ? "#" + el.id : "") + (el.className ? "." + el.className : "");
+    };
+    if (document.querySelector("table")) {      /* layout: nothing wider than the window, no cell over a cell */
+      var wide = [];
+      Array.prototype.forEach.call(document.querySelectorAll("body *"), function (el) {
+        var r = el.getBoundingClientRect(), clip = false;   /* inside a box that scrolls or clips: fine */
+        for (var a = el.parentElement; a && a !== document.body && !clip; a = a.parentElement)
+          clip = getComputedStyle(a).overflowX !== "visible";
+        if (r.width > 0 && r.right > vw + 1 && !clip && wide.length < 5) wide.push(name(el) + " " + Math.round(r.right));
+      });
+      var over = [];
+      Array.prototype.forEach.call(document.querySelectorAll("tr"), function (tr) {
+        var cells = Array.prototype.slice.call(tr.children);
+        for (var i = 1; i < cells.length; i++) {
+          var a = cells[i - 1].getBoundingClientRect(), b = cells[i].getBoundingClientRect();
+          if (a.width && b.width && a.right > b.left + 0.5 && over.length < 5) over.push(tr.textContent.slice(0, 60));
+        }
+      });
+      Array.prototype.forEach.call(document.querySelectorAll(".tables"), function (box) {
+        var ts = Array.prototype.slice.call(box.querySelectorAll(":scope > *"));
+        for (var i = 0; i < ts.length; i++) for (var j = i + 1; j < ts.length; j++) {
+          var a = ts[i].getBoundingClientRect(), b = ts[j].getBoundingClientRect();
+          if (a.left < b.right && b.left < a.right && a.top < b.bottom && b.top < a.bottom) over.push(name(ts[i]));
+        }
+      });
+      result.layout = {viewport: vw, page: document.documentElement.scrollWidth, wide: wide, overlaps: over};
+    }
     var box = document.querySelector(".compare");
     if (box) {                     /* drive the first A/B compare like a user: wipe both ways, swap, zoom */
       var det = box.closest("details");
@@ -88,7 +116,7 @@ def check_page(page: Path, tmp: Path) -> dict:
     assert "<head>" in text, f"{page}: no <head> to inject the checker into"
     copy = page.with_name("_browser_check.html")
     copy.write_text(text.replace("<head>", "<head>\n" + CHECKER, 1), encoding="utf-8")
-    r = _chromium(tmp, "--dump-dom", copy.as_uri())
+    r = _chromium(tmp, "--dump-dom", "--window-size=1400,1000", copy.as_uri())
     m = re.search(r'<pre id="ssbench-check">(.*?)</pre>', r.stdout, re.S)
     assert m, f"the checker wrote no result (chromium exit {r.returncode}):\n{r.stderr[-3000:]}"
     out = json.loads(html.unescape(m.group(1)))
@@ -130,6 +158,11 @@ def test_the_checker_sees_broken_images_and_errors(tmp_path):
     clean = tmp_path / "clean.html"
     clean.write_text('<!DOCTYPE html><html><head></head><body><img src="ok.png"></body></html>')
     assert check_page(clean, tmp_path) == {"images": 1, "broken": [], "errors": []}
+    bad = tmp_path / "layout.html"                     # a table past the window and a cell drawn over its neighbour
+    bad.write_text('<!DOCTYPE html><html><head></head><body><table><tr><td style="min-width:3000px">wide</td></tr>'
+                   '<tr><td style="position:relative;left:40px">over</td><td>next</td></tr></table></body></html>')
+    layout = check_page(bad, tmp_path)["layout"]
+    assert any(w.startswith("td") for w in layout["wide"]) and layout["overlaps"], layout
 
 
 def test_external_urls_are_found():
@@ -153,7 +186,11 @@ def test_report_in_headless_chromium(tmp_path, monkeypatch):
     srcs = re.findall(r'<img[^>]*\ssrc="([^"]+)"', text)
     assert any(s.startswith("img/ao/") for s in srcs), "no AO section images: the check would test too little"
     out = check_page(page, tmp_path)
-    compare = out.pop("compare", None)
+    compare, layout = out.pop("compare", None), out.pop("layout", None)
+    # the layout holds at 1400 px: no element past the window's right edge (wide tables scroll in their own box),
+    # no table cell over its neighbour, no table of a .tables box over another
+    assert layout is not None and layout["wide"] == [] and layout["overlaps"] == [], layout
+    assert layout["page"] <= layout["viewport"], layout
     assert out["images"] == len(srcs) and out["broken"] == [] and out["errors"] == [], out
     # the A/B wipe really changes which image is shown, swap flips it, zoom is nearest-neighbour 2x
     assert compare is not None and compare["count"] >= 4, compare           # one per AO method

@@ -182,3 +182,17 @@ def test_missing_file_and_type(tmp_path):
         load_sweep(_write(tmp_path, "effect: ao", "s.json"))
     with pytest.raises(SweepError, match=r"^<sweep>:1: empty sweep file"):
         parse_sweep("")
+
+
+def test_the_readme_sweep_example_loads_and_has_the_configurations_it_claims(tmp_path):
+    import re
+    from pathlib import Path
+    from ssbench.bench.config import load_sweep
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text(encoding="utf-8")
+    block = re.search(r"```yaml\n(name: hbao_steps\n.*?)```", readme, re.S)
+    assert block, "the README's minimal sweep example is gone"
+    f = tmp_path / "hbao_steps.yaml"
+    f.write_text(block.group(1))
+    sweep = load_sweep(f)
+    n = int(re.search(r"--dry-run` lists the (\d+) configurations", readme).group(1))
+    assert len(sweep) == n == 2 * (4 + 2) and sweep.effect == "ao"

@@ -258,10 +258,16 @@ def build_speed_section(run_dir: str, *, width: int, height: int, seed: int = 0,
     return out
 
 
+#: the ground truth's cost knob in words, by the equal-error ladder's kind (ssbench.analysis.equal_error)
+_GT_WORDS = {"rays": "ray-traced AO at {n} rays/px", "spp": "the path-traced reflection at {n} spp",
+             "steps": "a dense fixed-step march of {n} steps"}
+
+
 def _glance(speed: dict) -> list[dict]:
-    """Lines of the report's at-a-glance table: per effect and method, the primary error of its best configuration
-    on each scene, the equal-error ground-truth cost there, and the mean time of those configurations in seconds
-    (``{method, headline, seconds, scenes}``)."""
+    """Lines of the report's at-a-glance table, in words: per effect and method, the size the sweeps ran at, the
+    error of its best configuration on each scene, what ground truth is as good (the equal-error cost), and the
+    mean time of those configurations in seconds (``{method, headline, seconds, scenes}``; ``method`` is the
+    registry key, so the table can name it in words)."""
     out = []
     for e in speed["effects"]:
         if not e.get("available"):
@@ -269,11 +275,12 @@ def _glance(speed: dict) -> list[dict]:
         eq = {(q["scene"], q["method"]): q for q in e["equal_error"]}
         for m in dict.fromkeys(s["method"] for s in e["summary"]):
             mine = [s for s in e["summary"] if s["method"] == m]
-            gt = "; ".join(f"{s['scene']} {eq[(s['scene'], m)]['n_text']} {eq[(s['scene'], m)]['kind']}"
-                           for s in mine if (s["scene"], m) in eq)
-            out.append({"method": f"{e['name']}: {m}", "scenes": len(mine),
-                        "headline": f"best {e['metric']} " + ", ".join(s["error"] for s in mine)
-                                    + (f" · ground truth of equal {e['eq_metric']}: {gt}" if gt else ""),
+            errs = ", ".join(f"{s['scene']} {s['error']}" for s in mine)
+            gt = "; ".join(f"{s['scene']}: " + _GT_WORDS.get(eq[(s["scene"], m)]["kind"], "{n} " + eq[(
+                s["scene"], m)]["kind"]).format(n=eq[(s["scene"], m)]["n_text"]) for s in mine if (s["scene"], m) in eq)
+            out.append({"method": m, "scenes": len(mine),
+                        "headline": f"{e.get('title', e['name'])} at {speed.get('size', '?')}, best configuration: "
+                                    f"{e['metric']} {errs}" + (f" · as good as {gt}" if gt else ""),
                         "seconds": fmt(sum(s["time_s"] for s in mine) / len(mine), "{:.4f}")})
     return out
 

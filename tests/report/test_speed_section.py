@@ -95,9 +95,10 @@ def test_section_writes_raw_rows_images_and_tables(section):
     assert len(srcs) == 3 + 2 + 1 + 1                           # error-time per effect, AO 2, SSR 1, implicit 1
     for src in srcs:
         assert src.startswith("img/speed/") and (run_dir / src).is_file(), src
-    assert [g["method"] for g in out["glance"]] == ["ao: ssao", "ao: gtao", "ssr: dda", "implicit: fixed",
-                                                    "implicit: progressive"]
-    assert all(g["headline"].startswith("best ") and float(g["seconds"]) > 0 for g in out["glance"])
+    assert [g["method"] for g in out["glance"]] == ["ssao", "gtao", "dda", "fixed", "progressive"]   # registry keys
+    assert all(" at 96×72, best configuration: " in g["headline"] and float(g["seconds"]) > 0 for g in out["glance"])
+    worded = [g["headline"] for g in out["glance"] if " · as good as " in g["headline"]]
+    assert worded and all(any(w in h for w in ("rays/px", "spp", "steps")) for h in worded), worded
     md = S.summary_md(out)
     assert "| crease | ssao |" in md and "Equal-error cost (rmse_faded" in md and "| thin_plate | fixed |" in md
 

@@ -37,8 +37,18 @@ def _by_method(rows: list[dict]) -> dict[str, list[dict]]:
     return out
 
 
+def _size(rows: list[dict]) -> str:
+    """``"at W×H, "`` of rows that share one size, else ``""``."""
+    sizes = {(r.get("width"), r.get("height")) for r in rows}
+    if len(sizes) != 1 or None in next(iter(sizes)):
+        return ""
+    w, h = next(iter(sizes))
+    return f"at {w}×{h}, "
+
+
 def _ao_lines(ao: dict) -> list[dict]:
-    return [{"method": m, "headline": f"RMSE {fmt(_mean(r.get('rmse_cos') for r in rs), '{:.4f}')} vs cosine GT",
+    return [{"method": m, "headline": f"{_size(rs)}defaults: RMSE {fmt(_mean(r.get('rmse_cos') for r in rs), '{:.4f}')}"
+                                      " vs cosine GT",
              "seconds": fmt(_mean(r.get("seconds") for r in rs)), "scenes": len({r.get("scene") for r in rs})}
             for m, rs in _by_method(ao.get("rows") or []).items()]
 
@@ -50,7 +60,8 @@ def _ssr_lines(ssr: dict) -> list[dict]:
                  (("frac_correct", "correct"), ("frac_missed", "missed"), ("frac_false_hit", "false hit"),
                   ("frac_misplaced_hit", "misplaced hit"), ("frac_punch_through", "punch-through"),
                   ("frac_unfixable_hit", "hit on unfixable target"))]
-        lines.append({"method": m, "headline": " · ".join(parts), "seconds": fmt(_mean(r.get("seconds") for r in rs)),
+        lines.append({"method": m, "headline": f"{_size(rs)}defaults: " + " · ".join(parts),
+                      "seconds": fmt(_mean(r.get("seconds") for r in rs)),
                       "scenes": len({r.get("scene") for r in rs})})
     return lines
 
@@ -61,7 +72,8 @@ def _implicit_lines(imp: dict) -> list[dict]:
     lines = []
     for m, rs in _by_method(rows).items():
         last = _mean((r.get("punch_through_per_frame") or [None])[-1] for r in rs)
-        lines.append({"method": m, "headline": f"punch-through {fmt(last, '{:.2%}')} at frame {imp.get('frames')} · "
+        lines.append({"method": m, "headline": f"{_size(rs)}punch-through {fmt(last, '{:.2%}')} on the last of "
+                                               f"{imp.get('frames')} frames · "
                                                f"{fmt(_mean(r.get('evaluations_mean') for r in rs), '{:.1f}')} "
                                                "evaluations/px",
                       "seconds": fmt(_mean(r.get("seconds_per_frame") for r in rs)), "scenes": len(compared)})

@@ -50,18 +50,18 @@ IMPLICIT = {"available": True, "note": "", "frames": 40, "comparisons": [{"name"
 def test_glance_reads_each_section_and_notes_the_missing_ones():
     blocks = {b["key"]: b for b in summary.glance(_meta(ao=AO, ssr=SSR, implicit=IMPLICIT))}
     ao = {d["method"]: d for d in blocks["ao"]["lines"]}
-    assert ao["ssao"] == {"method": "ssao", "headline": "RMSE 0.2000 vs cosine GT", "seconds": "2.000", "scenes": 2,
+    assert ao["ssao"] == {"method": "ssao", "headline": "defaults: RMSE 0.2000 vs cosine GT", "seconds": "2.000", "scenes": 2,
                           "what": "normal-oriented hemisphere SSAO (Chapman; three.js SSAOPass)"}   # its Method.title
-    assert ao["gtao"]["headline"] == "RMSE – vs cosine GT"                        # NaN is not a number to show
-    assert blocks["ssr"]["lines"][0]["headline"] == ("correct 50.0% · missed 25.0% · false hit 0.0% · "
+    assert ao["gtao"]["headline"] == "defaults: RMSE – vs cosine GT"                        # NaN is not a number to show
+    assert blocks["ssr"]["lines"][0]["headline"] == ("defaults: correct 50.0% · missed 25.0% · false hit 0.0% · "
                                                      "misplaced hit 6.2% · punch-through 12.5% · "
                                                      "hit on unfixable target 3.1%")
     imp = blocks["implicit"]["lines"]
     assert [d["method"] for d in imp] == ["progressive"]                         # the comparison scenes only
-    assert imp[0]["headline"].startswith("punch-through 1.00% at frame 40 · 32.0 evaluations/px")
+    assert imp[0]["headline"].startswith("punch-through 1.00% on the last of 40 frames · 32.0 evaluations/px")
     assert not blocks["speed"]["available"] and blocks["speed"]["note"] == "Speed section turned off."
     md = summary.glance_md(list(blocks.values()))
-    assert "| Ambient occlusion | ssao (normal-oriented hemisphere SSAO (Chapman; three.js SSAOPass)) | RMSE 0.2000 vs cosine GT | 2.000 | 2 |" in md
+    assert "| Ambient occlusion | ssao (normal-oriented hemisphere SSAO (Chapman; three.js SSAOPass)) | defaults: RMSE 0.2000 vs cosine GT | 2.000 | 2 |" in md
     assert "| Tuning | – | Tuning section turned off. | – | – |" in md
 
 
@@ -174,3 +174,13 @@ def test_report_cli_passes_no_speed_and_no_tuning(monkeypatch, tmp_path):
     assert seen["speed"] is None and seen["tuning"] is None
     assert cli.main(["report", "--out", str(tmp_path), "--no-speed", "--no-tuning"]) == 0
     assert seen["speed"] is False and seen["tuning"] is False and seen["implicit"] is None
+
+
+def test_glance_lines_say_the_size_their_rows_ran_at():
+    rows = [{"scene": s, "method": "hbao", "rmse_cos": 0.1, "seconds": 1.0, "width": 320, "height": 240}
+            for s in ("a", "b")]
+    blocks = {b["key"]: b for b in summary.glance(_meta(ao={"available": True, "rows": rows}))}
+    assert blocks["ao"]["lines"][0]["headline"] == "at 320×240, defaults: RMSE 0.1000 vs cosine GT"
+    mixed = [dict(rows[0]), dict(rows[1], width=160, height=120)]              # two sizes: none is claimed
+    blocks = {b["key"]: b for b in summary.glance(_meta(ao={"available": True, "rows": mixed}))}
+    assert blocks["ao"]["lines"][0]["headline"].startswith("defaults: ")

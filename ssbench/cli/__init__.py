@@ -126,6 +126,9 @@ def _parser() -> Parser:
     q.add_argument("--no-tuning", action="store_true", help="leave out the tuning section")
     q.add_argument("--no-calibration", action="store_true",
                    help="leave out the metric calibration section (each metric against its artifact's knob)")
+    q.add_argument("--screenshots", action="store_true",
+                   help="also save one PNG per section, as headless Chromium shows it at 1400 px, to RUN/screenshots/ "
+                        "(needs chromium on PATH; with --from: of that run)")
     q.add_argument("--from", dest="from_run", metavar="RUN",
                    help="instead of building: re-render RUN's index.html and summary.md from its meta.json, "
                         "computing nothing (a folder, a name under --out, or 'latest')")

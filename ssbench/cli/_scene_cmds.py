@@ -103,13 +103,15 @@ def cmd_report(args) -> int:
     if args.from_run:
         from ..report.build import render_run
         from ..report.compare import resolve_run
-        building = [d for d, v in vars(args).items() if d not in ("command", "out", "from_run", "report_parser")
+        building = [d for d, v in vars(args).items() if d not in ("command", "out", "from_run", "report_parser",
+                                                                   "screenshots")
                     and v != args.report_parser.get_default(d)]
         if building:
             args.report_parser.error("--from cannot be combined with report-building options "
                                      f"({', '.join('--' + d.replace('_', '-') for d in building)})")
-        print(f"report: {render_run(resolve_run(args.from_run, os.path.abspath(args.out), 'RUN'))}")
-        return 0
+        index = render_run(resolve_run(args.from_run, os.path.abspath(args.out), 'RUN'))
+        print(f"report: {index}")
+        return _screenshots(index) if args.screenshots else 0
     from ..report.build import build_report
     out_dir(args.out)
     off = lambda flag: False if flag else None                # noqa: E731  (None: the section's default)
@@ -120,4 +122,14 @@ def cmd_report(args) -> int:
                          calibration=off(args.no_calibration))
     print(f"report: {index}")
     print(f"latest: {os.path.join(os.path.abspath(args.out), 'latest', 'index.html')}")
+    return _screenshots(index) if args.screenshots else 0
+
+
+def _screenshots(index: str) -> int:
+    """``--screenshots``: one PNG per section of the run's page (a missing Chromium is a one-line error)."""
+    from ..report.screenshots import section_screenshots
+    shots = section_screenshots(index)
+    if not shots:
+        raise RuntimeError("screenshots: Chromium wrote no screenshot")
+    print(f"screenshots: {len(shots)} sections in {os.path.dirname(next(iter(shots.values())))}")
     return 0

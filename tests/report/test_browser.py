@@ -198,7 +198,28 @@ def test_report_in_headless_chromium(tmp_path, monkeypatch):
     assert abs(compare["zoom2"] - 2.0) < 0.05, compare
     png = tmp_path / "report.png"
     assert screenshot(page, png, tmp_path) == (1280, 2000)
+    from ssbench.report.screenshots import section_screenshots            # what `ssbench report --screenshots` does
+    shots = section_screenshots(str(page), chromium=CHROMIUM)
+    assert list(shots) == ["glance", "scenes", "ao", "ssr", "implicit", "speed", "tuning", "calibration"], shots
+    import numpy as np
+    from PIL import Image
+    ao_shot = np.asarray(Image.open(shots["ao"]).convert("RGB"))
+    assert ao_shot.shape[1] == 1400 and ao_shot.shape[0] > 300, ao_shot.shape    # trimmed, not empty
+    assert (np.abs(ao_shot.astype(int) - (250, 251, 252)).sum(2) > 6).mean() > 0.05     # there is something on it
+    assert not list((page.parent).glob("_section_*.html"))                 # the temporary copies are gone
     keep = os.environ.get("SSBENCH_SCREENSHOT_DIR")
     if keep:
         os.makedirs(keep, exist_ok=True)
         shutil.copyfile(png, os.path.join(keep, f"report-{index.parent.name}.png"))
+
+
+def test_section_split_covers_the_page_in_order():
+    from ssbench.report.screenshots import split_sections
+    page = ('<html><head></head><body><h1>t</h1><h2 id="glance">At a glance</h2><table></table>'
+            '<h2 style="x" id="scenes">Scenes</h2><p>s</p><span id="sec-ao"></span><h2 id="ao">AO</h2>'
+            '<span id="sec-ssr"></span><h2 id="ssr">SSR</h2><footer>f</footer></body></html>')
+    parts = split_sections(page)
+    assert list(parts) == ["glance", "scenes", "ao", "ssr"]
+    assert 'id="glance"' in parts["glance"] and "Scenes" not in parts["glance"]
+    assert parts["scenes"].startswith('<h2 style="x" id="scenes">') and parts["ao"].endswith("<h2 id=\"ao\">AO</h2>")
+    assert "footer" not in parts["ssr"]

@@ -249,6 +249,7 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
                                             lambda m: m.build_calibration_section(run_dir, use_cache=sc_cache,
                                                                                   progress=progress))
     meta["total_s"] = time.perf_counter() - t_start
+    meta["images_mb"] = _folder_mb(os.path.join(run_dir, "img"))      # what the page loads, besides its HTML
     meta["metadata_rows"] = summary.metadata_rows(meta)
     meta["glance"] = summary.glance(meta)
     tpl_env = _templates()
@@ -264,6 +265,12 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
     _write_text(os.path.join(run_dir, "meta.json"), json.dumps(meta, indent=2, default=str) + "\n")
     refresh_latest(run_dir, out_root)
     return os.path.join(run_dir, "index.html")
+
+
+def _folder_mb(path: str) -> float:
+    """Megabytes (10⁶ bytes) of the files under ``path`` (0 when it does not exist)."""
+    total = sum(os.path.getsize(os.path.join(d, f)) for d, _, files in os.walk(path) for f in files)
+    return total / 1e6
 
 
 def _templates():

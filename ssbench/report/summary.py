@@ -144,7 +144,8 @@ def metadata_rows(meta: dict) -> list[tuple[str, Any]]:
             ("platform", env["platform"]), ("image size", f"{meta['width']}×{meta['height']}"),
             ("spp / seed", f"{meta['spp']} / {meta['seed']}"), ("render cache", "on" if meta["use_cache"] else "off"),
             ("ground-truth cache", "on" if meta.get("gt_cache") else "off"),
-            ("backend start-up s", fmt(meta["backend_init_s"])), ("total wall time s", fmt(meta["total_s"]))]
+            ("backend start-up s", fmt(meta["backend_init_s"])), ("total wall time s", fmt(meta["total_s"])),
+            ("page weight (images)", f"{fmt(meta.get('images_mb'), '{:.1f}')} MB")]
 
 
 def summary_md(meta: dict) -> str:

@@ -78,6 +78,9 @@ def test_metadata(report):
                 "node", "cpu_count"):
         assert key in meta["environment"]
     assert meta["total_s"] > 0 and meta["width"] == 48 and meta["spp"] == 4
+    on_disk = sum(f.stat().st_size for f in (latest / "img").rglob("*") if f.is_file()) / 1e6
+    assert meta["images_mb"] == pytest.approx(on_disk) and on_disk > 0          # the page weight it states
+    assert f"{meta['images_mb']:.1f} MB" in html and "page weight (images)" in summary
 
 
 @pytest.mark.slow

@@ -266,6 +266,7 @@ def _scene(run_dir, name, methods, channels, width, height, spp, seed, k_px, use
     if fig11:
         images["fig11"] = fig11.pop("image")
     return ({"name": name, "description": sc.description, "images": images, "methods": method_rows,
+             "width": g.width, "height": g.height,
              "notes": notes, "gt_seconds": gt_s, "fig11": fig11,
              "truth_cells": {k: fmt(tf.get(k), "{:.1%}") for k in ("correct", "off_screen_target",
                                                                    "occluded_target", "back_face_target",

@@ -391,7 +391,9 @@ def test_ssr_section_with_stubs(tmp_path, monkeypatch):
     assert "<strong>stub</strong>" in html and "missing skipped" in html and "renderer exploded" in html
     assert "punch-through" in html and "back-face target" in html and "pixelZSize" in html
     srcs = re.findall(r'<img[^>]*\ssrc="([^"]+)"', html)
-    assert len(srcs) == 2 + 4 and all((tmp_path / src).is_file() for src in srcs)
+    assert len(srcs) == 2 + 4 + 2 and all((tmp_path / src).is_file() for src in srcs)   # + the compare pair
+    assert re.search(r'<img class="b" src="img/ssr/reflective_floor/truth.png"[^>]*>\s*<div class="a-wrap"><img class="a" '
+                     r'src="img/ssr/reflective_floor/stub.png"', html)
     import matplotlib.image as mimage
     assert mimage.imread(str(tmp_path / srcs[0])).shape[:2] == (12, 16)
     assert ssr["thickness"]["rows"][0]["cells"][0] == "0.1"                  # kode80: the slab itself

@@ -132,7 +132,7 @@ def _env(tmp_path, with_speed_template=False):
     """The report's templates without speed/tuning ones (those may or may not exist in the tree yet)."""
     d = tmp_path / "templates"
     d.mkdir(parents=True)
-    for name in ("index", "ao_section", "ssr_section", "implicit_section"):
+    for name in ("index", "ao_section", "ssr_section", "implicit_section", "inspect_macros"):
         shutil.copy(os.path.join(TEMPLATES, f"{name}.html.j2"), d)
     if with_speed_template:
         (d / "speed_section.html.j2").write_text('<h2 id="speed">Speed</h2><p>{{ speed.answer }}</p>')

@@ -394,6 +394,9 @@ def test_ssr_section_with_stubs(tmp_path, monkeypatch):
     assert len(srcs) == 2 + 4 + 2 and all((tmp_path / src).is_file() for src in srcs)   # + the compare pair
     assert re.search(r'<img class="b" src="img/ssr/reflective_floor/truth.png"[^>]*>\s*<div class="a-wrap"><img class="a" '
                      r'src="img/ssr/reflective_floor/stub.png"', html)
+    assert 'data-width="16" style="--w: 16; --h: 12"' in html
+    older = {**ssr, "scenes": [{k: v for k, v in sc.items() if k not in ("width", "height")} for sc in ssr["scenes"]]}
+    assert 'class="compare" data-width=""' in _render_ssr_section(older)     # a run from before sizes were kept
     import matplotlib.image as mimage
     assert mimage.imread(str(tmp_path / srcs[0])).shape[:2] == (12, 16)
     assert ssr["thickness"]["rows"][0]["cells"][0] == "0.1"                  # kode80: the slab itself

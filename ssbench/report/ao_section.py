@@ -28,6 +28,7 @@ import torch
 
 from ..passes import ao_method, declared
 from .summary import unavailable_md
+from .flip_maps import flip_rgb
 
 #: scenes of the AO section when the report names none (small, so ``make report`` stays fast)
 AO_SCENES = ("crease", "cornell_box", "sphere_on_plane", "stairs")
@@ -178,7 +179,9 @@ def build_ao_section(run_dir: str, scenes: Optional[Iterable[str]] = None, width
     bars = {"error": colorbar_png(os.path.join(run_dir, "img", "ao", "colorbar_error.png"), "RdBu", -ERR_RANGE,
                                   ERR_RANGE, "AO − GT", low="too dark", high="too bright"),
             "noise": colorbar_png(os.path.join(run_dir, "img", "ao", "colorbar_noise.png"), "RdBu", -0.1, 0.1,
-                                  "AO − blurred AO")}
+                                  "AO − blurred AO"),
+            "flip": colorbar_png(os.path.join(run_dir, "img", "ao", "colorbar_flip.png"), "magma", 0.0, 1.0,
+                                 "ꟻLIP vs GT cosine", low="same", high="very different")}
     return {"available": bool(out_scenes), "note": "" if out_scenes else "AO section: every scene failed.",
             "colorbars": {k: os.path.relpath(v, run_dir).replace(os.sep, "/") for k, v in bars.items()},
             "blurs": ["raw", *BLUR_NAMES],
@@ -232,7 +235,8 @@ def _scene(run_dir, name, methods, channels, width, height, radius, rays, seed, 
             continue
         row = ev.row
         files = {"ao": ao_rgb(ev.ao, mask), "err_cos": error_rgb(ev.ao - ev.references["cos"].ao, mask),
-                 "highpass": highpass_rgb(ev.ao, mask), "spectrum": spectrum_rgb(ev.ao, mask)}
+                 "highpass": highpass_rgb(ev.ao, mask), "spectrum": spectrum_rgb(ev.ao, mask),
+                 "flip": flip_rgb(ev.ao, ev.references["cos"].ao, mask)}
         if row["weighting"] != "cosine":                                 # else the same as err_cos
             files["err_flavour"] = error_rgb(ev.ao - ev.references["flavour"].ao, mask)
         imgs = {}

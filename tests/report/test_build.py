@@ -139,14 +139,15 @@ def test_ao_section_in_the_report(report):
     for r in ao["rows"]:
         assert r["width"] == 48 and r["height"] == 36 and r["radius"] == 0.5 and r["nonfinite"] == 0
     srcs = [s for s in re.findall(r'<img[^>]*\ssrc="([^"]+)"', html) if s.startswith("img/ao/")]
-    per_method = sum(4 + (r["weighting"] != "cosine") + 2 for r in ao["rows"])   # AO, errors, residual, spectrum
+    per_method = sum(5 + (r["weighting"] != "cosine") + 2 for r in ao["rows"])   # AO, errors, ꟻLIP, residual,
+    #                                                                      spectrum
     for r in ao["rows"]:                                                   # + the A/B compare: method over its GT
         pair = re.findall(rf'<img class="b" src="img/ao/{r["scene"]}/gt_{r["weighting"]}\.png"[^>]*>\s*'
                           rf'<div class="a-wrap"><img class="a" src="img/ao/{r["scene"]}/{r["method"]}\.png"', html)
         assert len(pair) == 1, (r["scene"], r["method"])
-    bars = [s for s in srcs if s.startswith("img/ao/colorbar_")]           # one error + one noise scale per scene
-    assert len(bars) == 2 * len(SCENES) and set(bars) == set(ao["colorbars"].values())
-    assert len(srcs) == len(SCENES) * 10 + per_method                      # GT x5, oracle, 2 regions, 2 bars
+    bars = [s for s in srcs if s.startswith("img/ao/colorbar_")]           # error, noise, ꟻLIP scales per scene
+    assert len(bars) == 3 * len(SCENES) and set(bars) == set(ao["colorbars"].values())
+    assert len(srcs) == len(SCENES) * 11 + per_method                      # GT x5, oracle, 2 regions, 3 bars
     bar = mimage.imread(str(latest / ao["colorbars"]["error"]))
     assert bar.shape[1] > 3 * bar.shape[0] and bar[..., :3].std() > 0.1    # a wide, coloured bar
     for src in srcs:
@@ -227,8 +228,8 @@ def test_ao_section_with_stubs(tmp_path, monkeypatch):
     html = _render_section(ao)
     assert "<strong>stub</strong>" in html and "missing skipped" in html and "renderer exploded" in html
     srcs = re.findall(r'<img[^>]*\ssrc="([^"]+)"', html)
-    assert len(srcs) == 8 + 4 + 2 + 2 and all((tmp_path / s).is_file() for s in srcs)   # cosine: one error map;
-    #                                                                      2 bars; the compare pair (AO over GT)
+    assert len(srcs) == 8 + 5 + 3 + 2 and all((tmp_path / s).is_file() for s in srcs)   # cosine: one error map;
+    #                                                                      ꟻLIP map; 3 bars; the compare pair
     assert "| stub | 0.2500" in summary_md(ao)
 
 

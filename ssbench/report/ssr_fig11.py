@@ -55,17 +55,16 @@ def one_ray(g, pixel: tuple[int, int], results: Optional[dict] = None) -> list[d
     import dataclasses
 
     from ..passes import ssr_method
-    from ..passes.ssr.dda import DDASSRParams
-    from ..passes.ssr.dda_supercover import SupercoverDDASSRParams
     from ..passes.ssr.linear import LinearSSRParams, ssr_linear
     from ..passes.ssr.visits import crossed_pixels, visit_map
     x, y = pixel
     H, W = g.height, g.width
     out = {}
     for label, method in MARCHERS[1:]:
-        params = DDASSRParams() if method == "dda" else SupercoverDDASSRParams()
+        fn, params_cls, _ = ssr_method(method)
+        params = params_cls()                                            # the method's declared defaults
         m = visit_map(g, params, (x, y))
-        res = (results or {}).get(method) or ssr_method(method)[0](g, params)
+        res = (results or {}).get(method) or fn(g, params)
         hit = bool(res.hit[0, 0, y, x])
         end = res.hit_pixel[0, :, y, x].tolist() if hit else m["p1"]
         out[method] = {"label": label, "method": method, "visits": m["visits"], "p0": m["p0"], "end": end,

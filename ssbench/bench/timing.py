@@ -42,7 +42,7 @@ from typing import Any, Callable, Iterator, Mapping, Optional, Sequence
 import numpy as np
 import torch
 
-__all__ = ["TimingSpec", "floor_indices", "nonfinite_on_valid", "median_iqr", "steady_heap", "timeit_calls",
+__all__ = ["TimingSpec", "floor_indices", "nonfinite_on_valid", "median_iqr", "steady_heap", "sync_device", "timeit_calls",
            "warm_up", "plan_rounds", "run_rounds", "round_fields", "prepare", "time_pass", "agree",
            "TIMING_FIELDS", "MIN_ROUNDS"]
 
@@ -190,9 +190,23 @@ def steady_heap() -> Iterator[bool]:
             libc.malloc_trim(0)
 
 
+def sync_device() -> None:
+    """Wait for queued CUDA work (a no-op unless CUDA is in use): kernels launch asynchronously, so a timed
+    block that does not end with this measures the launches, not the work."""
+    if torch.cuda.is_available() and torch.cuda.is_initialized():
+        torch.cuda.synchronize()
+
+
 def timeit_calls(call: Callable[[], Any], number: int) -> float:
-    """Seconds taken by ``number`` calls of ``call`` (:class:`timeit.Timer`: garbage collection off)."""
-    return timeit.Timer(call, timer=time.perf_counter).timeit(number)
+    """Seconds taken by ``number`` calls of ``call`` (:class:`timeit.Timer`: garbage collection off), the device
+    synchronised before the block starts and inside it after the last call (:func:`sync_device`)."""
+    def block() -> None:
+        for _ in range(number):
+            call()
+        sync_device()
+
+    sync_device()
+    return timeit.Timer(block, timer=time.perf_counter).timeit(1)
 
 
 def warm_up(calls: Sequence[Callable[[], Any]], seconds: float = 0.0, *, at_least: int = 1,
@@ -203,8 +217,10 @@ def warm_up(calls: Sequence[Callable[[], Any]], seconds: float = 0.0, *, at_leas
     start, n = clock(), 0
     while n < max(1, at_least) or clock() - start < seconds:
         for i, call in enumerate(calls):
+            sync_device()
             t0 = clock()
             call()
+            sync_device()
             best[i] = min(best[i], clock() - t0)
         n += 1
     return best

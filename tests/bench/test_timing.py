@@ -202,3 +202,24 @@ def test_repeated_timings_of_one_configuration_agree_statistically():
     assert min(a["time_blocks"], b["time_blocks"]) >= 3 * T.MIN_ROUNDS and a["timing_processes"] == 3
     assert T.agree(a, b, field="floor_ratio", k=2.0, rel=0.25), (a["floor_ratio"], a["floor_ratio_iqr"],
                                                                 b["floor_ratio"], b["floor_ratio_iqr"])
+
+
+def test_timed_blocks_wait_for_the_device(monkeypatch):
+    """CUDA launches are asynchronous: every timed block (and every warm-up call) ends with a synchronise, so the
+    same code times a GPU correctly. Counted here with a stand-in device."""
+    import torch
+
+    from ssbench.bench import timing as T
+    events = []
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
+    monkeypatch.setattr(torch.cuda, "is_initialized", lambda: True)
+    monkeypatch.setattr(torch.cuda, "synchronize", lambda *a, **k: events.append("sync"))
+    T.timeit_calls(lambda: events.append("call"), 3)
+    assert events == ["sync", "call", "call", "call", "sync"]              # before the block, and at its end
+    events.clear()
+    T.warm_up([lambda: events.append("a"), lambda: events.append("b")])
+    assert events == ["sync", "a", "sync", "sync", "b", "sync"]
+    monkeypatch.setattr(torch.cuda, "is_initialized", lambda: False)       # CPU runs: no synchronise at all
+    events.clear()
+    T.timeit_calls(lambda: events.append("call"), 2)
+    assert events == ["call", "call"]

@@ -11,7 +11,7 @@ REPORT_ARGS ?=
 PYTEST_ARGS ?=
 JUPYTER_ARGS ?=
 
-.PHONY: setup setup-dev llvm browser test test-fast report info bench lessons lessons-sync clean
+.PHONY: setup setup-dev llvm browser test test-fast report info bench gpu-check lessons lessons-sync clean
 
 ## setup: create .venv, install CPU torch first (override TORCH_SPEC), then the project (what `make report` needs)
 setup: $(STAMP) llvm
@@ -68,6 +68,10 @@ lessons-sync: $(DEV_STAMP)
 bench: setup
 	$(PYTHON) benchmarks/bench_gbuffer.py
 	$(PYTHON) benchmarks/bench_implicit.py
+
+## gpu-check: every AO and SSR pass once on CUDA and once on the CPU: times and agreement (needs a CUDA torch)
+gpu-check: setup
+	$(PYTHON) scripts/gpu_check.py
 
 clean:
 	rm -rf $(VENV) reports/2* reports/latest .pytest_cache

@@ -10,7 +10,7 @@ import textwrap
 
 import pytest
 
-from ssbench.passes import AO_METHODS, IMPLICIT_METHODS, SSR_METHODS, ao_method
+from ssbench.passes import AO_METHODS, IMPLICIT_METHODS, SSR_METHODS, ao_method, ssr_method
 from ssbench.passes.registry import Method, discover, face, merged, plugins, spec
 
 TOY = textwrap.dedent('''
@@ -138,3 +138,21 @@ def test_the_toy_method_runs_and_is_scored(toy_env, tmp_path):
     assert row["method"] == "toyao" and row["params"] == {"strength": 0.25, "radius": 0.5, "seed": 0}
     assert row["weighting"] == "uniform" and row["nonfinite"] == 0 and row["radius"] == 0.5
     assert 0 < row["rmse_flavour"] < 1 and 0 < row["rmse_cos"] < 1          # scored against the ray-traced truth
+
+
+def test_every_screen_space_pass_takes_the_one_call():
+    """AO and SSR: ``fn(gbuffer, params, *, generator=None, debug=False)``, the same for every declared method."""
+    import inspect
+
+    import torch
+
+    from tests.passes.ssr_scenes import room
+    g = room()
+    for name, resolve in [(n, ao_method) for n in AO_METHODS] + [(n, ssr_method) for n in SSR_METHODS]:
+        fn, params_cls, _ = resolve(name)
+        sig = inspect.signature(fn).parameters
+        assert list(sig)[:2] == ["gbuffer", "params"], name
+        for kw in ("generator", "debug"):
+            assert sig[kw].kind is inspect.Parameter.KEYWORD_ONLY and sig[kw].default in (None, False), (name, kw)
+        out = fn(g, params_cls(), generator=torch.Generator().manual_seed(0), debug=False)
+        assert out is not None, name

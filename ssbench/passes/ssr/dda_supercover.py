@@ -167,12 +167,13 @@ def supercover_march(s: DDARays, tex, z_thickness: float, max_steps: int, H: int
 
 @half_in_float32
 def ssr_dda_supercover(gbuffer: GBuffer, params: SupercoverDDASSRParams = SupercoverDDASSRParams(), *,
-                       debug: bool = False) -> SSRResult:
+                       generator: Optional[torch.Generator] = None, debug: bool = False) -> SSRResult:
     """Screen-space reflections walking every pixel the reflected ray's screen segment crosses, vectorised.
 
     Args:
         gbuffer: needs ``view_z``, ``normal`` (unit, view space), ``mask`` and ``color``, all :math:`(B, C, H, W)`.
         params: :class:`SupercoverDDASSRParams`.
+        generator: unused (the walk draws nothing); accepted so every SSR pass takes the same call.
         debug: add ``visits`` :math:`(B, 1, H, W)` (depth fetches per texel over all rays) and ``ray_end``
             :math:`(B, 2, H, W)` (``P1`` in pixels, −1 off ``mask``).
 

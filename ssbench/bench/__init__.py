@@ -8,7 +8,7 @@
 * :mod:`~ssbench.bench.timing` — timing in interleaved rounds with the gather floor (median, IQR, floor ratio);
 * :mod:`~ssbench.bench.executors` — local and Dask executors;
 * :mod:`~ssbench.bench.effects` — the effect registry (``ao``, ``ssr``; one entry per effect);
-* :mod:`~ssbench.bench.cli` — ``ssbench sweep``.
+* :mod:`~ssbench.cli._sweep_cmd` — ``ssbench sweep``.
 """
 from __future__ import annotations
 

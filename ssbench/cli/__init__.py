@@ -100,8 +100,8 @@ def _parser() -> Parser:
     q.add_argument("--json", action="store_true", help="print the row as JSON")
     q.add_argument("--no-cache", action="store_true", help="do not read or write the reference cache")
     q.add_argument("--force", action="store_true", help="run work above the size limits (ssbench/RELIABILITY.md)")
-    from ..bench.cli import add_sweep_parser
-    from ..tune.cli import add_tune_parser
+    from ._sweep_cmd import add_sweep_parser
+    from ._tune_cmd import add_tune_parser
     add_sweep_parser(sub)
     add_tune_parser(sub)
     q = sub.add_parser("report", help="render the built-in scenes into an HTML report")
@@ -148,12 +148,12 @@ _COMMANDS = {"info": cmd_info, "scenes": cmd_scenes, "render": cmd_render, "ao":
 
 
 def _cmd_sweep(args) -> int:
-    from ..bench.cli import cmd_sweep
+    from ._sweep_cmd import cmd_sweep
     return cmd_sweep(args)
 
 
 def _cmd_tune(args) -> int:
-    from ..tune.cli import cmd_tune
+    from ._tune_cmd import cmd_tune
     return cmd_tune(args)
 
 

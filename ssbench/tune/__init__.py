@@ -9,7 +9,7 @@ ray-traced AO, then compare; ``ssbench/REFERENCES.md``).
 * :mod:`ssbench.tune.grid` — grid narrowing (:func:`grid_narrow`);
 * :mod:`ssbench.tune.gradient` — autograd probing and Adam steps through the torch pass;
 * :mod:`ssbench.tune.tuner` — :func:`tune`, the whole procedure;
-* :mod:`ssbench.tune.cli` — ``ssbench tune METHOD ...``.
+* :mod:`ssbench.cli._tune_cmd` — ``ssbench tune METHOD ...``.
 """
 from __future__ import annotations
 

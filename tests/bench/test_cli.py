@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from ssbench.bench.cli import add_sweep_parser, main
+from ssbench.cli._sweep_cmd import add_sweep_parser, main
 
 
 def test_add_sweep_parser_wires_into_a_parent_parser():

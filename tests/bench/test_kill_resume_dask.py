@@ -30,7 +30,7 @@ SWEEP = """\
 CHILD = textwrap.dedent("""\
     import os, signal, sys, time
     import ssbench.bench.rows as R
-    from ssbench.bench.cli import main
+    from ssbench.cli._sweep_cmd import main
     kill_at, slow = int(os.environ.get("KILL_AT", "0")), float(os.environ.get("SLOW_S", "0"))
     n, real = [0], R._commit
     def commit(tmp, path):

@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from ssbench.tune.cli import add_tune_parser, main
+from ssbench.cli._tune_cmd import add_tune_parser, main
 
 
 def _parser():

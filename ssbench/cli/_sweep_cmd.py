@@ -1,7 +1,7 @@
 """``ssbench sweep CONFIG``: the command-line face of :func:`ssbench.bench.sweep.run_sweep`.
 
 The main ``ssbench`` parser adds it with :func:`add_sweep_parser` and dispatches to :func:`cmd_sweep`; this
-module also runs on its own: ``python -m ssbench.bench.cli sweep CONFIG ...`` (:func:`main`).
+module also runs on its own: ``python -m ssbench.cli._sweep_cmd sweep CONFIG ...`` (:func:`main`).
 A bad sweep file raises :class:`~ssbench.bench.config.SweepError` (a ``ValueError`` reading
 ``file:line: field: what is wrong``), which the ``ssbench`` command prints as ``ssbench: error: ...``.
 """
@@ -52,8 +52,8 @@ def add_sweep_parser(subparsers) -> argparse.ArgumentParser:
 
 def cmd_sweep(args) -> int:
     """Handle ``ssbench sweep``: 0 when the sweep ran (failing configurations are rows with ``error``)."""
-    from .config import load_sweep
-    from .sweep import default_out, run_sweep
+    from ..bench.config import load_sweep
+    from ..bench.sweep import default_out, run_sweep
     sweep = load_sweep(args.config)
     out = args.out or default_out(sweep)
     if args.dry_run:
@@ -63,7 +63,7 @@ def cmd_sweep(args) -> int:
             params = ",".join(f"{k}={v}" for k, v in c.params.items()) or "defaults"
             print(f"  {c.config_id}  {c.scene} {c.method} {params} seed={c.seed} {c.width}x{c.height}")
         return 0
-    from ..cli._args import out_dir
+    from ._args import out_dir
     out_dir(out)
     executor = "dask" if args.address else args.executor
     res = run_sweep(sweep, out, executor=executor, workers=args.workers, address=args.address,
@@ -78,9 +78,9 @@ def cmd_sweep(args) -> int:
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """``python -m ssbench.bench.cli sweep CONFIG ...``: the ``ssbench`` command line
+    """``python -m ssbench.cli._sweep_cmd sweep CONFIG ...``: the ``ssbench`` command line
     (:func:`ssbench.cli.main`); returns the exit status (1 for a bad sweep file)."""
-    from ..cli import main as ssbench_main
+    from . import main as ssbench_main
     return ssbench_main(argv)
 
 

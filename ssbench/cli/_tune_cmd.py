@@ -1,7 +1,7 @@
 """``ssbench tune METHOD``: the command-line face of :func:`ssbench.tune.tune`.
 
 The main ``ssbench`` parser adds it with :func:`add_tune_parser` and dispatches to :func:`cmd_tune` (its
-``handler`` default); ``python -m ssbench.tune.cli tune METHOD ...`` runs it alone (:func:`main`). Prints a
+``handler`` default); ``python -m ssbench.cli._tune_cmd tune METHOD ...`` runs it alone (:func:`main`). Prints a
 table of default vs tuned RMSE per training and held-out scene, the tuned parameters and the time per frame;
 ``--out DIR`` also writes ``DIR/tune.json`` (strict JSON: NaN and infinities become null).
 """
@@ -14,8 +14,8 @@ import os
 import sys
 from typing import Optional, Sequence
 
-from .space import BLUR_SPACES, SPACES
-from .tuner import WEIGHTINGS
+from ..tune.space import BLUR_SPACES, SPACES
+from ..tune.tuner import WEIGHTINGS
 
 __all__ = ["add_tune_parser", "cmd_tune", "format_result", "main"]
 
@@ -67,7 +67,7 @@ def _tune_list(s: str) -> list[tuple[str, Optional[tuple[float, float]]]]:
 
 
 def _param(s: str) -> tuple[str, object]:
-    from ..cli import parse_value
+    from . import parse_value
     name, sep, value = s.partition("=")
     if not sep or not name.strip().isidentifier() or not value.strip():
         raise argparse.ArgumentTypeError(f"expected NAME=VALUE (e.g. quality=high), got {s!r}")
@@ -167,8 +167,8 @@ def format_result(res) -> str:
 def cmd_tune(args) -> int:
     """Handle ``ssbench tune``: 0 on success (errors raise ``ValueError`` naming the argument)."""
     import torch
-    from .space import coerce_fixed, tunable_names
-    from .tuner import tune
+    from ..tune.space import coerce_fixed, tunable_names
+    from ..tune.tuner import tune
     blur = getattr(args, "blur", None)
     valid = tunable_names(args.method, blur)
     names, bounds = None, None
@@ -212,9 +212,9 @@ def cmd_tune(args) -> int:
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """``python -m ssbench.tune.cli tune METHOD ...``: the ``ssbench`` command line (:func:`ssbench.cli.main`);
+    """``python -m ssbench.cli._tune_cmd tune METHOD ...``: the ``ssbench`` command line (:func:`ssbench.cli.main`);
     returns the exit status (1 for a bad argument value)."""
-    from ..cli import main as ssbench_main
+    from . import main as ssbench_main
     return ssbench_main(argv)
 
 

@@ -396,6 +396,7 @@ def test_ssr_section_with_stubs(tmp_path, monkeypatch):
     assert re.search(r'<img class="b" src="img/ssr/reflective_floor/truth.png"[^>]*>\s*<div class="a-wrap"><img class="a" '
                      r'src="img/ssr/reflective_floor/stub.png"', html)
     assert 'data-width="16" style="--w: 16; --h: 12"' in html
+    assert html.count('class="ev"') == len(ssr["scenes"][0]["methods"])     # colour compares get a display exposure
     older = {**ssr, "scenes": [{k: v for k, v in sc.items() if k not in ("width", "height")} for sc in ssr["scenes"]]}
     assert 'class="compare" data-width=""' in _render_ssr_section(older)     # a run from before sizes were kept
     import matplotlib.image as mimage

@@ -61,10 +61,11 @@ from torch import nn
 
 from ...camera import Camera
 from ...gbuffer import GBuffer
-from ..common import check_count, fetch, length, make_generator
+from ..common import check_count, make_generator
 from ..gbuffer_checks import check_gbuffer, half_in_float32
-from .common import (BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult,
-                         clip_ray_length, reflection_rays)
+from .common import (BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS, SSRResult, clip_ray_length,
+                     reflection_rays)
+from .dda_assemble import assemble
 from .dda_refine import count_visits, fetch_cell, refine_hits, ray_view_z
 from .dda_state import DDARays, MarchOutput
 from .fade import FadeParams
@@ -282,38 +283,6 @@ def ssr_dda(gbuffer: GBuffer, params: DDASSRParams = DDASSRParams(), *, generato
     visits = torch.zeros(B * H * W, dtype=torch.int32, device=gbuffer.view_z.device) if debug else None
     o = dda_march(s, (gbuffer.view_z.reshape(-1), gbuffer.mask.reshape(-1)), params, H, W, visits)
     return assemble(gbuffer, params, sel, P1, o, visits)
-
-
-def assemble(gbuffer: GBuffer, params, sel: torch.Tensor, P1: torch.Tensor, o: MarchOutput,
-             visits: Optional[torch.Tensor]) -> SSRResult:
-    """Per-ray march outputs ``o`` (:class:`~ssbench.passes.ssr.dda_state.MarchOutput`) of the rays ``sel`` → the
-    :class:`SSRResult` images: colour at the hit texel, fades (``params``' edge/distance fields), ``debug``
-    (``visits``, ``ray_end``) when ``visits`` is given. Shared by :func:`ssr_dda` and the supercover DDA."""
-    cam, (B, _, H, W) = gbuffer.camera, gbuffer.view_z.shape
-    dt, dev = gbuffer.view_z.dtype, gbuffer.view_z.device
-
-    def image(values, fill, dtype=dt):                                            # per-ray (N, C) -> (B, C, H, W)
-        x = torch.full((B * H * W, values.shape[1]), fill, dtype=dtype, device=dev)
-        x[sel] = values.to(dtype)
-        return x.reshape(B, H, W, -1).permute(0, 3, 1, 2).contiguous()
-
-    is_hit = (o.term == HIT)[:, None]
-    term, steps = image(o.term[:, None], NO_RAY, torch.int8), image(o.steps[:, None], 0, torch.int32)
-    hit_pixel = image(torch.where(is_hit, o.P, -1.0), -1.0)
-    hit_view = image(torch.where(is_hit, o.Q / o.k[:, None], 0.0), 0.0)
-    hit = term == HIT                                                             # (B, 1, H, W)
-    # the texel is floored in the march's own dtype: a hit at 8.999999999999998 must not round to 9 first
-    texel = image(torch.where(is_hit, o.P, 0.0).floor(), 0.0, torch.float64)
-    col, row = texel[:, 0].clamp(0, W - 1).long(), texel[:, 1].clamp(0, H - 1).long()
-    lo, hi = texel.to(dt), torch.nextafter((texel + 1).to(dt), texel.to(dt))      # and hit_pixel stays in it
-    hit_pixel = torch.where(hit, torch.minimum(torch.maximum(hit_pixel, lo), hi), hit_pixel)
-    raw = torch.where(hit, fetch(gbuffer.color.to(dt), col, row), 0.0)            # (B, 3, H, W)
-    origin = cam.uv_to_view(cam.uv_grid(dt, dev).unsqueeze(0), gbuffer.view_z)
-    fade = params.fade(hit_pixel, cam.pixel_centers(dt, dev)[None], W, H, length(hit_view - origin))
-    fade = torch.where(hit, fade, 0.0)
-    dbg = {"visits": visits.reshape(B, 1, H, W), "ray_end": image(P1, -1.0)} if visits is not None else {}
-    return SSRResult(color=raw * fade, hit=hit, hit_pixel=hit_pixel, hit_view=hit_view, steps=steps,
-                     termination=term, fade=fade, raw_color=raw, debug=dbg)
 
 
 class DDASSR(nn.Module):

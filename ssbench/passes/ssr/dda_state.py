@@ -4,7 +4,7 @@
 starts, flat over ``N`` rays, in the *permuted* frame (the major axis first, G3D's ``permute``). The march
 advances ``Px, Py, Qz, k, n`` in place and drops finished rays (:meth:`DDARays.select`); it is owned by one
 march at a time. :class:`MarchOutput` is what a march returns per ray for
-:func:`~ssbench.passes.ssr.dda.assemble`.
+:func:`~ssbench.passes.ssr.dda_assemble.assemble`.
 """
 from __future__ import annotations
 

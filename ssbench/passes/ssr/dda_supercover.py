@@ -39,8 +39,9 @@ from ...gbuffer import GBuffer
 from ..common import check_count
 from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS, SSRResult
 from ..gbuffer_checks import half_in_float32
-from .dda import (DEFAULTS_SOURCE, EQUAL_SETTINGS, REQUIRES, DDASSRParams, assemble, check_inputs, count_visits,
+from .dda import (DEFAULTS_SOURCE, EQUAL_SETTINGS, REQUIRES, DDASSRParams, check_inputs, count_visits,
                   dda_rays, ray_view_z)
+from .dda_assemble import assemble
 from .dda_state import DDARays, MarchOutput
 from .fade import FadeParams
 from ..registry import Method

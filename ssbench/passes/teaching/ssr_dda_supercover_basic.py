@@ -16,7 +16,8 @@ import torch
 
 from ...gbuffer import GBuffer
 from ..ssr.common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS, SSRResult
-from ..ssr.dda import assemble, check_inputs, dda_rays
+from ..ssr.dda import check_inputs, dda_rays
+from ..ssr.dda_assemble import assemble
 from ..ssr.dda_state import MarchOutput
 from ..ssr.dda_supercover import SupercoverDDASSRParams
 

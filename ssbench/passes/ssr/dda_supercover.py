@@ -11,7 +11,7 @@ interior. So it fetches exactly the pixels :func:`~ssbench.passes.ssr.visits.cro
 up to where the ray stops (the origin pixel excepted, as in the DDA).
 
 Everything else is the DDA's: the same near-plane clipping, homogeneous pixel-space endpoints and degenerate-line
-nudge (``ssr_dda.dda_rays`` at stride 1, no jitter), ``Q`` and ``k = 1/w`` linear in screen space (appendix A), the
+nudge (``ssr.dda.dda_rays`` at stride 1, no jitter), ``Q`` and ``k = 1/w`` linear in screen space (appendix A), the
 same box test per texel. Only the z interval is exact: the ray enters the cell at ``nA`` and leaves at ``nB``
 (or at ``P1``), so
 
@@ -99,7 +99,7 @@ class CellWalk(DDARays):
 
 
 def cell_setup(s: DDARays, H: int, W: int) -> CellWalk:
-    """The cell walk's start from the DDA's set-up ``s`` (``ssr_dda.dda_rays`` at stride 1, no jitter)."""
+    """The cell walk's start from the DDA's set-up ``s`` (``ssr.dda.dda_rays`` at stride 1, no jitter)."""
     sd, dPy = s.stepDir, s.dPy
     cx, cy = s.Px.floor(), s.Py.floor()
     safe = torch.where(dPy != 0, dPy, 1.0)

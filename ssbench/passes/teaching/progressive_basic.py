@@ -12,7 +12,7 @@ https://www.shadertoy.com/view/XsdSR7), one function per step, with its symbols 
 4. :func:`refine` — 絞込み: bisection of the bracket.
 5. shading and 6. 保存 ``t' := t`` — the normal comes from the vectorised
    :func:`~ssbench.passes.implicit.common.finish` (one gradient per hit), as in :func:`ssbench.passes.
-   implicit_progressive.progressive`.
+   implicit.progressive.progressive`.
 
 It draws ``R`` exactly as the vectorised pass (one ``torch.rand`` of :math:`(B, 1, H, W)` per frame), so the two
 agree bit for bit on ``t``, ``hit``, ``termination`` and the evaluation counts (``tests/passes/

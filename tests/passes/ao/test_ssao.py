@@ -1,4 +1,4 @@
-"""Hemisphere SSAO (ssbench/passes/ao/ssao.py), Crytek SSAO (ssao_crytek.py) and their teaching twins.
+"""Hemisphere SSAO (ssbench/passes/ao/ssao.py), Crytek SSAO (ao/crytek.py) and their teaching twins.
 
 Unit tests use analytic G-buffers: infinite planes intersected with the camera's pixel rays (no Mitsuba).
 """

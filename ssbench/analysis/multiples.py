@@ -164,39 +164,53 @@ def small_multiples(rows: Sequence[Mapping], panels: Sequence[Panel], path: Opti
     data = [panel_lines(rows, p, max_lines=max_lines) for p in panels]
     if path is None or not data:
         return data
+    import textwrap
+
+    from matplotlib import colormaps
     from matplotlib.figure import Figure
     nc = min(ncols, len(data))
     nr = math.ceil(len(data) / nc)
-    h = 2.7 * nr + (0.4 if title else 0)
-    fig = Figure(figsize=(3.4 * nc, h))                        # a fixed layout: constrained layout costs seconds
-    fig.subplots_adjust(left=0.2 / nc + 0.02, right=0.99, bottom=0.5 / h, top=1 - (0.75 if title else 0.35) / h,
-                        wspace=0.35, hspace=0.55)
+    labels = list(dict.fromkeys(ln["label"] for d in data for ln in d["lines"]))
+    palette = colormaps["tab10" if len(labels) <= 10 else "tab20"].colors
+    colour = {lab: palette[i % len(palette)] for i, lab in enumerate(labels)}   # one colour per line, everywhere
+    shared = len(data) > 1 and len(labels) <= 20      # one legend under the grid instead of one over each panel
+    leg_rows = math.ceil(len(labels) / 4) if shared else 0
+    h = 2.9 * nr + (0.4 if title else 0) + 0.22 * leg_rows
+    fig = Figure(figsize=(3.6 * nc, h))                        # a fixed layout: constrained layout costs seconds
+    fig.subplots_adjust(left=0.22 / nc + 0.03, right=0.985, bottom=(0.55 + 0.22 * leg_rows) / h,
+                        top=1 - (0.8 if title else 0.45) / h, wspace=0.38, hspace=0.7)
     axes = np.atleast_1d(fig.subplots(nr, nc, squeeze=False)).reshape(-1)
     for ax, d in zip(axes, data):
         p = d["panel"]
-        ax.set_title(p.title, fontsize=8)
-        ax.set_xlabel(p.xlabel or p.param, fontsize=8)
-        ax.set_ylabel(p.ylabel or " / ".join(_metrics(p)), fontsize=8)
-        ax.tick_params(labelsize=7)
+        ax.set_title("\n".join(textwrap.wrap(p.title, 44)), fontsize=9)
+        ax.set_xlabel(p.xlabel or p.param, fontsize=9)
+        ax.set_ylabel(p.ylabel or " / ".join(_metrics(p)), fontsize=9)
+        ax.tick_params(labelsize=8)
         if not d["lines"]:
             ax.text(0.5, 0.5, "no rows", ha="center", va="center", transform=ax.transAxes, color="grey")
             continue
         for ln in d["lines"]:
             style = "o-" if len(ln["x"]) > 1 else "o"
-            (h,) = ax.plot(ln["x"], ln["y"], style, ms=3, lw=1, label=ln["label"])
+            ax.plot(ln["x"], ln["y"], style, ms=3, lw=1.2, label=ln["label"], color=colour[ln["label"]])
             if ln["lo"] is not None:
-                ax.fill_between(ln["x"], ln["lo"], ln["hi"], color=h.get_color(), alpha=0.15, lw=0)
+                ax.fill_between(ln["x"], ln["lo"], ln["hi"], color=colour[ln["label"]], alpha=0.15, lw=0)
         if d["categories"] is not None:
             ax.set_xticks(range(len(d["categories"])), d["categories"], fontsize=7)
         else:
             xs = [x for ln in d["lines"] for x in ln["x"]]
             if p.param != "frame" and min(xs) > 0 and max(xs) / min(xs) >= 8:
                 ax.set_xscale("log", base=2)
-        ax.legend(fontsize=5.5, loc="best")
+        if not shared:
+            ax.legend(fontsize=7, loc="best", framealpha=0.7)
     for ax in axes[len(data):]:
         ax.set_axis_off()
+    if shared and labels:
+        from matplotlib.lines import Line2D
+        handles = [Line2D([], [], color=colour[lab], marker="o", ms=3, lw=1.2) for lab in labels]
+        fig.legend(handles, labels, loc="lower center", ncol=min(4, len(labels)), fontsize=8, frameon=False,
+                   bbox_to_anchor=(0.5, 0.005))
     if title:
-        fig.suptitle(title, fontsize=10)
+        fig.suptitle(title, fontsize=11)
     from ..io import save_figure
     save_figure(fig, path, dpi=90)
     return data

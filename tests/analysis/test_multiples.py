@@ -70,7 +70,8 @@ def test_png_has_one_panel_per_spec(tmp_path):
     data = small_multiples(_rows(), panels, str(path), ncols=2, title="t")
     assert [d["panel"] for d in data] == panels and data[3]["lines"] == [] and all(d["lines"] for d in data[:3])
     img = mimage.imread(str(path))
-    assert img.shape[:2] == (round(90 * (2.7 * 2 + 0.4)), round(90 * 3.4 * 2))
+    labels = {ln["label"] for d in data for ln in d["lines"]}             # one legend under the grid, 4 a row
+    assert img.shape[:2] == (round(90 * (2.9 * 2 + 0.4 + 0.22 * math.ceil(len(labels) / 4))), round(90 * 3.6 * 2))
     with pytest.raises(ValueError, match="ncols"):
         small_multiples(_rows(), panels, None, ncols=0)
     assert not math.isnan(data[0]["lines"][0]["y"][0])

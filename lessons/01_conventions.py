@@ -20,9 +20,9 @@
 #
 # The source articles rebuild positions and normals from the depth buffer in two different ways: mebiusbox,
 # 「スクリーンスペース・アンビエント・オクルージョン (SSAO)」, 2022, https://zenn.dev/mebiusbox/articles/c7ea4871698ada
-# (demo code https://github.com/mebiusbox/ssao; *seed 002* below), §2.2 and §3.3, and mebiusbox,
+# (demo code https://github.com/mebiusbox/ssao; *SSAO article* below), §2.2 and §3.3, and mebiusbox,
 # 「スクリーンスペース・リフレクション (SSR)」, 2022, https://zenn.dev/mebiusbox/articles/43ecf1bb12831c
-# (demo code https://github.com/mebiusbox/ssr; *seed 000*), §1.1 — `ssbench/REFERENCES.md` lists them all. We derive both
+# (demo code https://github.com/mebiusbox/ssr; *SSR article*), §1.1 — `ssbench/REFERENCES.md` lists them all. We derive both
 # ways, check them against each other and against a G-buffer
 # that Mitsuba 3 ray traced **at the same pixel centres**, and meet the one place where Mitsuba's camera frame
 # differs from OpenGL's. The rules are collected on one page, `ssbench/CONVENTIONS.md`; `ssbench/camera.py`
@@ -31,7 +31,7 @@
 # > **You will learn**
 # > 1. what a G-buffer holds, and how ssbench stores it (`GBuffer`, `(B, C, H, W)` tensors);
 # > 2. the chain world → view → clip → NDC → UV → pixel, and its one row flip;
-# > 3. the three depth encodings of seed 002 §2.2, and why a depth buffer loses precision far away;
+# > 3. the three depth encodings of SSAO article §2.2, and why a depth buffer loses precision far away;
 # > 4. position from depth, the SSAO way (inverse projection) and the HBAO way (`UvToViewParams`, derived);
 # > 5. the normal encoding `(n + 1) / 2`, and normals rebuilt from depth with HBAO's `minDiff`;
 # > 6. where Mitsuba's camera frame differs from GL's, and how ssbench hides it.
@@ -80,7 +80,7 @@ print("channels:", {name: tuple(t.shape) for name, t in g.as_dict().items()})
 # %% [markdown]
 # ## 1. What a screen-space pass sees
 #
-# Seed 002 §2.1 renders colour, depth and normals into render targets first; every later pass reads only those.
+# SSAO article §2.1 renders colour, depth and normals into render targets first; every later pass reads only those.
 # ssbench's `GBuffer` is the same idea as a frozen dataclass of `(B, C, H, W)` tensors, all in **view space**,
 # row 0 at the top. The background (`mask` False) holds what a cleared GPU buffer would: depth on the far plane,
 # a zero normal.
@@ -104,14 +104,14 @@ for a, (im, title, cmap) in zip(ax.flat, panels):
     a.set_xticks([]), a.set_yticks([])
     if cmap not in (None, "gray"):
         fig.colorbar(h, ax=a, shrink=0.8)
-fig.suptitle("Step 1 — the G-buffer of sphere_on_plane (seed 002 §2.1)")
+fig.suptitle("Step 1 — the G-buffer of sphere_on_plane (SSAO article §2.1)")
 plt.show()
 
 # %% [markdown]
 # ## 2. From world to pixel, and the one row flip
 #
 # View space is OpenGL's: the camera sits at the origin and looks down **−z**, +x right, +y up, so visible
-# points have `z < 0`. The projection is `gluPerspective` (seed 002 §3.3 writes it out as `M_perspective`),
+# points have `z < 0`. The projection is `gluPerspective` (SSAO article §3.3 writes it out as `M_perspective`),
 # NDC is clip ÷ w with `w = −z`, UV is `ndc · 0.5 + 0.5` with **v pointing up** (as in every shader of the
 # articles), and pixels count rows **down** from the top. That last step is the only flip in ssbench:
 #
@@ -173,7 +173,7 @@ ax[1].axis("off")
 plt.show()
 
 # %% [markdown]
-# ## 3. Three encodings of depth (seed 002 §2.2)
+# ## 3. Three encodings of depth (SSAO article §2.2)
 #
 # The SSAO shader reads a **GL depth buffer** `d ∈ [0, 1]` and turns it into view z (`perspectiveDepthToViewZ`)
 # or into **linear depth** `l = (z + n)/(n − f)` (`viewZToOrthographicDepth`). Where does `d` come from? Row 3 of
@@ -202,7 +202,7 @@ h = ax[2].imshow(g.linear_depth[0, 0], cmap="magma", vmax=0.2)
 ax[2].set_title("linear depth l = (z + n)/(n − f)"), fig.colorbar(h, ax=ax[2], shrink=0.8)
 for a in ax[1:]:
     a.set_xticks([]), a.set_yticks([])
-fig.suptitle("Step 3 — depth encodings (seed 002 §2.2, three.js packing.glsl)")
+fig.suptitle("Step 3 — depth encodings (SSAO article §2.2, three.js packing.glsl)")
 plt.show()
 
 # %% [markdown]
@@ -211,7 +211,7 @@ plt.show()
 # Because `d` is a hyperbola, one float32 step of `d` (one *ulp*, 2⁻²⁴ ≈ 6·10⁻⁸ for `d ∈ [0.5, 1)`) is a
 # view-z step of `|Δz| = ulp(d)·(f − n)·z²/(f·n)` — it grows with **z²** and with **1/near**. Store the scene's
 # z as a float32 depth buffer and read it back: the error follows the bound. This is the precision every SSAO
-# and SSR pass of the article works with (and the reason seed 002's Fig. 10 needs a `MinDistance`).
+# and SSR pass of the article works with (and the reason the SSAO article's Fig. 10 needs a `MinDistance`).
 
 # %%
 z32 = -torch.logspace(-0.5, 2, 300, dtype=torch.float64)[:-1]
@@ -231,7 +231,7 @@ plt.title("float32 depth buffer: error grows like z²")
 plt.show()
 
 # %% [markdown]
-# ## 4. Position from depth, the SSAO way: inverse projection (seed 002 §2.2)
+# ## 4. Position from depth, the SSAO way: inverse projection (SSAO article §2.2)
 #
 # `getViewPosition` undoes the projection: build the clip position `((uv, d) − 0.5)·2` with `w = 1`, multiply it
 # by `clipW` (the `w` the vertex had, `−z`), and apply `P⁻¹`. Here it is on the whole depth buffer, in float64,
@@ -264,7 +264,7 @@ plt.show()
 check("float32 reconstruction within 1e-4 relative", float(np.nanmax(rel.numpy())) < 1e-4)
 
 # %% [markdown]
-# ## 5. Position from depth, the HBAO way: deriving `UvToViewParams` (seed 002 §3.3)
+# ## 5. Position from depth, the HBAO way: deriving `UvToViewParams` (SSAO article §3.3)
 #
 # HBAO's `uvToView` needs no matrix: `xy = (A·uv + B)·z`. The article derives `A` and `B` by running the
 # projection of x backwards. With `F = 1/tan(fov/2)`:
@@ -293,7 +293,7 @@ hbao_way = torch.cat([(A * uv_img + B) * view_z, view_z[None]])           # (3, 
 library_hbao = reconstruct.position_from_depth(depth, cam, method="uv_to_view")[0]
 check("uvToView by hand equals position_from_depth('uv_to_view')", torch.allclose(hbao_way, library_hbao, atol=1e-12))
 gap = float((library_hbao - library_ssao).abs().max())
-print(f"largest difference between the two seed ways: {gap:.1e} (float64 round-off)")
+print(f"largest difference between the two SSAO-article ways: {gap:.1e} (float64 round-off)")
 check("the SSAO and HBAO reconstructions agree", gap < 1e-9)
 
 fig, ax = plt.subplots(1, 3, figsize=(14, 3.5), layout="constrained")
@@ -306,7 +306,7 @@ fig.suptitle("Step 5 — the pixel ray is linear in uv; z scales it onto the sur
 plt.show()
 
 # %% [markdown]
-# ## 6. Storing a normal in a colour: `(n + 1)/2` (seed 002 §2.2)
+# ## 6. Storing a normal in a colour: `(n + 1)/2` (SSAO article §2.2)
 #
 # three.js's `MeshNormalMaterial` writes `gl_FragColor = (n + 1)·0.5` into an 8-bit RGB target, and the SSAO
 # shader reads it back with `getViewNormal = 2·rgb − 1`. ssbench stores float normals in [−1, 1], so the
@@ -336,9 +336,9 @@ for a in ax:
 plt.show()
 
 # %% [markdown]
-# ## 7. Normals from depth: HBAO's `minDiff` (seed 002 §3.3)
+# ## 7. Normals from depth: HBAO's `minDiff` (SSAO article §3.3)
 #
-# Seed 002 §1 notes that normals "can be rebuilt from depth, at a cost". HBAO does it with four neighbours:
+# SSAO article §1 notes that normals "can be rebuilt from depth, at a cost". HBAO does it with four neighbours:
 # `dPdu = minDiff(P, Pr, Pl)`, `dPdv = minDiff(P, Pt, Pb)`, where `minDiff` keeps **the shorter** of the two
 # one-sided differences, and `n = normalize(dPdu × dPdv)`. Why the shorter one? At a silhouette one neighbour
 # lies on another surface, far behind; the central difference `Pr − Pl` would mix the two and tilt the normal.
@@ -403,7 +403,7 @@ plt.show()
 # silhouette the central difference straddles two surfaces and the normal breaks by tens of degrees, while
 # `minDiff` stays on the pixel's own surface. A pass would rather be a little wrong everywhere than very wrong
 # at edges — that is where AO and reflections are looked at. And a plane (the floor) comes out exact either
-# way. This is the price seed 002 §1 mentions for skipping a normal buffer.
+# way. This is the price the SSAO article mentions (§1) for skipping a normal buffer.
 #
 # ## 8. Mitsuba's camera frame is not OpenGL's
 #
@@ -458,6 +458,6 @@ assert checks and all(checks.values())
 # ## See also
 #
 # * `ssbench/CONVENTIONS.md` — the conventions page; `ssbench/camera.py` and `ssbench/reconstruct.py`.
-# * Seed 002 §2.2 (`getViewPosition`, depth helpers, `getViewNormal`) and §3.3 (`uvToView`, `minDiff`).
+# * SSAO article §2.2 (`getViewPosition`, depth helpers, `getViewNormal`) and §3.3 (`uvToView`, `minDiff`).
 # * `tests/test_camera.py`, `tests/test_reconstruct.py` — the same facts as unit tests.
 # * Next: **lesson 2**, SSAO — the first pass that reads this G-buffer.

@@ -15,7 +15,7 @@
 #
 # Ambient occlusion asks: of all the directions above a point, how many are blocked by nearby geometry?
 # A ray tracer answers exactly; Crytek's **SSAO** (Crysis, 2007) answers from the G-buffer alone, by scattering
-# a few points around each pixel and counting how many land *behind* the depth buffer. Seed 002 §1–2 builds it
+# a few points around each pixel and counting how many land *behind* the depth buffer. SSAO article §1–2 builds it
 # up one fix at a time, and so does this lesson:
 #
 # Crytek's sphere → the hemisphere → a centre-weighted kernel → per-pixel noise rotation (Gram–Schmidt) → the
@@ -151,7 +151,7 @@ check("Crytek's sphere greys open surfaces (flat bias > 0.3)", flat_crytek > 0.3
 
 # %%
 def ssao_count(gb, kernel, noise, radius=RADIUS, min_distance=0.0005, max_distance=0.02):
-    """Seed 002 §2.2's SSAO fragment shader for every pixel; returns the number of occluding samples."""
+    """SSAO article §2.2's SSAO fragment shader for every pixel; returns the number of occluding samples."""
     cam = gb.camera
     view_z = gb.view_z.double()
     uv = cam.uv_grid(torch.float64)[None]                                   # (1, 2, H, W) vUv
@@ -198,7 +198,7 @@ check("the hemisphere beats the sphere against the ground truth", rmse_hemi_u < 
 # %% [markdown]
 # ## 4. A kernel that crowds the centre (§1 Fig. 4)
 #
-# Seed 002 makes the distribution "concentrate near the target point": the library's `hemisphere_kernel` draws a
+# The SSAO article makes the distribution "concentrate near the target point": the library's `hemisphere_kernel` draws a
 # random direction and length, then scales sample `i` by `lerp(0.1, 1.0, (i/N)²)` (J. Chapman's construction).
 # Near occluders matter most — they block the widest cone of directions — so they deserve the most samples.
 #

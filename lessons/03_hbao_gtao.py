@@ -13,7 +13,7 @@
 #
 # ## Overview
 #
-# SSAO (lesson 2) throws points into a half-ball and counts. NVIDIA's **HBAO** (Bavoil & Sainz 2008, seed 002
+# SSAO (lesson 2) throws points into a half-ball and counts. NVIDIA's **HBAO** (Bavoil & Sainz 2008, SSAO article
 # §3) marches along a few lines in the image instead, and for each direction keeps the highest **horizon** the
 # depth buffer rises to: whatever lies below the horizon is hidden from the sky. Its blur is depth-aware (a
 # **cross-bilateral** filter) so shadows stop at silhouettes. We then meet **GTAO**, its modern,

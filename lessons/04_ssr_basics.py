@@ -15,7 +15,7 @@
 #
 # A mirror shows what its reflected ray hits. **Screen-space reflections** (SSR; Crytek's "real-time local
 # reflections" in Crysis 2) find that hit without the scene: reflect the eye ray at every pixel, march along
-# the reflected ray in small steps, and stop when a step falls *behind* the depth buffer. Seed 000 §1 builds the
+# the reflected ray in small steps, and stop when a step falls *behind* the depth buffer. SSR article §1 builds the
 # basic version — reflection vector, near-plane clipping, a linear march with a `Thickness`, back-face depth,
 # binary search, and the two fades that hide what the march cannot do. We build it in that order and score
 # every choice against the **exact mirror hit** that Mitsuba traces for each pixel

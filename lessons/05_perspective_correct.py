@@ -15,9 +15,9 @@
 #
 # Lesson 4 marched in **view space**: equal steps along the 3-D ray. On screen those steps are not equal — they
 # bunch up in the distance and spread out up close, so the march reads some pixels many times and skips others
-# (seed 000 Fig. 11, left). McGuire and Mara's DDA (lesson 6) marches in **screen space** instead, one pixel at
+# (SSR article Fig. 11, left). McGuire and Mara's DDA (lesson 6) marches in **screen space** instead, one pixel at
 # a time. But then it must know, at each pixel, where on the 3-D ray it is — and depth is *not* linear in
-# screen space. Seed 000's appendix A derives what is: `1/z`, and any attribute divided by `z`. This lesson
+# screen space. SSR article's appendix A derives what is: `1/z`, and any attribute divided by `z`. This lesson
 # checks the derivation numerically, then shows why the DDA interpolates exactly `Q = c/w` and `k = 1/w`.
 #
 # > **You will learn**
@@ -26,7 +26,7 @@
 # > 3. the perspective-correct attribute `b' = z'·((1 − t)·b₁/z₁ + t·b₂/z₂)` (eqs. 7–15), and what the naive
 # >    linear blend gets wrong;
 # > 4. why the DDA carries `Q = c·k` and `k = 1/H.w`, and recovers the view-space point as `Q/k`;
-# > 5. the "half step" `(Q.z + ½dQ.z)/(k + ½dk)` that seed 000 §2.2 admits it does not understand.
+# > 5. the "half step" `(Q.z + ½dQ.z)/(k + ½dk)` that the SSR article (§2.2) admits it does not understand.
 
 # %% [markdown]
 # ## Setup
@@ -250,6 +250,6 @@ assert checks and all(checks.values())
 # %% [markdown]
 # ## See also
 #
-# * Seed 000 appendix A (the derivation), §2.2 (the DDA set-up with `H0`, `H1`, `k0`, `k1`, `Q0`, `Q1`, `P0`, `P1`).
+# * SSR article appendix A (the derivation), §2.2 (the DDA set-up with `H0`, `H1`, `k0`, `k1`, `Q0`, `Q1`, `P0`, `P1`).
 # * `ssbench/passes/ssr/dda.py` (`project_to_pixel_matrix`, `dda_rays`) and `passes/teaching/ssr_dda_basic.py`.
 # * Next: **lesson 6**, the DDA march itself.

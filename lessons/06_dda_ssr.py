@@ -13,7 +13,7 @@
 #
 # ## Overview
 #
-# McGuire and Mara's *Efficient GPU Screen-Space Ray Tracing* (seed 000 §2) marches the reflected ray across
+# McGuire and Mara's *Efficient GPU Screen-Space Ray Tracing* (SSR article §2) marches the reflected ray across
 # the **screen**, one pixel per step, with a line-drawing algorithm (a DDA). Lesson 5 showed the arithmetic that
 # makes it possible: `P`, `Q = c·k` and `k = 1/w` are linear on the screen. This lesson draws lines the way
 # §2.1 does, counts which pixels each march reads (Fig. 11), trades steps for speed with `PixelStride` and
@@ -417,7 +417,7 @@ check("the split adds up: per target, nothing + hit = the perfect pass's share",
 # Off screen (Fig. 14): mirror rays from the near floor climb to the wall above the top of the frame, and the
 # green ball is cut by the left edge. Back faces (Fig. 15): the undersides of both balls, which the mirror shows
 # and the camera never sees. Hidden (Fig. 16): the red box behind the blue ball, and the patches of wall behind
-# the balls and the pillar — the mirror sees them, the depth buffer holds the object in front. Seed 000 §4's
+# the balls and the pillar — the mirror sees them, the depth buffer holds the object in front. SSR article §4's
 # conclusion stands: SSR still looks good, but only a fallback (reflection probes, ray tracing) can fill these
 # pixels.
 #

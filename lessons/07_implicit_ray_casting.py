@@ -13,7 +13,7 @@
 #
 # ## Overview
 #
-# Seed 004 (*陰的に定義された曲面の漸進的レイトレーシング*, "progressive ray tracing of arbitrary implicit
+# Progressive-tracing article (*陰的に定義された曲面の漸進的レイトレーシング*, "progressive ray tracing of arbitrary implicit
 # surfaces") renders any surface written as **f(p) = 0**: the user types a formula, and every pixel must find
 # the first `t` where its ray `s + t·d` meets the surface. Before its own method (lesson 8), the article's
 # background (背景) walks through the ways to do that, and what each one needs from `f`:

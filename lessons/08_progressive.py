@@ -14,7 +14,7 @@
 # ## Overview
 #
 # Lesson 7 ended with a dilemma: a fixed step is cheap but thin things punch through; every safe method needs
-# something a user-typed `f` cannot give. Seed 004's answer (手法) is to keep the cheap march and **remember**
+# something a user-typed `f` cannot give. Progressive-tracing article's answer (手法) is to keep the cheap march and **remember**
 # between frames. Each pixel stores `t'`, the nearest intersection found so far; each frame marches only
 # `[0, t']` with `N` steps whose start is jittered at random, so a wall the lattice missed this frame is caught
 # in a later one, and `t'` only ever moves toward the first root. One extra sample at `(1 + ε)t'` detects when

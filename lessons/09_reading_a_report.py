@@ -20,7 +20,7 @@
 # one tidy row per run → a sweep (a grid of configurations, as data) → error against time and the **Pareto
 # front** → time in units of the **gather floor**, which survives a noisy machine → the **equal-error cost**: what
 # the same error costs with the ray tracer itself → **small multiples** of the artifacts the articles show
-# (seed 002's banding, Fig. 5, and halos, Figs. 7–9) → **tuning**, default vs tuned on scenes the tuner never
+# (SSAO article's banding, Fig. 5, and halos, Figs. 7–9) → **tuning**, default vs tuned on scenes the tuner never
 # saw → a real report folder, and `ssbench report --compare` between two runs.
 #
 # These are the parts of the issue-6 report (`ssbench report`): sweeps and timing (`ssbench.bench`), the
@@ -128,7 +128,7 @@ print(f"{W}x{H}, {RAYS} ground-truth rays, files under {OUT}")
 # * *error* against each target, `<metric>_<target>`: `cos` is cosine-weighted AO, the common yardstick;
 #   `flavour` the quantity the pass itself estimates (HBAO: obscurance, SSAO: the volume fraction of its kernel,
 #   `volume_hemisphere`; lesson 2 Step 4b, lesson 3 Step 7);
-# * *artifacts*: `halo_band` (mean |error| within 4 px of a depth edge, seed 002 Figs. 7–9), `flat_bias`
+# * *artifacts*: `halo_band` (mean |error| within 4 px of a depth edge, SSAO article Figs. 7–9), `flat_bias`
 #   (occlusion added on open flat ground), `banding` (the error left after a 1.5-px blur: Fig. 5's bands),
 #   `tile_energy` (the share of the image at the noise-tile frequency), `noise`;
 # * `gt_stderr_cos`: the ground truth's own standard error — no method can be scored more finely than this;
@@ -428,19 +428,19 @@ plt.show()
 # report prints this table for every effect (SSR: the exact mirror trace at one ray per pixel; implicit
 # surfaces: fixed-step march steps against the certified reference).
 #
-# ## 6. Artifact small multiples: banding and halos (seed 002 Fig. 5, Figs. 7–9)
+# ## 6. Artifact small multiples: banding and halos (SSAO article Fig. 5, Figs. 7–9)
 #
 # Error against time hides *what kind* of error. The report adds small multiples: one panel per (method,
 # knob), an artifact metric on the y axis, one line per value of the other knobs (`analysis.Panel`,
 # `small_multiples`). Two figures, as in the report:
 #
-# * **banding vs sample count and noise tile** (seed 002 Fig. 5) on the stairs sweep;
+# * **banding vs sample count and noise tile** (SSAO article Fig. 5) on the stairs sweep;
 # * **halos vs the range check and the blur** (Figs. 7–9, and Fig. 6's blur) on a second, untimed sweep of
 #   SSAO on `fence`, thin slats in front of a wall, where halos are worst (lesson 2, Step 6).
 #
-# The report's SSR and implicit sections draw the same kind of figure for their own artifacts: seed 000 §4's
+# The report's SSR and implicit sections draw the same kind of figure for their own artifacts: SSR article §4's
 # failure classes (missed, false hit, punch-through vs steps, stride, thickness, jitter; lesson 6, Step 6)
-# and seed 004's punch-through vs step size and frame (lessons 7–8).
+# and progressive-tracing article's punch-through vs step size and frame (lessons 7–8).
 
 # %%
 HALO_SWEEP = {"name": "lesson09_fence", "effect": "ao", "scenes": ["fence"], "resolution": [W, H], "rays": RAYS,

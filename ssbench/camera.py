@@ -9,7 +9,7 @@ The conventions are described on ``ssbench/CONVENTIONS.md``; this module enforce
 * **Pixels**: continuous coordinates ``(px, py)`` with ``py`` pointing *down*; row 0 is the top of the
   image; the centre of pixel (column i, row j) is ``(i + 0.5, j + 0.5)``.
 * **Depth encodings**: GL depth buffer ``d ∈ [0, 1]``, view z, and linear ("orthographic") depth
-  ``(z + n) / (n − f) ∈ [0, 1]`` (seed 002 §2.2, three.js ``packing.glsl``).
+  ``(z + n) / (n − f) ∈ [0, 1]`` (SSAO article §2.2, three.js ``packing.glsl``).
 * **Mitsuba** places camera-local +x to the image *left* and its sensor defaults to a horizontal fov; the
   mapping to Mitsuba (:meth:`Camera.mitsuba_sensor`) is written here and nowhere else.
 
@@ -144,7 +144,7 @@ class Camera:
 
     @property
     def focal(self) -> float:
-        """``F = 1 / tan(fovy / 2)`` (seed 002 §3.3)."""
+        """``F = 1 / tan(fovy / 2)`` (SSAO article §3.3)."""
         return 1.0 / math.tan(math.radians(self.fovy_deg) / 2.0)
 
     @property
@@ -179,7 +179,7 @@ class Camera:
         return torch.tensor(rows, dtype=dtype, device=device)
 
     def projection_matrix(self, dtype: torch.dtype = torch.float64, device=None) -> torch.Tensor:
-        """GL perspective matrix (seed 002 §3.3, ``M_perspective``)."""
+        """GL perspective matrix (SSAO article §3.3, ``M_perspective``)."""
         n, f, F = self.near, self.far, self.focal
         rows = [[F / self.aspect, 0.0, 0.0, 0.0],
                 [0.0, F, 0.0, 0.0],
@@ -279,7 +279,7 @@ class Camera:
         uv = self.uv_grid(dtype, device)
         return self.uv_to_view(uv, torch.full_like(uv[:1], -1.0), dim=0)
 
-    # ------------------------------------------------------------------ depth encodings (seed 002 §2.2)
+    # ------------------------------------------------------------------ depth encodings (SSAO article §2.2)
     def view_z_to_depth(self, view_z: torch.Tensor) -> torch.Tensor:
         """View z → GL depth buffer value in [0, 1] (three.js ``viewZToPerspectiveDepth``)."""
         n, f = self.near, self.far
@@ -300,9 +300,9 @@ class Camera:
         """Linear depth → view z (``orthographicDepthToViewZ``)."""
         return linear_depth * (self.near - self.far) - self.near
 
-    # ------------------------------------------------------------------ position from depth (two seed ways)
+    # ------------------------------------------------------------------ position from depth (the SSAO article's two ways)
     def uv_to_view_params(self) -> tuple[float, float, float, float]:
-        """HBAO ``UvToViewParams`` (seed 002 §3.3): ``(−2/F₁, −2/F₂, 1/F₁, 1/F₂)``.
+        """HBAO ``UvToViewParams`` (SSAO article §3.3): ``(−2/F₁, −2/F₂, 1/F₁, 1/F₂)``.
 
         ``F₁ = F · H / W`` and ``F₂ = F`` with ``F = 1 / tan(fovy / 2)``, derived from
         ``x_view = (2u − 1)·(−z) / (F / aspect)`` and ``y_view = (2v − 1)·(−z) / F``.
@@ -312,7 +312,7 @@ class Camera:
         return (-2.0 / f1, -2.0 / f2, 1.0 / f1, 1.0 / f2)
 
     def uv_to_view(self, uv: torch.Tensor, view_z: torch.Tensor, dim: int = -3) -> torch.Tensor:
-        """HBAO ``uvToView``: ``xy = (A · uv + B) · z`` (seed 002 §3.3). ``view_z`` has size 1 on ``dim``."""
+        """HBAO ``uvToView``: ``xy = (A · uv + B) · z`` (SSAO article §3.3). ``view_z`` has size 1 on ``dim``."""
         a0, a1, b0, b1 = self.uv_to_view_params()
         u, v = _split(uv, dim, 2, "uv")
         z = view_z.squeeze(dim) if view_z.dim() == uv.dim() else view_z
@@ -320,7 +320,7 @@ class Camera:
         return torch.stack([(a0 * u + b0) * z, (a1 * v + b1) * z, z], dim)
 
     def view_position_from_depth(self, uv: torch.Tensor, depth: torch.Tensor, dim: int = -3) -> torch.Tensor:
-        """SSAO ``getViewPosition`` (seed 002 §2.2): un-project ``(uv, depth)`` with the inverse projection.
+        """SSAO ``getViewPosition`` (SSAO article §2.2): un-project ``(uv, depth)`` with the inverse projection.
 
         ``clipW = P[3][2]·z + P[3][3]`` (three.js column-major ``[2][3]``), ``clip = (2·(uv, d) − 1, 1)·clipW``.
         """

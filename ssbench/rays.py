@@ -5,7 +5,7 @@
   :class:`~ssbench.camera.Camera` (plus optional sub-pixel jitter), with the distances to the near and far
   planes along each ray. Ray convention: a pixel's ray starts at the ``eye`` and runs along the **unit**
   world-space direction ``d``; ``t`` is the distance along it in world units; ``t_far = far / cos θ`` with
-  ``cos θ = −d_view.z`` (the far distance ``d_f`` of seed 004), ``t_near = near / cos θ``.
+  ``cos θ = −d_view.z`` (the far distance ``d_f`` of progressive-tracing article), ``t_near = near / cos θ``.
 
 They live below :mod:`ssbench.passes` so that ground truth (``ssbench.reference``) and metrics never import the
 passes they score.

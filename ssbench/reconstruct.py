@@ -1,6 +1,6 @@
-"""Rebuild view-space position and normals from a depth buffer, the way the seed shaders do.
+"""Rebuild view-space position and normals from a depth buffer, the way the articles' shaders do.
 
-* :func:`position_from_depth` — both seed-002 ways: ``"inverse_projection"`` (SSAO ``getViewPosition``,
+* :func:`position_from_depth` — both SSAO-article ways: ``"inverse_projection"`` (SSAO ``getViewPosition``,
   §2.2) and ``"uv_to_view"`` (HBAO ``viewPos``/``uvToView`` with ``UvToViewParams``, §3.3).
 * :func:`normals_from_position` — the HBAO ``minDiff`` tangents (§3.3): of the two one-sided differences
   toward the left/right (or bottom/top) neighbour, take the shorter; the normal is ``dPdu × dPdv``.
@@ -21,7 +21,7 @@ def position_from_depth(depth: torch.Tensor, camera: Camera, method: str = "uv_t
     Args:
         depth: :math:`(B, 1, H, W)` GL depth buffer values in [0, 1].
         camera: the camera that rendered ``depth``.
-        method: ``"uv_to_view"`` (HBAO, seed 002 §3.3) or ``"inverse_projection"`` (SSAO, §2.2).
+        method: ``"uv_to_view"`` (HBAO, SSAO article §3.3) or ``"inverse_projection"`` (SSAO, §2.2).
 
     Returns:
         :math:`(B, 3, H, W)` view-space positions.
@@ -51,7 +51,7 @@ def _min_diff(p: torch.Tensor, forward: torch.Tensor, backward: torch.Tensor,
 
 
 def normals_from_position(position: torch.Tensor, mask: torch.Tensor | None = None) -> torch.Tensor:
-    """Unit view-space normals from a position buffer by HBAO's ``minDiff`` (seed 002 §3.3).
+    """Unit view-space normals from a position buffer by HBAO's ``minDiff`` (SSAO article §3.3).
 
     ``dPdu`` is taken toward the right/left neighbours and ``dPdv`` toward the upper/lower ones (``v`` up, so
     "upper" is row − 1). Neighbours outside the image or off ``mask`` are never chosen. Pixels with no valid

@@ -6,7 +6,7 @@ standard error) plus the direction the metric must move; :func:`verdict` checks 
 metric was calibrated" section draws these curves next to the tables that use the metrics, and the slow tests
 (``tests/analysis/test_calibration.py``) pin the same responses.
 
-AO experiments (seed 002, mebiusbox, 「スクリーンスペース・アンビエント・オクルージョン (SSAO)」, 2022,
+AO experiments (SSAO article, mebiusbox, 「スクリーンスペース・アンビエント・オクルージョン (SSAO)」, 2022,
 https://zenn.dev/mebiusbox/articles/c7ea4871698ada):
 
 * :func:`banding_response` — the kernel size ``K`` of hemisphere SSAO with the rotation noise off

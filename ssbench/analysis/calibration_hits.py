@@ -1,11 +1,11 @@
 """Calibration of the hit classes (see :mod:`ssbench.analysis.calibration` for the idea and :class:`Response`).
 
-* :func:`ssr_response` — SSR classes against the knobs that cause them (seed 000, mebiusbox,
+* :func:`ssr_response` — SSR classes against the knobs that cause them (SSR article, mebiusbox,
   「スクリーンスペース・リフレクション (SSR)」, 2022,
   https://zenn.dev/mebiusbox/articles/43ecf1bb12831c): the linear march's
   ``thickness`` (too thick invents *false* hits, too thin *misses*, Figs. 4–6) and the DDA's ``pixel_stride``
   without refinement (a coarse stride lands on the right surface pixels off: *misplaced* hits);
-* :func:`punch_through_response` — implicit ray casting (seed 004, 「陰的に定義された曲面の漸進的レイトレーシング」,
+* :func:`punch_through_response` — implicit ray casting (progressive-tracing article, 「陰的に定義された曲面の漸進的レイトレーシング」,
   2016, https://www.shadertoy.com/view/XsdSR7): the fixed-step march's step count on the thin shell, where
   steps longer than the shell jump through it.
 """

@@ -105,8 +105,8 @@ BLUR_NAMES = ("box", "cross_bilateral", "joint_bilateral")
 
 
 def blur_fn(name: str) -> Callable:
-    """The named blur as ``fn(ao, gbuffer) -> ao``: ``"box"`` (the seed's 5×5 box, not depth-aware),
-    ``"cross_bilateral"`` (the seed's 2-pass blur guided by ``view_z``, radius 15) or ``"joint_bilateral"``
+    """The named blur as ``fn(ao, gbuffer) -> ao``: ``"box"`` (the SSAO article's 5×5 box, not depth-aware),
+    ``"cross_bilateral"`` (the SSAO article's 2-pass blur guided by ``view_z``, radius 15) or ``"joint_bilateral"``
     (kornia's joint bilateral guided by the linear depth, background masked out)."""
     from ..passes import blur as B
     table = {"box": lambda ao, g: B.box_blur(ao, 5),

@@ -1,4 +1,4 @@
-"""Evaluate one implicit-surface ray caster on one implicit scene over frames: one tidy row per run (seed 004).
+"""Evaluate one implicit-surface ray caster on one implicit scene over frames: one tidy row per run (progressive-tracing article).
 
 :func:`run_implicit` casts ``frames`` frames with the method (the progressive method carries its
 ``ProgressiveState`` across frames; fixed-step and sphere tracing run each frame afresh, fixed-step with a new

@@ -1,4 +1,4 @@
-"""Implicit surfaces f(p) = 0 (seed 004): a safe expression language, evaluators, surfaces and scenes.
+"""Implicit surfaces f(p) = 0 (progressive-tracing article): a safe expression language, evaluators, surfaces and scenes.
 
 - ``ast.py``: the scalar expression tree every evaluator walks.
 - ``parser.py``: whitelist parser (never ``eval``) from text to the tree; vectors and helpers are lowered.

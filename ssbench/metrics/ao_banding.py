@@ -1,6 +1,6 @@
 """Banding: the structured (low-frequency) part of an AO method's error, independent of any noise tile.
 
-Too few samples make SSAO show *bands* (seed 002 §1 Fig. 5: mebiusbox, 「スクリーンスペース・アンビエント・
+Too few samples make SSAO show *bands* (SSAO article §1 Fig. 5: mebiusbox, 「スクリーンスペース・アンビエント・
 オクルージョン (SSAO)」, 2022, https://zenn.dev/mebiusbox/articles/c7ea4871698ada): with one fixed kernel every
 pixel makes the same mistakes, so neighbouring pixels' errors line up into contours; rotating the kernel per pixel (the noise
 texture) turns the same error into fine noise, and a blur removes it (Fig. 6). The two differ only in the

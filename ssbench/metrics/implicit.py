@@ -1,4 +1,4 @@
-r"""Scoring implicit-surface ray casters against the certified reference (seed 004: punch-through, false hits).
+r"""Scoring implicit-surface ray casters against the certified reference (progressive-tracing article: punch-through, false hits).
 
 :func:`classify` gives every pixel one label by comparing a method's
 :class:`~ssbench.passes.implicit.common.ImplicitResult` (``t``, ``hit``) with the reference
@@ -263,7 +263,7 @@ def detection_prediction(h: Union[float, torch.Tensor], chord: Union[float, torc
 
     A march samples ``t = s₀ + k·h`` with ``s₀`` uniform over one step (the article's ``s₀ = s₁R``): one
     sample per step length, so a slab ``[c, c + w]`` along the ray holds a sample with probability
-    ``min(1, w/h)`` (seed 004 手法 2); the expected number of frames to find it is ≈ ``h/w``.
+    ``min(1, w/h)`` (progressive-tracing article 手法 2); the expected number of frames to find it is ≈ ``h/w``.
     Broadcasts ``h`` (> 0) against ``chord`` (w ≤ 0 gives 0).
 
     Example:
@@ -330,7 +330,7 @@ def survivor_punch_through(h_per_frame: torch.Tensor, chord: torch.Tensor, found
     r"""Survivor (hazard) form of the h/w prediction: each frame, only pixels the run has not found yet are at risk.
 
     :func:`predicted_punch_through` multiplies miss probabilities over all frames for every pixel, so a pixel the
-    run found at frame 3 still counts as "maybe unfound" at frame 40: it over-predicts late frames (seed 004's
+    run found at frame 3 still counts as "maybe unfound" at frame 40: it over-predicts late frames (progressive-tracing article's
     progressive method keeps a found root's ``t'``; the pixel stays found). Here the at-risk set of frame
     :math:`k` is the run's own set of unfound pixels after frame :math:`k-1` (all pixels before frame 1), and the
     hazard of staying unfound is the one-frame miss probability :math:`1 - \min(1, w/h_k)`:

@@ -1,7 +1,7 @@
 """SSR metrics: per-pixel classification of a screen-space reflection pass against the exact mirror reflection,
 summary metrics and pictures. This module is the public import path; the code lives in:
 
-* :mod:`ssbench.metrics.ssr_classify` — :func:`classify` (every pixel gets exactly one label, seed 000 §4,
+* :mod:`ssbench.metrics.ssr_classify` — :func:`classify` (every pixel gets exactly one label, SSR article §4,
   Figs. 14–16) and :func:`truth_classes` (the labels of a perfect screen-space pass).
   Its module docstring holds the table defining each class and the precedence of the three target labels;
 * :mod:`ssbench.metrics.ssr_classes` — the class codes (:data:`NOT_REFLECTIVE`, :data:`CORRECT`,

@@ -60,7 +60,7 @@ CLASS_COLORS: dict[int, tuple[float, float, float]] = {
     FALSE_HIT: (0.89, 0.12, 0.12), PUNCH_THROUGH: (0.92, 0.25, 0.86), OFF_SCREEN_TARGET: (0.98, 0.84, 0.12),
     OCCLUDED_TARGET: (0.98, 0.52, 0.05), BACK_FACE_TARGET: (0.10, 0.80, 0.82), TRUE_MISS: (0.50, 0.50, 0.50),
     MISPLACED_HIT: (0.99, 0.62, 0.56), UNFIXABLE_HIT: (0.50, 0.05, 0.25)}
-#: the three labels no screen-space method can fix (seed 000 §4)
+#: the three labels no screen-space method can fix (SSR article §4)
 UNFIXABLE = (OFF_SCREEN_TARGET, OCCLUDED_TARGET, BACK_FACE_TARGET)
 #: the classes where the pass returned a colour that is wrong (what a user sees as a bad reflection)
 WRONG_OUTPUT = (FALSE_HIT, MISPLACED_HIT, PUNCH_THROUGH, UNFIXABLE_HIT)

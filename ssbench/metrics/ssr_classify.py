@@ -5,7 +5,7 @@ march found a hit and where (``hit``, ``hit_pixel``, ``hit_view``). The ground t
 (``ssbench.reference.reflections`` → ``ReflectionReference``) traces the exact mirror ray of the same pixel
 in the full scene and says where it really lands and whether a depth buffer *could* hold that point
 (``on_screen``, ``visible``, ``back_face``). :func:`classify` compares the two and gives every pixel exactly
-one label (seed 000 §4, Figs. 14–16):
+one label (SSR article §4, Figs. 14–16):
 
 ============================ ==== ==========================================================================
 class                        code definition (``k`` = ``k_px``; the pass hit is the *raw* hit, before fades)
@@ -39,7 +39,7 @@ class                        code definition (``k`` = ``k_px``; the pass hit is 
 ============================ ==== ==========================================================================
 
 A *visible target* is ``truth.hit & on_screen & ~back_face & visible``. The three **target** labels
-(off-screen, back-face, occluded; checked in that order) are what no screen-space method can fix (seed 000 §4):
+(off-screen, back-face, occluded; checked in that order) are what no screen-space method can fix (SSR article §4):
 where the pass rightly returns nothing they keep their label; where it still returns a hit — which can only be
 a wrong colour — the pixel is :data:`UNFIXABLE_HIT`, an error class.
 :func:`~ssbench.metrics.ssr_scores.class_fractions` splits it by target with ``targets=truth_classes(...)``.

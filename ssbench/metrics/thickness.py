@@ -10,7 +10,7 @@ units: how far behind the front surface a ray still counts as inside the object)
 knob (anchor)                        meaning                          value for a slab of thickness :math:`T`
 ==================================== ================================ ==========================================
 ``pixelZSize`` (kode80; also the     constant view-space depth slab   :math:`T` (identity)
-seed's ``Thickness``, G3D
+SSR article's ``Thickness``, G3D
 ``csZThickness``, mebiusbox)
 ``depthBufferThickness`` (HDRP)      *relative*: the surface spans    :math:`t = T / |z|`
                                      linear depth :math:`[|z|,
@@ -84,7 +84,7 @@ def _depth(depth) -> float:
 
 # ------------------------------------------------------------------------------------------ the four knobs
 def kode80_pixel_z_size(thickness: float) -> float:
-    """kode80 ``pixelZSize`` (and the seed's ``Thickness``): the depth slab itself, in view units.
+    """kode80 ``pixelZSize`` (and the SSR article's ``Thickness``): the depth slab itself, in view units.
 
     Example:
         >>> kode80_pixel_z_size(0.1)

@@ -53,7 +53,7 @@ IMPLICIT_METHODS: dict[str, str] = {m.name: spec(m) for m in _ALL["implicit"]}
 
 
 def implicit_method(name: str):
-    """``(function, ParamsClass)`` of an implicit-surface ray caster by name (seed 004). The progressive method
+    """``(function, ParamsClass)`` of an implicit-surface ray caster by name (progressive-tracing article). The progressive method
     also takes and returns a ``ProgressiveState``; the others are stateless."""
     if name not in IMPLICIT_METHODS:
         raise KeyError(f"method: unknown implicit method {name!r}; known: {', '.join(IMPLICIT_METHODS)}")

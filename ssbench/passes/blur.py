@@ -1,4 +1,4 @@
-"""AO blurs: the seed's 5×5 box blur (seed 002 §2.3), its 2-pass cross-bilateral blur (§3.2) and kornia's
+"""AO blurs: the SSAO article's 5×5 box blur (§2.3), its 2-pass cross-bilateral blur (§3.2) and kornia's
 joint bilateral blur guided by depth.
 
 All take an AO buffer :math:`(B, 1, H, W)` (any channel count works) and keep its shape and dtype. Borders
@@ -81,7 +81,7 @@ def _masked(blur, ao: torch.Tensor, mask: Optional[torch.Tensor]) -> torch.Tenso
 
 def box_blur(ao: torch.Tensor, kernel_size: int = 5, *, border_type: str = "replicate",
              mask: Optional[torch.Tensor] = None) -> torch.Tensor:
-    """The seed's blur (§2.3): the mean of the ``kernel_size²`` texels around each pixel (``kornia`` box blur).
+    """The SSAO article's blur (§2.3): the mean of the ``kernel_size²`` texels around each pixel (``kornia`` box blur).
 
     .. math::
         \\text{out}(x, y) = \\frac{1}{k^2} \\sum_{i,j=-\\lfloor k/2 \\rfloor}^{\\lfloor k/2 \\rfloor} ao(x + i, y + j)

@@ -1,4 +1,4 @@
-"""Composite AO onto a colour buffer, the seed's final pass (seed 002 §2.4).
+"""Composite AO onto a colour buffer, the SSAO article's final pass (§2.4).
 
 The article's fragment shader::
 

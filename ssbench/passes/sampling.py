@@ -1,4 +1,4 @@
-"""Seeded sample kernels and the rotation-noise texture shared by the SSAO passes (seed 002 §1, §2.2).
+"""Seeded sample kernels and the rotation-noise texture shared by the SSAO passes (SSAO article §1, §2.2).
 
 Everything is drawn in float64 on the CPU from a ``torch.Generator`` so the same seed gives the same bits on
 every device; callers cast with ``.to(dtype, device)``. The draw order is part of the contract: a pass and its
@@ -93,7 +93,7 @@ def sphere_kernel(n: int, generator: Optional[torch.Generator] = None) -> torch.
 
 
 def noise_texture(size: int = 4, generator: Optional[torch.Generator] = None) -> torch.Tensor:
-    """The rotation noise texture: random unit vectors in the xy plane, ``z = 0`` (seed 002 §2.2).
+    """The rotation noise texture: random unit vectors in the xy plane, ``z = 0`` (SSAO article §2.2).
 
     Texel ``(row, col)`` (row 0 at the top, as every ssbench image) draws ``x, y`` uniform in [−1, 1] in
     row-major order and is normalised.

@@ -1,6 +1,6 @@
 """What sample-counting SSAO estimates: the fraction of its sample kernel that lies *inside* geometry.
 
-Crytek's SSAO and the normal-oriented hemisphere SSAO of seed 002 §1–§2.2 (mebiusbox, 「スクリーンスペース・
+Crytek's SSAO and the normal-oriented hemisphere SSAO of SSAO article §1–§2.2 (mebiusbox, 「スクリーンスペース・
 アンビエント・オクルージョン (SSAO)」, 2022,
 https://zenn.dev/mebiusbox/articles/c7ea4871698ada) do not integrate visibility
 over directions. They place sample *points* in a ball or half-ball around the shading point ``P`` and count

@@ -1,4 +1,4 @@
-r"""Certified first-hit ground truth for implicit surfaces f(p) = 0 (seed 004): interval march + bisection.
+r"""Certified first-hit ground truth for implicit surfaces f(p) = 0 (progressive-tracing article): interval march + bisection.
 
 Per pixel, in float64, on the rays of :func:`ssbench.rays.camera_rays` (unit ``d``, ``t`` in
 world units), root isolation by interval bisection (Mitchell, "Robust Ray Intersection with Interval Arithmetic",
@@ -25,7 +25,7 @@ Graphics Interface 1990):
    different image size or batch can move ``t`` at the ``epsilon`` level (identical inputs: identical bits).
 3. **Bisection** of the hit bracket to ``(hi − lo) ≤ epsilon·max(1, t)``; ``t`` is the bracket midpoint.
 
-The hit is the article's event ``f(t_i) ≥ 0 > f(t_{i+1})`` (seed 004, レイキャスティング), so every march,
+The hit is the article's event ``f(t_i) ≥ 0 > f(t_{i+1})`` (progressive-tracing article, レイキャスティング), so every march,
 the dense cross-check (:func:`ssbench.reference.implicit_dense.dense_march`) and the reference agree on what a
 root is. Roots **without a sign change** are not hits: sign-change methods cannot see them; interval
 arithmetic does see them, as ``ambiguous_t``. ``certified`` means every part of ``[t_start, t)`` (the whole

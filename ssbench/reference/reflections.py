@@ -1,7 +1,7 @@
 """Exact mirror-reflection ground truth for SSR: one reflected ray per G-buffer pixel, traced in the full scene.
 
 For each pixel centre the eye ray is re-traced (same rays as :func:`ssbench.reference.gbuffer`), reflected about
-the shading normal turned toward the viewer (``r = d − 2(d·n)n``, seed 000 §1.1) and traced from a robustly
+the shading normal turned toward the viewer (``r = d − 2(d·n)n``, SSR article §1.1) and traced from a robustly
 offset origin nudged along the mirror ray itself. The hit is then classified the way a screen-space pass could or could not see it:
 projected to a pixel, tested against the screen and the frustum, against the camera (an eye ray to the hit
 point must reach it unobstructed) and for facing (a back face cannot be in a depth buffer).

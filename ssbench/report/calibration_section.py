@@ -25,21 +25,21 @@ def _experiments(use_cache: bool) -> list[tuple[str, str, str, Callable]]:
     from ..analysis import calibration as C
     from ..analysis import calibration_hits as H
     return [
-        ("banding", "Banding vs kernel size (seed 002 Fig. 5)", "falls as K grows; lower with the rotation on",
+        ("banding", "Banding vs kernel size (SSAO article Fig. 5)", "falls as K grows; lower with the rotation on",
          lambda: C.banding_response(use_cache=use_cache)),
-        ("halo", "Dark halo vs the range check (seed 002 Figs. 7–9)",
+        ("halo", "Dark halo vs the range check (SSAO article Figs. 7–9)",
          "the dark halo rises as max_distance grows (missing occlusion falls)",
          lambda: C.halo_response(use_cache=use_cache)),
-        ("flat_bias", "Flat bias vs the self-occlusion bias (seed 002 Fig. 10)", "falls as min_distance grows",
+        ("flat_bias", "Flat bias vs the self-occlusion bias (SSAO article Fig. 10)", "falls as min_distance grows",
          lambda: C.flat_bias_response(use_cache=use_cache)),
-        ("noise", "Noise vs kernel size (seed 002 Fig. 5)", "falls as K grows",
+        ("noise", "Noise vs kernel size (SSAO article Fig. 5)", "falls as K grows",
          lambda: C.noise_response(use_cache=use_cache)),
         ("flicker", "Flicker vs sample count (noise advancing every frame)", "falls as the samples grow",
          lambda: C.flicker_response(use_cache=use_cache)),
-        ("ssr", "SSR classes vs thickness and stride (seed 000 Figs. 4–6)",
+        ("ssr", "SSR classes vs thickness and stride (SSR article Figs. 4–6)",
          "false hits rise and misses fall with the thickness; misplaced hits rise with the stride",
          lambda: H.ssr_response(use_cache=use_cache)),
-        ("punch", "Punch-through vs step count (seed 004)", "falls as the steps shorten",
+        ("punch", "Punch-through vs step count (progressive-tracing article)", "falls as the steps shorten",
          lambda: H.punch_through_response(use_cache=use_cache))]
 
 

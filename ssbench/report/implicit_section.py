@@ -1,4 +1,4 @@
-"""The report's implicit-surface section (seed 004): the progressive method against fixed-step at the same N.
+"""The report's implicit-surface section (progressive-tracing article): the progressive method against fixed-step at the same N.
 
 Every number comes from rows of :func:`ssbench.evaluate.run_implicit` (or its λ columns,
 :func:`ssbench.evaluate.lipschitz_diagnostic`). At a small size (default 96×72) it writes under

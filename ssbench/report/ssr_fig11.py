@@ -1,4 +1,4 @@
-"""Seed 000 Fig. 11 in the report: which depth texels *one* ray reads, per marcher, against the pixels it crosses.
+"""SSR article Fig. 11 in the report: which depth texels *one* ray reads, per marcher, against the pixels it crosses.
 
 For one reflective pixel the linear view-space march (``ssr_linear(..., trace_pixel=)``), the DDA at stride 1
 and the supercover DDA (:func:`ssbench.passes.ssr.visits.visit_map`) march the same mirror ray over the real
@@ -131,6 +131,6 @@ def plot(path: str, rays: list[dict], pixel: tuple[int, int], size: int = 24) ->
                              f"{r['skipped']} crossed but skipped", fontsize=8)
             if j == 0:
                 ax.set_ylabel(f"near the {where}", fontsize=8)
-    fig.suptitle(f"One ray from pixel {pixel} (seed 000 Fig. 11): green once, red twice or more, grey skipped",
+    fig.suptitle(f"One ray from pixel {pixel} (SSR article Fig. 11): green once, red twice or more, grey skipped",
                  fontsize=9)
     save_fig(fig, path)

@@ -10,12 +10,12 @@ G-buffer (the report's own render when it has one, else a fresh one), traces the
   occluded / back-face target, sky (the class colours of :mod:`ssbench.metrics.ssr`);
 * ``<method>.png`` — the pass's reflection colour with its fades; ``<method>_classes.png`` — its per-pixel
   classes (an unfixable target where the pass still reported a hit is its own error class); ``<method>_visits.png`` —
-  ``debug["visits"]`` (depth fetches per texel, log scale, seed Fig. 11); ``<method>_error.png`` — mean
+  ``debug["visits"]`` (depth fetches per texel, log scale, SSR article Fig. 11); ``<method>_error.png`` — mean
   absolute RGB error of the raw (fade-free) colour against the truth radiance (magma, saturating at
   :data:`ERR_RANGE`) where the pass can be blamed, grey where the target is unreachable and the pass returned
   nothing (:func:`scored_error_rgb`);
 * ``fig11.png`` (first scene only) — one ray's reads per marcher against the pixels it crosses
-  (:mod:`.ssr_fig11`, seed Fig. 11), when the linear march and both DDAs ran;
+  (:mod:`.ssr_fig11`, SSR article Fig. 11), when the linear march and both DDAs ran;
 
 plus the class-fraction table with times and a table mapping one physical thickness onto each anchor's
 "thickness" knob (:mod:`ssbench.metrics.thickness`). Nothing here may crash the report: a missing reference

@@ -1,4 +1,4 @@
-"""AO blurs (ssbench.passes.blur): seed 002 §2.3 box blur, §3.2 cross-bilateral blur, kornia joint bilateral."""
+"""AO blurs (ssbench.passes.blur): SSAO article §2.3 box blur, §3.2 cross-bilateral blur, kornia joint bilateral."""
 import math
 
 import pytest

@@ -1,4 +1,4 @@
-"""AO composite (ssbench.passes.composite): mix(OcclusionColor, color, ao^OcclusionPower), seed 002 §2.4."""
+"""AO composite (ssbench.passes.composite): mix(OcclusionColor, color, ao^OcclusionPower), SSAO article §2.4."""
 import pytest
 import torch
 

@@ -63,7 +63,7 @@ def test_flags_are_consistent_and_finite():
     px = ref.hit_pixel[0]
     on = ref.on_screen[0, 0]
     assert (px[0][on] >= 0).all() and (px[0][on] < 96).all() and (px[1][on] < 72).all()
-    # the scene is built to show every failure class of seed 000 §4
+    # the scene is built to show every failure class of SSR article §4
     assert ref.on_screen.any() and (ref.hit & ~ref.on_screen).any()            # off-screen targets
     assert (ref.on_screen & ~ref.visible).any()                              # occluded targets
     assert ref.back_face.any()                                                # back-facing targets

@@ -1,4 +1,4 @@
-"""The report's one-ray visit figure (seed 000 Fig. 11) on an analytic mirror floor (no Mitsuba)."""
+"""The report's one-ray visit figure (SSR article Fig. 11) on an analytic mirror floor (no Mitsuba)."""
 from __future__ import annotations
 
 import matplotlib.image as mimage

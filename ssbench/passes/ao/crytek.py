@@ -1,4 +1,4 @@
-"""Crytek SSAO (Crysis, 2007; seed 002 §1, Fig. 1–2): sphere samples around the pixel, no normal.
+"""Crytek SSAO (Crysis, 2007; SSAO article §1, Fig. 1–2): sphere samples around the pixel, no normal.
 
 Per pixel:
 

@@ -1,4 +1,4 @@
-"""Horizon-Based Ambient Occlusion (Bavoil & Sainz 2008), transcribed from the seed article (seed 002 §3).
+"""Horizon-Based Ambient Occlusion (Bavoil & Sainz 2008), transcribed from the SSAO article (§3).
 
 The pass follows the article's shader (§3.3) function by function: ``viewPos``/``uvToView`` with
 ``UvToViewParams``, ``diskRadiusInUV = 0.5·R·FocalLength/−P.z``, ``dPdu``/``dPdv`` by ``minDiff``,
@@ -148,7 +148,7 @@ def _min_diff(P: torch.Tensor, Pa: torch.Tensor, Pb: torch.Tensor) -> torch.Tens
 @half_in_float32
 def hbao(gbuffer: GBuffer, params: HBAOParams = HBAOParams(), *, generator: Optional[torch.Generator] = None,
          debug: bool = False) -> AOResult:
-    """Horizon-based ambient occlusion of a G-buffer (seed 002 §3.3, vectorised over pixels and directions).
+    """Horizon-based ambient occlusion of a G-buffer (SSAO article §3.3, vectorised over pixels and directions).
 
     .. math::
         AO = 1 - \\frac{s}{D}\\sum_{d=1}^{D} \\sum_i W(r_i)\\,(\\sin h_i - \\sin h_{i-1}),

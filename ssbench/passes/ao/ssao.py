@@ -1,4 +1,4 @@
-"""Hemisphere SSAO: the normal-oriented kernel of seed 002 §1–§2.2 (Chapman / three.js ``SSAOShader``).
+"""Hemisphere SSAO: the normal-oriented kernel of SSAO article §1–§2.2 (Chapman / three.js ``SSAOShader``).
 
 Per pixel (the article's fragment shader, vectorised over pixels *and* samples as ``(B, K, H, W)``):
 
@@ -187,7 +187,7 @@ def ssao_result(count: torch.Tensor, p, mask: torch.Tensor, *, dtype: torch.dtyp
 @half_in_float32
 def hemisphere_ssao(gbuffer: GBuffer, params: HemisphereSSAOParams = HemisphereSSAOParams(), *,
                     generator: torch.Generator | None = None, debug: bool = False) -> AOResult:
-    r"""Hemisphere SSAO of seed 002 §2.2 (see the module docstring for the algorithm and edge cases).
+    r"""Hemisphere SSAO of SSAO article §2.2 (see the module docstring for the algorithm and edge cases).
 
     .. math::
         \mathrm{AO} = 1 - \mathrm{Strength}\cdot\frac{1}{K}\sum_{i<K}

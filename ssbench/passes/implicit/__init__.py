@@ -1,4 +1,4 @@
-"""Implicit-surface ray casters (seed 004), one method per module: ``(surface, camera, params, *, state=None,
+"""Implicit-surface ray casters (progressive-tracing article), one method per module: ``(surface, camera, params, *, state=None,
 generator=None) → ImplicitResult``.
 
 Each method module ends with its :class:`~ssbench.passes.registry.Method` declaration; ``ssbench.passes``

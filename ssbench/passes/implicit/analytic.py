@@ -1,4 +1,4 @@
-r"""Analytic ray–sphere intersection, the closed form of the article's background (seed 004, 背景 /
+r"""Analytic ray–sphere intersection, the closed form of the article's background (progressive-tracing article, 背景 /
 レイキャスティング).
 
 For the sphere :math:`f(\vec x) = \lVert \vec x - \vec c\rVert - r` and the unit ray :math:`\vec s + t\vec d`
@@ -74,7 +74,7 @@ def analytic_sphere(camera: Union[CameraRays, "object"], center: Union[Sequence[
                     radius: float, params: AnalyticSphereParams = AnalyticSphereParams(), *,
                     jitter: Optional[torch.Tensor] = None, dtype: Optional[torch.dtype] = None,
                     device=None) -> ImplicitResult:
-    r"""First root ``t ≥ t_near`` of a sphere per pixel, in closed form (seed 004, 背景).
+    r"""First root ``t ≥ t_near`` of a sphere per pixel, in closed form (progressive-tracing article, 背景).
 
     Args:
         camera: a :class:`~ssbench.camera.Camera` (rays through pixel centres, plus ``jitter``) or ready

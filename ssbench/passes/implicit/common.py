@@ -1,4 +1,4 @@
-"""Shared pieces of the implicit-surface ray casters (seed 004): camera rays, the result buffer, the surface
+"""Shared pieces of the implicit-surface ray casters (progressive-tracing article): camera rays, the result buffer, the surface
 protocol.
 
 Ray convention (the same for every method *and* for ``ssbench.reference.implicit``): a pixel's ray starts at
@@ -112,7 +112,7 @@ def unflat(x: torch.Tensor, shape: tuple[int, int, int]) -> torch.Tensor:
 
 def bisect(surface, origin: torch.Tensor, direction: torch.Tensor, lo: torch.Tensor, hi: torch.Tensor,
            iterations: int) -> tuple[torch.Tensor, torch.Tensor]:
-    """Bisection of brackets ``f(lo) ≥ 0 > f(hi)`` along rays (n, 3), keeping the bracket (seed 004,
+    """Bisection of brackets ``f(lo) ≥ 0 > f(hi)`` along rays (n, 3), keeping the bracket (progressive-tracing article,
     二分法による絞込み): ``iterations`` evaluations per ray; returns the final ``(lo, hi)``."""
     for _ in range(iterations):
         if lo.numel() == 0:

@@ -1,4 +1,4 @@
-r"""Fixed-step ray marching, the article's baseline (seed 004, 背景 / レイキャスティング and 結果).
+r"""Fixed-step ray marching, the article's baseline (progressive-tracing article, 背景 / レイキャスティング and 結果).
 
 .. math::
     t_{n+1} = t_n + s, \qquad s = t_{far} / N, \qquad t_n \in [0, t_{far}]
@@ -116,7 +116,7 @@ def march_lattice(surface, origin: torch.Tensor, direction: torch.Tensor, offset
 def fixed_step(surface, camera, params: FixedStepParams = FixedStepParams(), *, state: None = None,
                generator: Optional[torch.Generator] = None, jitter: Optional[torch.Tensor] = None,
                dtype: Optional[torch.dtype] = None, device=None) -> ImplicitResult:
-    r"""Fixed-step march over ``[0, t_far]`` with ``N`` steps, first sign change, bisection (seed 004, 背景).
+    r"""Fixed-step march over ``[0, t_far]`` with ``N`` steps, first sign change, bisection (progressive-tracing article, 背景).
 
     Args:
         surface: the surface protocol (``f``, ``f_and_grad``, ``object_index``).

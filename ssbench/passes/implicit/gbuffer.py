@@ -1,5 +1,5 @@
 r"""Implicit-surface hits as a :class:`~ssbench.gbuffer.GBuffer`, so the AO and SSR passes run on implicit
-scenes, plus supersampling (seed 004, 補足: アンチエイリアシング, "内部的に最終出力よりも高い解像度で
+scenes, plus supersampling (progressive-tracing article, 補足: アンチエイリアシング, "内部的に最終出力よりも高い解像度で
 レンダリングし、出力時にダウンサンプリング").
 
 Channels (:func:`to_gbuffer`): ``view_z``, ``position`` (view space, ``view_dir · t`` with the eye at the

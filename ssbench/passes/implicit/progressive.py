@@ -1,4 +1,4 @@
-r"""The article's progressive ray casting of arbitrary implicit surfaces (seed 004, 手法, steps 1–2.5).
+r"""The article's progressive ray casting of arbitrary implicit surfaces (progressive-tracing article, 手法, steps 1–2.5).
 
 Per pixel a distance estimate ``t'`` is carried across frames (:class:`ProgressiveState`):
 
@@ -177,7 +177,7 @@ def progressive(surface, camera, params: ProgressiveParams = ProgressiveParams()
                 state: Optional[ProgressiveState] = None, generator: Optional[torch.Generator] = None,
                 jitter: Optional[torch.Tensor] = None, dtype: Optional[torch.dtype] = None,
                 device=None) -> ImplicitResult:
-    r"""One frame of the article's progressive method (seed 004, 手法 2.1–2.5) for camera rays.
+    r"""One frame of the article's progressive method (progressive-tracing article, 手法 2.1–2.5) for camera rays.
 
     Args:
         surface: the surface protocol at this frame.

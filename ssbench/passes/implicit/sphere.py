@@ -1,5 +1,5 @@
 r"""Sphere tracing (Hart 1996) and over-relaxed sphere tracing (Keinert et al. 2014), the distance-field
-baseline the article's background cites (seed 004, 背景: 距離場によるレイマーチング).
+baseline the article's background cites (progressive-tracing article, 背景: 距離場によるレイマーチング).
 
 With a declared Lipschitz bound ``λ ≥ sup |∇f|``, ``|f(p)|/λ`` is the radius of a ball around ``p`` free of
 the surface ("unbounding sphere"), so the step ``t += |f|/λ`` never passes the surface. A ray hits when
@@ -46,7 +46,7 @@ class SphereTraceParams:
         safeguard: catch a step that lands inside (``f ≥ 0 → f < 0``) and bisect back to the crossing
             (default). ``False`` is plain Hart sphere tracing: the march goes on with ``|f|/λ`` from wherever it
             landed, so with an invalid λ it tunnels through thin features and reports the far side or a miss —
-            the article's holes (seed 004, 背景), which ``safeguard=True`` hides.
+            the article's holes (progressive-tracing article, 背景), which ``safeguard=True`` hides.
     """
 
     lipschitz: Optional[float] = None

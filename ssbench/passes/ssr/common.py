@@ -1,4 +1,4 @@
-"""Shared pieces of the SSR passes (seed 000): the hit buffer, termination codes, the reflection ray.
+"""Shared pieces of the SSR passes (SSR article): the hit buffer, termination codes, the reflection ray.
 
 Every SSR pass returns an :class:`SSRResult`: the reflection colour *and* a raw hit buffer, so the
 classification in ``ssbench.metrics.ssr`` can compare what the pass found with the exact mirror hit.
@@ -52,12 +52,12 @@ class SSRResult:
 
 
 def reflect(incident: torch.Tensor, normal: torch.Tensor, dim: int = 1) -> torch.Tensor:
-    """GLSL ``reflect(I, N) = I − 2·dot(N, I)·N`` (seed 000 §1.1); ``normal`` must be unit length."""
+    """GLSL ``reflect(I, N) = I − 2·dot(N, I)·N`` (SSR article §1.1); ``normal`` must be unit length."""
     return incident - 2.0 * (normal * incident).sum(dim, keepdim=True) * normal
 
 
 def reflection_rays(position: torch.Tensor, normal: torch.Tensor) -> torch.Tensor:
-    """Unit view-space reflection directions of the eye rays: ``reflect(normalize(P), N)`` (seed 000 §1.1).
+    """Unit view-space reflection directions of the eye rays: ``reflect(normalize(P), N)`` (SSR article §1.1).
 
     Args:
         position: :math:`(B, 3, H, W)` view-space positions (the eye is at the origin).
@@ -70,7 +70,7 @@ def reflection_rays(position: torch.Tensor, normal: torch.Tensor) -> torch.Tenso
 
 def clip_ray_length(origin_z: torch.Tensor, dir_z: torch.Tensor, max_distance: float,
                     near: float) -> torch.Tensor:
-    """Ray length clipped so the end point stays in front of the near plane (seed 000 §1.2, appendix A).
+    """Ray length clipped so the end point stays in front of the near plane (SSR article §1.2, appendix A).
 
     ``rayLength = (P.z + R.z·maxDistance > −near) ? (−near − P.z) / R.z : maxDistance`` — rays heading toward
     the camera stop just before the near plane instead of crossing ``w = 0``.

@@ -1,4 +1,4 @@
-"""Screen-space reflections by perspective-correct DDA (McGuire & Mara 2014), after seed 000 §2.2 and G3D.
+"""Screen-space reflections by perspective-correct DDA (McGuire & Mara 2014), after the SSR article (§2.2) and G3D.
 
 The mirror ray (``reflection_rays``) is clipped at the near plane (``clip_ray_length``); both ends are projected
 to **pixels** (``H = M_pix·(c, 1)``, ``k = 1/H.w``, ``Q = c·k``, ``P = H.xy·k``); ``P0 → P1`` is walked one
@@ -249,7 +249,7 @@ def dda_march(s: DDARays, tex, params: DDASSRParams, H: int, W: int, visits: Opt
 @half_in_float32
 def ssr_dda(gbuffer: GBuffer, params: DDASSRParams = DDASSRParams(), *, generator: Optional[torch.Generator] = None,
             debug: bool = False) -> SSRResult:
-    """Screen-space reflections by perspective-correct DDA (seed 000 §2.2), vectorised over pixels.
+    """Screen-space reflections by perspective-correct DDA (SSR article §2.2), vectorised over pixels.
 
     Args:
         gbuffer: needs ``view_z``, ``normal`` (unit, view space), ``mask`` and ``color``, all :math:`(B, C, H, W)`.

@@ -1,4 +1,4 @@
-"""From a DDA march's per-ray outputs to the :class:`~ssbench.passes.ssr.common.SSRResult` images (seed 000 §2.2,
+"""From a DDA march's per-ray outputs to the :class:`~ssbench.passes.ssr.common.SSRResult` images (SSR article §2.2,
 §1.4–1.5): the colour at the hit texel, the fades, and the debug buffers. Shared by the DDA
 (:mod:`.dda`), the supercover DDA (:mod:`.dda_supercover`) and the supercover's teaching twin."""
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Texel access and hit refinement of the DDA (:mod:`.dda`, seed 000 §2.2): ``texelFetch`` in the permuted
+"""Texel access and hit refinement of the DDA (:mod:`.dda`, SSR article §2.2): ``texelFetch`` in the permuted
 frame, the perspective-correct z ``Q.z / k``, fetch counting for the visit maps, and the two refinements of a
 strided hit (the article's binary search, G3D's 1-pixel re-march). Split out of :mod:`.dda` for length;
 the supercover DDA (:mod:`.dda_supercover`) shares ``ray_view_z`` and ``count_visits``.

@@ -1,4 +1,4 @@
-"""The per-ray state of the DDA marchers (seed 000 §2.2; McGuire & Mara 2014), as dataclasses instead of dicts.
+"""The per-ray state of the DDA marchers (SSR article §2.2; McGuire & Mara 2014), as dataclasses instead of dicts.
 
 :class:`DDARays` is what the set-up (:func:`~ssbench.passes.ssr.dda.dda_rays`) hands the march: every ray that
 starts, flat over ``N`` rays, in the *permuted* frame (the major axis first, G3D's ``permute``). The march

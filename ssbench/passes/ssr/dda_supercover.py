@@ -1,6 +1,6 @@
 """Screen-space reflections by a *supercover* DDA: every pixel the projected ray crosses, each fetched once.
 
-The McGuire–Mara DDA (:mod:`.dda`, seed 000 §2.2) samples one pixel per major-axis line: at stride 1 it never
+The McGuire–Mara DDA (:mod:`.dda`, SSR article §2.2) samples one pixel per major-axis line: at stride 1 it never
 samples a pixel twice and never skips a line (Fig. 11, right), but a pixel whose corner the segment clips is not
 sampled. A thin occluder that covers only such a corner pixel is invisible to it. This pass walks the same
 segment ``P0 → P1`` cell by cell in the order the segment enters them (Amanatides & Woo 1987, "A Fast Voxel

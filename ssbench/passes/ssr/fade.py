@@ -1,4 +1,4 @@
-"""SSR fades of the seed article (seed 000 §1.4 screen-edge fade, §1.5 distance fade), as pure tensor functions.
+"""SSR fades of the SSR article (§1.4 screen-edge fade, §1.5 distance fade), as pure tensor functions.
 
 Fades hide failures, so every SSR pass also returns its raw, unfaded colour (``SSRResult.raw_color``).
 
@@ -34,7 +34,7 @@ def check_positive(value: float, name: str, allow_zero: bool = False) -> None:
 
 def edge_fade(hit_pixel: torch.Tensor, width: int, height: int, edge_distance: float = 50.0,
               edge_exponent: float = 1.0, mode: str = "vignette", dim: int = 1) -> torch.Tensor:
-    """Screen-edge fade (seed 000 §1.4) at continuous pixel coordinates ``(px, py)``.
+    """Screen-edge fade (SSR article §1.4) at continuous pixel coordinates ``(px, py)``.
 
     .. math::
         \\text{circular: } \\max(0, 1 - 4\\,|uv - \\tfrac12|^2) \\qquad
@@ -85,7 +85,7 @@ def edge_fade(hit_pixel: torch.Tensor, width: int, height: int, edge_distance: f
 
 def distance_fade(ray_distance: torch.Tensor, fade_distance: float = 10.0,
                   fade_exponent: float = 1.0) -> torch.Tensor:
-    """Distance fade (seed 000 §1.5): ``saturate(1 − pow(d / FadeDistance, FadeExponent))``.
+    """Distance fade (SSR article §1.5): ``saturate(1 − pow(d / FadeDistance, FadeExponent))``.
 
     Args:
         ray_distance: any shape, ``d = length(rayOrg − hitPoint)`` ≥ 0 in view-space units.

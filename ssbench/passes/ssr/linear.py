@@ -1,4 +1,4 @@
-"""Linear view-space SSR march, transcribed from the seed article (seed 000 §1.1–1.5).
+"""Linear view-space SSR march, transcribed from the SSR article (§1.1–1.5).
 
 ``rayOrg`` from the depth buffer, ``rayDir = reflect(normalize(rayOrg), N)`` (``reflection_rays``), the end
 point clipped at the near plane (``clip_ray_length``), then ``Iterations`` equal view-space steps
@@ -135,7 +135,7 @@ def _flat(t: torch.Tensor) -> torch.Tensor:                                     
 def ssr_linear(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(), *,
                generator: Optional[torch.Generator] = None, debug: bool = False,
                trace_pixel: Optional[tuple[int, int]] = None) -> SSRResult:
-    """Screen-space reflections by a linear view-space march (seed 000 §1), vectorised over rays.
+    """Screen-space reflections by a linear view-space march (SSR article §1), vectorised over rays.
 
     .. math::
         Q_i = O + (i + 1 - j\\xi)\\,\\frac{E - O}{N}, \\qquad

@@ -1,4 +1,4 @@
-"""SSR resolve: blur the reflection buffer by roughness and blend it into the scene colour (seed 000 §1.4–1.5).
+"""SSR resolve: blur the reflection buffer by roughness and blend it into the scene colour (SSR article §1.4–1.5).
 
 A simple, explicit model, enough to show what the hit buffer is worth in a picture:
 

@@ -1,4 +1,4 @@
-"""Visit maps (seed 000 Fig. 11): which depth texels a ray's march fetches vs the pixels its segment crosses.
+"""Visit maps (SSR article Fig. 11): which depth texels a ray's march fetches vs the pixels its segment crosses.
 
 :func:`crossed_pixels` is an independent float64 Amanatides–Woo traversal of one segment; :func:`visit_map` runs
 one ray of :func:`~ssbench.passes.ssr.dda.ssr_dda` (one fetch per major-axis line) or of
@@ -44,7 +44,7 @@ def crossed_pixels(p0, p1, height: int, width: int) -> torch.Tensor:
 
 def visit_map(gbuffer: GBuffer, params: Union[D.DDASSRParams, S.SupercoverDDASSRParams] = D.DDASSRParams(),
               pixel=(0, 0), *, generator: Optional[torch.Generator] = None) -> dict:
-    """Seed Fig. 11 for the ray of ``pixel = (x, y)`` (batch item 0, on ``mask``): fetched vs crossed texels.
+    """SSR article Fig. 11 for the ray of ``pixel = (x, y)`` (batch item 0, on ``mask``): fetched vs crossed texels.
 
     ``params`` picks the march: :class:`~ssbench.passes.ssr.dda.DDASSRParams` (the article's DDA, jitter as in
     ``ssr_dda``) or :class:`~ssbench.passes.ssr.dda_supercover.SupercoverDDASSRParams` (the supercover walk).

@@ -1,4 +1,4 @@
-"""HBAO, one pixel at a time: the seed article's shader (seed 002 §3.3) transliterated line by line.
+"""HBAO, one pixel at a time: the SSAO article's shader (§3.3) transliterated line by line.
 
 This file exists only to teach. It is a slow per-pixel Python loop whose functions and variables carry the
 shader's names (``viewPos``, ``uvToView``, ``minDiff``, ``calculateNumSteps``, ``rotateDirections``,

@@ -1,4 +1,4 @@
-"""The progressive method, one pixel at a time: seed 004's steps as plain functions over Python floats.
+"""The progressive method, one pixel at a time: progressive-tracing article's steps as plain functions over Python floats.
 
 This file exists only to teach. It follows the article step by step (「陰的に定義された曲面の漸進的レイトレーシング」,
 *Progressive Ray Tracing of Arbitrary Implicit Surfaces*, blog post, 2016, section 手法; demo

@@ -1,7 +1,7 @@
 """Teaching twins of the SSAO passes: the article's fragment shader run one pixel at a time in plain Python.
 
 *This module is not meant to be used in practice* (it is a few thousand times slower than
-:func:`ssbench.passes.ao.ssao.hemisphere_ssao`); it exists to show the algorithm of seed 002 §2.2 line by line,
+:func:`ssbench.passes.ao.ssao.hemisphere_ssao`); it exists to show the algorithm of SSAO article §2.2 line by line,
 with the shader's own variable names, so the vectorised pass can be read against it. The tests check that both
 give the same AO. Like the shader it works on scalars and 3-vectors; GLSL helpers (``dot``, ``cross``,
 ``normalize``, ``texture2D``) are written out below.
@@ -58,7 +58,7 @@ def texture2D(tex, uv, repeat=False):
 
 
 class _Shader:
-    """The uniforms and helper functions of seed 002 §2.2, bound to one G-buffer image."""
+    """The uniforms and helper functions of SSAO article §2.2, bound to one G-buffer image."""
 
     def __init__(self, gbuffer: GBuffer, b: int, position_from: str):
         cam = gbuffer.camera

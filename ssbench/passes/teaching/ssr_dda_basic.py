@@ -1,4 +1,4 @@
-"""DDA screen-space reflections, one pixel at a time: seed 000 §2.2's ``traceScreenSpaceRay`` line by line.
+"""DDA screen-space reflections, one pixel at a time: SSR article §2.2's ``traceScreenSpaceRay`` line by line.
 
 This file exists only to teach. It is a slow per-pixel Python loop that keeps the shader's names (``rayOrg``,
 ``rayDir``, ``H0``, ``H1``, ``k0``, ``k1``, ``Q0``, ``Q1``, ``P0``, ``P1``, ``delta``, ``permute``, ``stepDir``,

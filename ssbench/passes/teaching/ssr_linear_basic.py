@@ -1,4 +1,4 @@
-"""Linear SSR, one pixel at a time: the seed article's shader (seed 000 §1) transliterated line by line.
+"""Linear SSR, one pixel at a time: the SSR article's shader (§1) transliterated line by line.
 
 This file exists only to teach. It is a slow per-pixel Python loop whose functions and variables carry the
 shader's names (``getDepth``, ``getViewZ``, ``getViewPosition``, ``rayIntersectsDepth``, ``rayOrg``,
@@ -68,7 +68,7 @@ def ssr_linear_basic(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams
             return depth
         return (CameraNear * CameraFar) / ((CameraFar - CameraNear) * depth - CameraFar)
 
-    def getViewPosition(uv, depth, viewZ):                           # SSAO getViewPosition (seed 002 §2.2)
+    def getViewPosition(uv, depth, viewZ):                           # SSAO getViewPosition (SSAO article §2.2)
         clipW = -viewZ                                               # CameraProjectionMatrix[2][3]·viewZ + [3][3]
         clipPosition = [(uv[0] * 2 - 1) * clipW, (uv[1] * 2 - 1) * clipW, (depth * 2 - 1) * clipW, clipW]
         M = CameraInverseProjectionMatrix

@@ -1,4 +1,4 @@
-"""HBAO (seed 002 §3): synthetic analytic G-buffers (ray/plane intersections, no Mitsuba) plus one slow
+"""HBAO (SSAO article §3): synthetic analytic G-buffers (ray/plane intersections, no Mitsuba) plus one slow
 reference-G-buffer smoke test."""
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Analytic ray–sphere (seed 004, 背景): the stable quadratic against a per-pixel Python loop, tangent and
+"""Analytic ray–sphere (progressive-tracing article, 背景): the stable quadratic against a per-pixel Python loop, tangent and
 far-away rays, rays starting inside, background, dtype agreement."""
 from __future__ import annotations
 

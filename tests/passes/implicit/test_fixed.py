@@ -1,4 +1,4 @@
-"""Fixed-step march (seed 004, the article's baseline): closed-form roots, punch-through of thin slabs when
+"""Fixed-step march (progressive-tracing article, the article's baseline): closed-form roots, punch-through of thin slabs when
 the chord is shorter than the step and never when longer, honest evaluation counts, jitter, no NaN."""
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Implicit hits as a GBuffer: background FILL values exactly, view-space geometry, materials, Lambert colour,
-AO/SSR passes running on it, supersampling (seed 004, 補足: アンチエイリアシング)."""
+AO/SSR passes running on it, supersampling (progressive-tracing article, 補足: アンチエイリアシング)."""
 from __future__ import annotations
 
 import math

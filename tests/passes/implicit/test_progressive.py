@@ -1,4 +1,4 @@
-"""The article's progressive method (seed 004, 手法 2.1–2.5 and 補足): frame 1 equals the fixed-step baseline,
+"""The article's progressive method (progressive-tracing article, 手法 2.1–2.5 and 補足): frame 1 equals the fixed-step baseline,
 punch-through falls over frames as the h/w prediction says, stale estimates are invalidated, secondary rays
 keep their own t', TXAA jitter raises invalidation at silhouettes; determinism, dtypes, no NaN."""
 from __future__ import annotations

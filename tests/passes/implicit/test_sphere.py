@@ -1,4 +1,4 @@
-"""Sphere tracing and Keinert's over-relaxation (seed 004, 背景: 距離場によるレイマーチング): convergence to
+"""Sphere tracing and Keinert's over-relaxation (progressive-tracing article, 背景: 距離場によるレイマーチング): convergence to
 closed forms, fewer steps with ω > 1 where rays run along a surface, the fallback, overshoot with an invalid
 λ, rays starting inside, the λ argument."""
 from __future__ import annotations
@@ -96,7 +96,7 @@ def test_invalid_lipschitz_overshoots_and_bisects_back():
 
 
 def test_plain_sphere_tracing_punches_through_where_the_safeguard_bisects_back():
-    """safeguard=False is Hart's loop as published: with the invalid λ it steps through the bumps (seed 004's
+    """safeguard=False is Hart's loop as published: with the invalid λ it steps through the bumps (progressive-tracing article's
     holes), so the first hit is missed or reported far behind on many pixels; with the safeguard none is."""
     bumps = lambda p: torus_f(p, 1.0, 0.35) + 0.045 * torch.sin(20 * p[..., 0]) * torch.sin(    # noqa: E731
         20 * p[..., 1]) * torch.sin(20 * p[..., 2])

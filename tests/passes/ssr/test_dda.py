@@ -1,4 +1,4 @@
-"""DDA SSR (seed 000 §2.2): synthetic analytic G-buffers (ray/plane intersections, no Mitsuba)."""
+"""DDA SSR (SSR article §2.2): synthetic analytic G-buffers (ray/plane intersections, no Mitsuba)."""
 from __future__ import annotations
 
 import math
@@ -73,7 +73,7 @@ def test_refinement_sharpens_strided_hits():
     assert errs["binary"] < 0.7 * errs["none"] and errs["remarch"] < 0.7 * errs["none"], errs
 
 
-# ----------------------------------------------------------------------------- DDA visits (seed Fig. 11)
+# ----------------------------------------------------------------------------- DDA visits (SSR article Fig. 11)
 def test_crossed_pixels_is_exact():
     g = torch.Generator().manual_seed(3)
     for _ in range(20):

@@ -1,4 +1,4 @@
-"""Supercover DDA SSR: every crossed pixel once (seed 000 Fig. 11), against an independent grid traversal."""
+"""Supercover DDA SSR: every crossed pixel once (SSR article Fig. 11), against an independent grid traversal."""
 from __future__ import annotations
 
 import math
@@ -48,7 +48,7 @@ def assert_exactly_the_crossed(m, origin):
     return visits, crossed
 
 
-# ----------------------------------------------------------------------------- visits (seed Fig. 11)
+# ----------------------------------------------------------------------------- visits (SSR article Fig. 11)
 @pytest.mark.parametrize("deg", [0.0, 17.0, 45.0, 63.0, 80.0, 90.0, 135.0, 200.0, 271.0, 333.0])
 def test_visits_every_crossed_pixel_exactly_once(deg):
     """Stride 1 by construction: the fetched pixels are exactly the pixels the segment crosses, each once; the

@@ -1,4 +1,4 @@
-"""SSR fades (seed 000 §1.4 screen edge, §1.5 distance): closed-form values."""
+"""SSR fades (SSR article §1.4 screen edge, §1.5 distance): closed-form values."""
 from __future__ import annotations
 
 import pytest

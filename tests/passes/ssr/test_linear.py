@@ -1,4 +1,4 @@
-"""Linear SSR (seed 000 §1) on analytic G-buffers: a mirror floor ``y = 0`` and walls ``z = zw`` facing the
+"""Linear SSR (SSR article §1) on analytic G-buffers: a mirror floor ``y = 0`` and walls ``z = zw`` facing the
 camera, intersected with the pixel-centre rays in closed form (no Mitsuba)."""
 from __future__ import annotations
 

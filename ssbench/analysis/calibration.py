@@ -85,15 +85,6 @@ def verdict(r: Response, tol: float = 0.0) -> dict:
     return {"monotone": bool(mono and len(y) == len(r.y)), "ratio": float(ratio), "ratio_err": float(ratio_err)}
 
 
-def _mean_err(vals: Sequence[float]) -> tuple[float, float]:
-    vals = [v for v in vals if not math.isnan(v)]
-    if not vals:
-        return math.nan, math.nan
-    if len(vals) == 1:
-        return float(vals[0]), 0.0
-    return float(statistics.fmean(vals)), float(statistics.stdev(vals) / math.sqrt(len(vals)))
-
-
 def _pooled(values: Sequence[float]) -> tuple[float, float]:
     """Root of the mean square of per-draw rms values (the banding of all draws pooled into one region) and
     its standard error (delta method: ``se(mean b²) / 2y``)."""

@@ -116,7 +116,7 @@ def banding(pred: torch.Tensor, target: torch.Tensor, view_z: torch.Tensor, mask
     x, t, m = prepare(pred[:1] if rb == 1 else pred, target, mask)     # checks; x is reread below
     if view_z.shape != t.shape:
         raise ValueError(f"view_z: shape must match pred {tuple(pred.shape)}, got {tuple(view_z.shape)}")
-    x, t = pred.to(x.dtype).double(), t.double()
+    x, t = pred.double(), t.double()
     region = m & ~edge_band(view_z, m[:, :1], band) & (lowpass(t, m, sigma) < occluded)     # (rb, 1, H, W)
     dims = (1, 2, 3) if reduction == "none" else (0, 1, 2, 3)
     region_n = region.expand(n, -1, -1, -1)

@@ -69,8 +69,8 @@ class Method:
             raise ValueError(f"effect: expected one of {', '.join(EFFECTS)}, got {self.effect!r}")
 
 
-def _ordered(found: dict) -> list[Method]:
-    return [m for m, _ in sorted(found.values(), key=lambda mm: (mm[0].order, mm[0].name))]
+def _ordered(methods) -> list[Method]:
+    return sorted(methods, key=lambda m: (m.order, m.name))
 
 
 def discover(package: str, effect: str) -> list[Method]:
@@ -88,7 +88,7 @@ def discover(package: str, effect: str) -> list[Method]:
         if m.name in found:
             raise ValueError(f"method {m.name!r} is declared by both {found[m.name][1]} and {mod.__name__}")
         found[m.name] = (dataclasses.replace(m, effect=effect), mod.__name__)
-    return _ordered(found)
+    return _ordered(m for m, _ in found.values())
 
 
 def plugins(value: Optional[str] = None) -> list[Method]:
@@ -111,7 +111,7 @@ def plugins(value: Optional[str] = None) -> list[Method]:
         if m.name in found:
             raise ValueError(f"{PLUGINS_ENV}: method {m.name!r} is declared by both {found[m.name][1]} and {name}")
         found[m.name] = (m, name)
-    return _ordered(found)
+    return _ordered(m for m, _ in found.values())
 
 
 def merged(built_in: list[Method], extra: list[Method], effect: str) -> list[Method]:
@@ -121,8 +121,7 @@ def merged(built_in: list[Method], extra: list[Method], effect: str) -> list[Met
     clash = [m.name for m in extra if m.effect == effect and m.name in names]
     if clash:
         raise ValueError(f"{PLUGINS_ENV}: {', '.join(clash)} already names a built-in {effect} method")
-    both = {m.name: (m, "") for m in built_in + [m for m in extra if m.effect == effect]}
-    return _ordered(both)
+    return _ordered(built_in + [m for m in extra if m.effect == effect])
 
 
 def spec(m: Method) -> str:
@@ -132,8 +131,8 @@ def spec(m: Method) -> str:
 
 
 def face(methods: list[Method]) -> dict:
-    """The public names an effect package re-exports for ``methods``: each one's function, parameter class
-    and ``nn.Module`` by their own names."""
+    """The public names ``ssbench.passes`` re-exports for ``methods``: each one's function, parameter class
+    and ``nn.Module`` by their own names; two methods offering one name is a ``ValueError``."""
     out: dict = {}
     for m in methods:
         for obj in (m.function, m.params, m.module):

@@ -276,8 +276,9 @@ def _glance(speed: dict) -> list[dict]:
         for m in dict.fromkeys(s["method"] for s in e["summary"]):
             mine = [s for s in e["summary"] if s["method"] == m]
             errs = ", ".join(f"{s['scene']} {s['error']}" for s in mine)
-            gt = "; ".join(f"{s['scene']}: " + _GT_WORDS.get(eq[(s["scene"], m)]["kind"], "{n} " + eq[(
-                s["scene"], m)]["kind"]).format(n=eq[(s["scene"], m)]["n_text"]) for s in mine if (s["scene"], m) in eq)
+            same = [(s["scene"], eq[(s["scene"], m)]) for s in mine if (s["scene"], m) in eq]
+            gt = "; ".join(f"{scene}: " + _GT_WORDS.get(q["kind"], "{n} " + q["kind"]).format(n=q["n_text"])
+                           for scene, q in same)
             out.append({"method": m, "scenes": len(mine),
                         "headline": f"{e.get('title', e['name'])} at {speed.get('size', '?')}, best configuration: "
                                     f"{e['metric']} {errs}" + (f" · as good as {gt}" if gt else ""),

@@ -19,7 +19,7 @@ from . import ao as _ao
 from . import implicit as _implicit
 from . import ssr as _ssr
 from .common import AOResult
-from .registry import Method, face, merged, plugins, spec
+from .registry import Method, SpeedPanel, face, merged, plugins, spec
 
 _PLUGINS = plugins()                # modules listed in SSBENCH_METHODS (ssbench.passes.registry.plugins)
 _ALL = {e: merged(pkg.METHODS, _PLUGINS, e) for e, pkg in (("ao", _ao), ("ssr", _ssr), ("implicit", _implicit))}
@@ -87,5 +87,5 @@ def declared(fn, name: str, default=None):
 _FACE = face(_ALL["ao"] + _ALL["ssr"] + _ALL["implicit"])   # every method's function, params and module
 globals().update(_FACE)
 
-__all__ = ["AOResult", "Method", "AO_METHODS", "ao_method", "SSR_METHODS", "ssr_method", "IMPLICIT_METHODS",
+__all__ = ["AOResult", "Method", "SpeedPanel", "AO_METHODS", "ao_method", "SSR_METHODS", "ssr_method", "IMPLICIT_METHODS",
            "implicit_method", "declared", "title", *_FACE]

@@ -9,7 +9,8 @@ Nothing else lists it: :func:`discover` imports every module of the effect packa
 ``METHOD`` declarations, so the registries (``ssbench.passes.AO_METHODS`` …), the CLI's ``--method`` choices,
 sweeps, tuning and the report see a new method as soon as its module exists. The rest of what a method
 declares (``REQUIRES``, ``FLAVOUR``, ``TUNABLE``, ``DEFAULTS_SOURCE`` …) sits beside ``METHOD`` in the same module
-and is read with :func:`ssbench.passes.declared`.
+and is read with :func:`ssbench.passes.declared`; so are ``SPEED_GRIDS`` (the configurations the report's
+speed sweeps run, per sweep purpose) and ``SPEED_PANELS`` (its artifact-vs-parameter plots, :class:`SpeedPanel`).
 
 A method kept outside the package (your own, without forking ssbench) is one importable module whose ``METHOD``
 names its effect, ``Method("mine", mine, MineParams, effect="ao")``; list it in the environment variable
@@ -25,7 +26,7 @@ import pkgutil
 from dataclasses import dataclass
 from typing import Callable, Optional
 
-__all__ = ["Method", "EFFECTS", "discover", "plugins", "merged", "spec", "face"]
+__all__ = ["Method", "SpeedPanel", "EFFECTS", "discover", "plugins", "merged", "spec", "face"]
 
 #: the effects a method can belong to (one package each under ``ssbench/passes/``)
 EFFECTS = ("ao", "ssr", "implicit")
@@ -67,6 +68,29 @@ class Method:
             raise TypeError(f"params: expected the parameter class, got {type(self.params).__name__}")
         if self.effect is not None and self.effect not in EFFECTS:
             raise ValueError(f"effect: expected one of {', '.join(EFFECTS)}, got {self.effect!r}")
+
+
+@dataclass(frozen=True)
+class SpeedPanel:
+    """One artifact-vs-parameter small multiple a method asks the report's speed section for (declared in its
+    module as ``SPEED_PANELS = (SpeedPanel(...), ...)``, beside ``SPEED_GRIDS``, the sweeps that feed it).
+
+    Attributes:
+        figure: which of the effect's artifact figures the panel joins (``"banding"``, ``"halos"`` for AO,
+            ``"hits"`` for SSR, ``"punch"`` for implicit casters: :data:`ssbench.report.speed_section.SPECS`).
+        param: the parameter (or row field, e.g. ``"frame"``) on the x axis.
+        fix: ``(key, value)`` pairs a row must match to be drawn (e.g. ``(("blur", None),)``).
+        metric: the row key on the y axis; ``None``: the figure's metric.
+
+    Example:
+        >>> SpeedPanel("banding", "kernel_size", (("blur", None),))
+        SpeedPanel(figure='banding', param='kernel_size', fix=(('blur', None),), metric=None)
+    """
+
+    figure: str
+    param: str
+    fix: tuple = ()
+    metric: Optional[str] = None
 
 
 def _ordered(methods) -> list[Method]:

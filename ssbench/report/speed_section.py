@@ -2,14 +2,16 @@
 
 Per effect (``ao``, ``ssr``, ``implicit``) it runs the embedded sweep file ``sweeps/<effect>.yaml`` (one or more
 ``---``-separated sweep documents, rows pooled; resolution set to min(report size, :data:`SIZE`), seeds to
-the report's seed) with :func:`ssbench.bench.run_sweep` into ``run_dir/sweeps/<sweep name>/``, writes the pooled
+the report's seed; each document's methods and grids are what the method modules declare as ``SPEED_GRIDS``,
+:mod:`ssbench.report.speed_sweeps`) with :func:`ssbench.bench.run_sweep` into ``run_dir/sweeps/<sweep name>/``, writes the pooled
 raw rows to ``run_dir/rows/speed_<effect>.jsonl`` and ``.parquet`` (``rows/<effect>.jsonl`` belongs to the
 effect's own section), and writes under ``img/speed/``:
 
 * ``<effect>_error_time.png`` — every configuration a point, error (each of the effect's :data:`SPECS` metrics)
   against time (log), per scene; the Pareto front as a step line, listed in the page; on the primary metric
   the ground truth's ladder (:mod:`ssbench.analysis.equal_error`) for scale;
-* ``<effect>_<figure>.png`` — the artifact-vs-parameter small multiples (:mod:`ssbench.analysis.multiples`).
+* ``<effect>_<figure>.png`` — the artifact-vs-parameter small multiples (:mod:`ssbench.analysis.multiples`),
+  one panel per ``SpeedPanel`` the methods declare (:func:`figures`).
 
 Equal-error cost, per scene and method at its best configuration (least primary error): AO — the cosine
 ground-truth rays of equal RMSE and their time; SSR — the exact mirror trace (one ray per pixel, zero hit
@@ -33,34 +35,6 @@ SIZE = (96, 72)
 SWEEP_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "sweeps")
 EFFECT_TITLES = {"ao": "Ambient occlusion", "ssr": "Screen-space reflections", "implicit": "Implicit surfaces"}
 _SSR_WRONG = ("frac_missed", "frac_false_hit", "frac_misplaced_hit", "frac_punch_through", "frac_unfixable_hit")
-_NB = (("blur", None),)
-_SSAO_16 = (("kernel_size", 16), ("noise_size", 4))
-
-_AO_BANDING = [Panel("crytek", "kernel_size", "banding", _NB),
-               Panel("ssao", "kernel_size", "banding", _NB + (("max_distance", 0.02),)),
-               Panel("ssao", "noise_size", "banding", _NB + (("max_distance", 0.02),)),
-               Panel("hbao", "num_directions", "banding", _NB),
-               Panel("gtao", "quality", "banding", _NB + (("noise", "hilbert"),)),
-               Panel("gtao", "noise", "banding", _NB + (("quality", "high"),))]
-_AO_HALOS = [Panel("ssao", "max_distance", "halo_dark_flavour", _SSAO_16),
-             Panel("ssao", "blur", "halo_dark_flavour", _SSAO_16),
-             Panel("hbao", "blur", "halo_dark_flavour", (("num_directions", 8), ("num_steps", 6))),
-             Panel("gtao", "blur", "halo_dark_flavour", (("quality", "high"), ("noise", "hilbert")))]
-_SSR_HITS = [Panel(m, p, _SSR_WRONG, fix, ylabel="share of reflective pixels") for m, p, fix in (
-    ("linear", "iterations", (("jitter", 0.0), ("thickness", 0.1))),
-    ("linear", "thickness", (("jitter", 0.0), ("iterations", 64))),
-    ("linear", "jitter", (("iterations", 64), ("thickness", 0.1))),
-    ("dda", "max_steps", (("jitter", 0.0), ("z_thickness", 0.1), ("pixel_stride", 1.0))),
-    ("dda", "pixel_stride", (("jitter", 0.0), ("z_thickness", 0.1), ("max_steps", 128))),
-    ("dda", "z_thickness", (("max_steps", 128), ("pixel_stride", 1.0))),
-    ("dda", "jitter", (("max_steps", 128), ("pixel_stride", 4.0), ("z_thickness", 0.1))),
-    ("dda_supercover", "max_steps", (("z_thickness", 0.1),)))]
-_IMP_PUNCH = [Panel("fixed", "steps", "punch_through_rate"), Panel("sphere", "max_steps", "punch_through_rate"),
-              Panel("progressive", "steps", "punch_through_rate"),
-              Panel("progressive", "frame", "punch_through_per_frame"),
-              Panel("fixed", "frame", "punch_through_per_frame", (("jitter", True),))]
-
-
 def _ssr_derived(row: dict) -> None:
     """``hit_error_share``: missed + false + misplaced hits + punch-through + hits on unfixable targets (shares of
     the reflective pixels)."""
@@ -70,22 +44,42 @@ def _ssr_derived(row: dict) -> None:
 
 #: per effect: ``metrics`` (row key, label; the first is primary: best configurations, summary, front), ``eq``
 #: (the metric of the equal-error ladder), ``derive`` (adds derived keys to a row in memory, not to the raw rows)
-#: and ``figures`` (small multiples: key -> (title, panels))
+#: and ``figures`` (small multiples: key -> (title, metric, y label); their panels are what each method declares
+#: as ``SPEED_PANELS``: :func:`figures`)
 SPECS: dict[str, dict] = {
     "ao": {"metrics": [("rmse_cos", "RMSE vs cosine AO"), ("flip_cos", "ꟻLIP vs cosine AO"),
                        ("halo_dark_flavour", "dark halo (false occlusion at edges)"),
                        ("banding", "banding")], "eq": "rmse_cos",
-           "derive": None, "figures": {"banding": ("Banding vs sample count and noise tile", _AO_BANDING),
-                                       "halos": ("Halos vs range check and blur", _AO_HALOS)}},
+           "derive": None, "figures": {"banding": ("Banding vs sample count and noise tile", "banding", ""),
+                                       "halos": ("Halos vs range check and blur", "halo_dark_flavour", "")}},
     "ssr": {"metrics": [("hit_error_share", "missed + wrong hits (false, misplaced, punch-through, unfixable)"),
                         ("rmse_faded", "colour RMSE"),
                         ("flip_faded", "colour ꟻLIP")], "eq": "rmse_faded", "derive": _ssr_derived,
             "figures": {"hits": ("Missed / false hits and punch-through vs steps, stride, thickness, jitter",
-                                 _SSR_HITS)}},
+                                 _SSR_WRONG, "share of reflective pixels")}},
     "implicit": {"metrics": [("punch_through_rate", "punch-through (final frame)"), ("false_hit_rate", "false hits"),
                              ("depth_rel_mae", "relative depth MAE")], "eq": "punch_through_rate", "derive": None,
-                 "figures": {"punch": ("Punch-through vs step size and frame", _IMP_PUNCH)}},
+                 "figures": {"punch": ("Punch-through vs step size and frame", "punch_through_rate", "")}},
 }
+
+
+def figures(effect: str) -> dict:
+    """``{key: (title, [Panel, ...])}`` of ``effect``'s artifact figures: every panel a method of the effect
+    declares (``SPEED_PANELS``, :class:`ssbench.passes.SpeedPanel`), in registry order; a panel naming a
+    figure the effect does not have is a ``ValueError`` naming the method."""
+    from ..bench import get_effect
+    from ..passes import declared
+    eff, spec = get_effect(effect), SPECS[effect]["figures"]
+    out: dict = {k: (title, []) for k, (title, _, _) in spec.items()}
+    for name in eff.method_names():
+        for sp in declared(eff.method(name)[0], "SPEED_PANELS", ()) or ():
+            if sp.figure not in spec:
+                raise ValueError(f"{name}: SPEED_PANELS names figure {sp.figure!r}; {effect} has "
+                                 f"{', '.join(spec)}")
+            _, metric, ylabel = spec[sp.figure]
+            out[sp.figure][1].append(Panel(name, sp.param, sp.metric or metric, tuple(sp.fix),
+                                           ylabel=ylabel if sp.metric is None else ""))
+    return out
 
 
 def default_sweeps() -> dict[str, str]:
@@ -191,7 +185,9 @@ def _effect(effect: str, sweeps: list, run_dir: str, progress, use_cache: bool) 
                                ladders=ladders, ladder_metric=eq_metric,
                                title=f"{EFFECT_TITLES[effect]}: error against time")
     multiples = []
-    for key, (title, panels) in spec["figures"].items():
+    for key, (title, panels) in figures(effect).items():
+        if not panels:
+            continue
         p = os.path.join(img, f"{effect}_{key}.png")
         data = MU.small_multiples(rows, panels, p, ncols=min(len(panels), 4 if effect == "ssr" else 3), title=title)
         multiples.append({"title": title, "image": rel(p), "points": sum(d["points"] for d in data)})

@@ -1,14 +1,39 @@
 """Running the speed section's sweeps: embedded sweep files (``---``-separated documents), sweeps given as
-objects, dicts or paths, fresh runs into the report folder, and the pooled raw rows (JSON lines + Parquet)."""
+objects, dicts or paths, fresh runs into the report folder, and the pooled raw rows (JSON lines + Parquet).
+
+The embedded files (``sweeps/<effect>.yaml``) name no method: each document says ``grids: <purpose>`` and gets,
+for every method of its effect, the grids that method's module declares as ``SPEED_GRIDS[<purpose>]``
+(:func:`declared_methods`); a new method's module joins the report's sweeps by declaring them."""
 from __future__ import annotations
 
 import os
 import re
 
 
+def declared_methods(effect: str, purpose: str) -> dict:
+    """``{method: grids}`` of every method of ``effect`` whose module declares ``SPEED_GRIDS[purpose]``, in
+    registry order (the ``methods:`` block a ``grids: <purpose>`` document stands for).
+
+    Example:
+        >>> declared_methods("ssr", "cost")["dda_supercover"]
+        [{'max_steps': [32, 128]}]
+    """
+    from ..bench import get_effect
+    from ..passes import declared
+    eff = get_effect(effect)
+    out = {}
+    for name in eff.method_names():
+        grids = (declared(eff.method(name)[0], "SPEED_GRIDS", None) or {}).get(purpose)
+        if grids:
+            out[name] = grids
+    return out
+
+
 def load_embedded(path: str, size: tuple, seed: int) -> list:
-    """The sweep documents of ``path`` (``---``-separated) with ``resolution`` = ``size`` and ``seeds`` = [seed];
-    ``file:line`` in errors point into the file."""
+    """The sweep documents of ``path`` (``---``-separated) with ``resolution`` = ``size`` and ``seeds`` = [seed],
+    ``grids: <purpose>`` replaced by the declared ``methods`` (:func:`declared_methods`); ``file:line`` in
+    errors point into the file."""
+    from ..bench import SweepError
     from ..bench.config import sweep_from_dict
     from ..scenes.files import read_yaml
     with open(path, encoding="utf-8") as f:
@@ -20,6 +45,18 @@ def load_embedded(path: str, size: tuple, seed: int) -> list:
             if re.search(r"(?m)^[ \t]*[^#\s]", body):
                 data, locate = read_yaml("\n" * start + body, path)
                 data.update(resolution=list(size), seeds=[seed])
+                if "grids" in data:
+                    where = locate(("grids",))
+                    purpose = data.pop("grids")
+                    if "methods" in data:
+                        raise SweepError(f"{where}: grids: give either grids or methods, not both")
+                    try:
+                        data["methods"] = declared_methods(data.get("effect"), purpose)
+                    except (KeyError, TypeError, ValueError) as e:
+                        raise SweepError(f"{locate(('effect',))}: effect: {e}") from None
+                    if not data["methods"]:
+                        raise SweepError(f"{where}: grids: no {data.get('effect')} method declares "
+                                         f"SPEED_GRIDS[{purpose!r}]")
                 docs.append(sweep_from_dict(data, locate, path, os.path.dirname(path)))
             start = i + 1
     return docs

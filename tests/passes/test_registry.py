@@ -1,7 +1,7 @@
 """A method declares itself in one module (``METHOD = Method(...)``) and everything finds it: the registries by
 discovery inside the package, and a module outside the package through ``SSBENCH_METHODS``. The end-to-end test
-writes a toy AO method as one file and sees it in the CLI, a sweep, the tuning space, the report's lists and an
-actual scored run."""
+writes a toy AO method as one file and sees it in the CLI, a sweep, the tuning space, the report's lists, the
+report's speed sweeps and artifact plots, and an actual scored run."""
 import json
 import os
 import subprocess
@@ -20,7 +20,7 @@ TOY = textwrap.dedent('''
     import torch
 
     from ssbench.passes.common import AOResult
-    from ssbench.passes.registry import Method
+    from ssbench.passes.registry import Method, SpeedPanel
 
     REQUIRES = ("view_z", "mask")
     FLAVOUR = "uniform"
@@ -45,6 +45,8 @@ TOY = textwrap.dedent('''
 
 
     METHOD = Method("toyao", toy_ao, ToyParams, effect="ao", order=5)
+    SPEED_GRIDS = {"cost": [{"strength": [0.1, 0.3]}]}
+    SPEED_PANELS = (SpeedPanel("banding", "strength", (("blur", None),)),)
 ''')
 
 
@@ -118,14 +120,22 @@ def test_a_toy_method_in_one_module_is_seen_everywhere(toy_env, tmp_path):
         from ssbench.tune.space import declared_spaces
         from ssbench.report.tuning_section import report_methods
         from ssbench.bench.effects import ao_samples
+        from ssbench.report import speed_section as S
+        sweeps = S.load_embedded(S.default_sweeps()["ao"], (16, 12), 0)
+        panels = S.figures("ao")["banding"][1]
         print(json.dumps({"first": list(AO_METHODS)[0], "space": [t.name for t in declared_spaces()["toyao"]],
                           "tuned": "toyao" in report_methods(), "samples": ao_samples("toyao", ToyParams()),
-                          "face": toy_ao.__module__}))
+                          "face": toy_ao.__module__,
+                          "speed": sorted(c.params["strength"] for s in sweeps for c in s.configs
+                                          if c.method == "toyao"),
+                          "panel": [(p.param, p.metric) for p in panels if p.method == "toyao"]}))
     ''')
     r = _run(["-c", probe], env, cwd)
     assert r.returncode == 0, r.stderr
     seen = json.loads(r.stdout)
-    assert seen == {"first": "toyao", "space": ["strength"], "tuned": True, "samples": 1, "face": "toy_ao_plugin"}
+    assert seen == {"first": "toyao", "space": ["strength"], "tuned": True, "samples": 1, "face": "toy_ao_plugin",
+                    "speed": [0.1, 0.1, 0.3, 0.3],                   # its grid on both scenes of the speed sweep
+                    "panel": [["strength", "banding"]]}
 
 
 @pytest.mark.slow

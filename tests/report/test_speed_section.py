@@ -48,7 +48,7 @@ def test_embedded_sweeps_parse_and_every_panel_gets_a_line_of_two_points(effect)
                      **{m: 1.0 for m, _ in S.SPECS[effect]["metrics"]}, "banding": 1.0, "halo_dark_flavour": 1.0,
                      "frac_missed": 1.0, "frac_false_hit": 1.0, "frac_punch_through": 1.0,
                      "punch_through_per_frame": [1.0] * c.settings.get("frames", 1)})
-    for title, panels in S.SPECS[effect]["figures"].values():
+    for title, panels in S.figures(effect).values():
         for panel in panels:
             d = panel_lines(rows, panel)
             assert any(len(set(ln["x"])) >= 2 for ln in d["lines"]), (title, panel)
@@ -61,6 +61,38 @@ def test_a_second_document_reports_its_own_file_line(tmp_path):
     from ssbench.bench import SweepError
     with pytest.raises(SweepError, match=r"two\.yaml:11:.*kernel_sise"):
         S.load_embedded(str(p), (8, 6), 0)
+
+
+def test_embedded_sweeps_take_each_methods_declared_grids(tmp_path):
+    from ssbench.bench import SweepError
+    from ssbench.passes import AO_METHODS, ao_method, declared
+    from ssbench.report.speed_sweeps import declared_methods
+    cost = declared_methods("ao", "cost")
+    assert list(cost) == [m for m in AO_METHODS if "cost" in (declared(ao_method(m)[0], "SPEED_GRIDS") or {})]
+    sweeps = S.load_embedded(S.default_sweeps()["ao"], (16, 12), 0)
+    import math
+    for m, grids in cost.items():                           # every declared configuration, on every scene
+        mine = [c for c in sweeps[0].configs if c.method == m]
+        n = sum(math.prod(len(v) if isinstance(v, list) else 1 for v in g.values()) for g in grids)
+        assert len(mine) == n * len({c.scene for c in sweeps[0].configs}), m
+    head = "name: x\neffect: ao\nscenes: [crease]\n"
+    p = tmp_path / "g.yaml"
+    p.write_text(head + "grids: cost\nmethods: {ssao: null}\n")
+    with pytest.raises(SweepError, match=r"g\.yaml:4: grids: give either grids or methods"):
+        S.load_embedded(str(p), (8, 6), 0)
+    p.write_text(head + "grids: nobody_declares_this\n")
+    with pytest.raises(SweepError, match=r"g\.yaml:4: grids: no ao method declares SPEED_GRIDS\['nobody_declares_this'\]"):
+        S.load_embedded(str(p), (8, 6), 0)
+
+
+def test_every_artifact_panel_is_declared_by_its_method():
+    from ssbench.bench import get_effect
+    from ssbench.passes import declared
+    for effect in S.SPECS:
+        eff = get_effect(effect)
+        got = [(p.method, p.param) for _, panels in S.figures(effect).values() for p in panels]
+        want = [(m, sp.param) for m in eff.method_names() for sp in declared(eff.method(m)[0], "SPEED_PANELS", ())]
+        assert sorted(got) == sorted(want) and got, effect
 
 
 @pytest.fixture(scope="module")

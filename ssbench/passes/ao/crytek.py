@@ -39,7 +39,7 @@ from ..common import AOResult, make_generator
 from ..sampling import noise_texel, noise_texture, sphere_kernel
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from .ssao import check_ssao_params, range_check_count, row_bands, ssao_result, view_position
-from ..registry import Method
+from ..registry import Method, SpeedPanel
 
 FLAVOUR = "volume_sphere"  # the ground truth this pass estimates (ssbench.reference.ao_volume)
 #: continuous parameters ``ssbench tune`` may fit (as hemisphere SSAO's: the same range check and strength)
@@ -162,3 +162,7 @@ def samples_per_pixel(params) -> int:
 #: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
 METHOD = Method("crytek", crytek_ssao, CrytekSSAOParams, CrytekSSAO, order=10,
                 title="Crytek sphere SSAO (Mittring 2007)")
+
+#: the report's speed sweeps (``grids:`` purposes of ssbench/report/sweeps/*.yaml) and artifact plots
+SPEED_GRIDS = {"cost": [{"kernel_radius": 0.5, "kernel_size": [8, 32]}]}
+SPEED_PANELS = (SpeedPanel("banding", "kernel_size", (("blur", None),)),)

@@ -36,7 +36,7 @@ from ...gbuffer import GBuffer
 from ..common import AOResult, check_count, check_radius, fetch, make_generator
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from .gtao_parts import cross3, dot3, hilbert_index, unit3, noise_buffer, slice_visibility  # noqa: F401
-from ..registry import Method
+from ..registry import Method, SpeedPanel
 
 FLAVOUR = "cosine"  # the ground-truth weighting this pass estimates (ssbench.reference.ao)
 REQUIRES = ("view_z", "normal", "mask")
@@ -301,3 +301,11 @@ def samples_per_pixel(params) -> int:
 
 #: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
 METHOD = Method("gtao", gtao, GTAOParams, GTAO, order=40, title="ground-truth AO, GTAO (Jimenez et al. 2016; XeGTAO)")
+
+#: the report's speed sweeps (``grids:`` purposes of ssbench/report/sweeps/*.yaml) and artifact plots
+SPEED_GRIDS = {"cost": [{"radius": 0.5, "quality": ["low", "medium", "high", "ultra"]},
+                        {"radius": 0.5, "quality": "high", "noise": ["hash", "none"]}],
+               "blur": [{"radius": 0.5, "quality": "high"}]}
+SPEED_PANELS = (SpeedPanel("banding", "quality", (("blur", None), ("noise", "hilbert"))),
+                SpeedPanel("banding", "noise", (("blur", None), ("quality", "high"))),
+                SpeedPanel("halos", "blur", (("quality", "high"), ("noise", "hilbert"))))

@@ -44,7 +44,7 @@ from torch import nn
 from ...gbuffer import GBuffer
 from ..common import AOResult, check_count, check_radius, fetch_uv, make_generator
 from ..gbuffer_checks import check_gbuffer, half_in_float32
-from ..registry import Method
+from ..registry import Method, SpeedPanel
 
 FLAVOUR = "obscurance"  # the ground-truth weighting this pass estimates (ssbench.reference.ao)
 #: continuous parameters ``ssbench tune`` may fit: name -> (lo, hi, relative to the ground-truth radius)
@@ -291,3 +291,9 @@ def samples_per_pixel(params) -> int:
 
 #: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
 METHOD = Method("hbao", hbao, HBAOParams, HBAO, order=30, title="horizon-based AO, HBAO (Bavoil et al. 2008)")
+
+#: the report's speed sweeps (``grids:`` purposes of ssbench/report/sweeps/*.yaml) and artifact plots
+SPEED_GRIDS = {"cost": [{"radius": 0.5, "num_directions": [4, 8], "num_steps": [3, 6]}],
+               "blur": [{"radius": 0.5, "num_directions": 8, "num_steps": 6}]}
+SPEED_PANELS = (SpeedPanel("banding", "num_directions", (("blur", None),)),
+                SpeedPanel("halos", "blur", (("num_directions", 8), ("num_steps", 6))))

@@ -46,7 +46,7 @@ from ...gbuffer import GBuffer
 from ..common import AOResult, check_count, check_radius, fetch_uv, length, make_generator
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..sampling import hemisphere_kernel, noise_texel, noise_texture
-from ..registry import Method
+from ..registry import Method, SpeedPanel
 
 FLAVOUR = "volume_hemisphere"  # the ground truth this pass estimates (ssbench.reference.ao_volume)
 #: continuous parameters ``ssbench tune`` may fit: name -> (lo, hi, relative); relative ranges are multiples of the
@@ -281,3 +281,12 @@ def samples_per_pixel(params) -> int:
 #: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
 METHOD = Method("ssao", hemisphere_ssao, HemisphereSSAOParams, HemisphereSSAO, order=20,
                 title="normal-oriented hemisphere SSAO (Chapman; three.js SSAOPass)")
+
+#: the report's speed sweeps (``grids:`` purposes of ssbench/report/sweeps/*.yaml) and artifact plots
+SPEED_GRIDS = {"cost": [{"kernel_radius": 0.5, "kernel_size": [8, 32], "noise_size": [2, 4]},
+                        {"kernel_radius": 0.5, "kernel_size": 16, "noise_size": 4, "max_distance": [0.005, 0.02, 1.0]}],
+               "blur": [{"kernel_radius": 0.5, "kernel_size": 16, "noise_size": 4, "max_distance": [0.02, 1.0]}]}
+SPEED_PANELS = (SpeedPanel("banding", "kernel_size", (("blur", None), ("max_distance", 0.02))),
+                SpeedPanel("banding", "noise_size", (("blur", None), ("max_distance", 0.02))),
+                SpeedPanel("halos", "max_distance", (("kernel_size", 16), ("noise_size", 4))),
+                SpeedPanel("halos", "blur", (("kernel_size", 16), ("noise_size", 4))))

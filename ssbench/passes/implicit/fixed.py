@@ -25,7 +25,7 @@ from torch import nn
 
 from ..common import make_generator
 from .common import (HIT, MISS, ImplicitResult, as_rays, bisect, check_stateless, check_surface, finish, flat)
-from ..registry import Method
+from ..registry import Method, SpeedPanel
 
 __all__ = ["METHOD", "FixedStepParams", "fixed_step", "march_lattice", "FixedStep"]
 
@@ -180,3 +180,8 @@ class FixedStep(nn.Module):
 
 #: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
 METHOD = Method("fixed", fixed_step, FixedStepParams, FixedStep, order=10, title="fixed-step march + bisection")
+
+#: the report's speed sweeps (``grids:`` purposes of ssbench/report/sweeps/*.yaml) and artifact plots
+SPEED_GRIDS = {"frames": [{"steps": [16, 64], "jitter": True}], "static": [{"steps": [16, 64]}]}
+SPEED_PANELS = (SpeedPanel("punch", "steps"),
+                SpeedPanel("punch", "frame", (("jitter", True),), metric="punch_through_per_frame"))

@@ -48,7 +48,7 @@ from ..common import length
 from .common import (HIT, INVALIDATED, MISS, CameraRays, ImplicitResult, as_rays, bisect,
                               camera_rays, check_surface, finish, flat, unflat)
 from .fixed import check_int, march_lattice
-from ..registry import Method
+from ..registry import Method, SpeedPanel
 
 #: the caster carries ``t'`` between frames (``result.state`` → ``state=``): evaluations run its frames in order
 STATEFUL = True
@@ -326,3 +326,7 @@ class Progressive(nn.Module):
 #: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
 METHOD = Method("progressive", progressive, ProgressiveParams, Progressive, order=30,
                 title="progressive ray casting (t\u2032 across frames)")
+
+#: the report's speed sweeps (``grids:`` purposes of ssbench/report/sweeps/*.yaml) and artifact plots
+SPEED_GRIDS = {"frames": [{"steps": [8, 32]}]}
+SPEED_PANELS = (SpeedPanel("punch", "steps"), SpeedPanel("punch", "frame", metric="punch_through_per_frame"))

@@ -28,7 +28,7 @@ from torch import nn
 from .common import (HIT, MISS, OUT_OF_STEPS, ImplicitResult, as_rays, bisect, check_stateless, check_surface,
                      finish, flat, unflat)
 from .fixed import check_int
-from ..registry import Method
+from ..registry import Method, SpeedPanel
 
 __all__ = ["METHOD", "SphereTraceParams", "sphere_trace", "SphereTrace"]
 
@@ -210,3 +210,7 @@ class SphereTrace(nn.Module):
 
 #: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
 METHOD = Method("sphere", sphere_trace, SphereTraceParams, SphereTrace, order=20, title="sphere tracing (Hart 1996)")
+
+#: the report's speed sweeps (``grids:`` purposes of ssbench/report/sweeps/*.yaml) and artifact plots
+SPEED_GRIDS = {"static": [{"max_steps": [8, 32]}]}
+SPEED_PANELS = (SpeedPanel("punch", "max_steps"),)

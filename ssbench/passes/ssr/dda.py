@@ -69,7 +69,7 @@ from .dda_assemble import assemble
 from .dda_refine import count_visits, fetch_cell, refine_hits, ray_view_z
 from .dda_state import DDARays, MarchOutput
 from .fade import FadeParams
-from ..registry import Method
+from ..registry import Method, SpeedPanel
 
 REQUIRES = ("view_z", "normal", "mask", "color")
 #: where the defaults come from (shown by the report next to the parameters)
@@ -298,3 +298,12 @@ class DDASSR(nn.Module):
 
 #: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
 METHOD = Method("dda", ssr_dda, DDASSRParams, DDASSR, order=20, title="perspective-correct DDA (McGuire & Mara 2014)")
+
+#: the report's speed sweeps (``grids:`` purposes of ssbench/report/sweeps/*.yaml) and artifact plots
+SPEED_GRIDS = {"cost": [{"max_steps": [32, 128], "pixel_stride": 1}, {"max_steps": 128, "pixel_stride": 4},
+                        {"max_steps": 128, "pixel_stride": 1, "z_thickness": [0.02, 0.5]},
+                        {"max_steps": 128, "pixel_stride": 4, "jitter": 1.0}]}
+SPEED_PANELS = (SpeedPanel("hits", "max_steps", (("jitter", 0.0), ("z_thickness", 0.1), ("pixel_stride", 1.0))),
+                SpeedPanel("hits", "pixel_stride", (("jitter", 0.0), ("z_thickness", 0.1), ("max_steps", 128))),
+                SpeedPanel("hits", "z_thickness", (("max_steps", 128), ("pixel_stride", 1.0))),
+                SpeedPanel("hits", "jitter", (("max_steps", 128), ("pixel_stride", 4.0), ("z_thickness", 0.1))))

@@ -44,7 +44,7 @@ from .dda import (DEFAULTS_SOURCE, EQUAL_SETTINGS, REQUIRES, DDASSRParams, check
 from .dda_assemble import assemble
 from .dda_state import DDARays, MarchOutput
 from .fade import FadeParams
-from ..registry import Method
+from ..registry import Method, SpeedPanel
 
 __all__ = ["METHOD", "REQUIRES", "EQUAL_SETTINGS", "DEFAULTS_SOURCE", "SupercoverDDASSRParams",
            "ssr_dda_supercover", "SupercoverDDASSR", "CellWalk", "cell_setup"]
@@ -225,3 +225,7 @@ class SupercoverDDASSR(nn.Module):
 #: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
 METHOD = Method("dda_supercover", ssr_dda_supercover, SupercoverDDASSRParams, SupercoverDDASSR, order=30,
                 title="supercover DDA: every crossed pixel once")
+
+#: the report's speed sweeps (``grids:`` purposes of ssbench/report/sweeps/*.yaml) and artifact plots
+SPEED_GRIDS = {"cost": [{"max_steps": [32, 128]}]}
+SPEED_PANELS = (SpeedPanel("hits", "max_steps", (("z_thickness", 0.1),)),)

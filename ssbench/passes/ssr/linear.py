@@ -46,7 +46,7 @@ from ..gbuffer_checks import check_gbuffer, half_in_float32
 from .common import (BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult,
                          clip_ray_length, reflection_rays)
 from .fade import FadeParams, check_positive
-from ..registry import Method
+from ..registry import Method, SpeedPanel
 
 REQUIRES = ("view_z", "normal", "mask", "color")
 REQUIRES_BACKFACE = REQUIRES + ("back_z",)
@@ -311,3 +311,10 @@ class LinearSSR(nn.Module):
 #: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
 METHOD = Method("linear", ssr_linear, LinearSSRParams, LinearSSR, order=10,
                 title="linear view-space march (mebiusbox 2022)")
+
+#: the report's speed sweeps (``grids:`` purposes of ssbench/report/sweeps/*.yaml) and artifact plots
+SPEED_GRIDS = {"cost": [{"iterations": [16, 64], "thickness": 0.1}, {"iterations": 64, "thickness": 1.0},
+                        {"iterations": 64, "thickness": 0.1, "jitter": 1.0}]}
+SPEED_PANELS = (SpeedPanel("hits", "iterations", (("jitter", 0.0), ("thickness", 0.1))),
+                SpeedPanel("hits", "thickness", (("jitter", 0.0), ("iterations", 64))),
+                SpeedPanel("hits", "jitter", (("iterations", 64), ("thickness", 0.1))))

@@ -9,8 +9,9 @@ G-buffer (the report's own render when it has one, else a fresh one), traces the
 * ``truth_classes.png`` — what a perfect screen-space pass would get: visible target (green), off-screen /
   occluded / back-face target, sky (the class colours of :mod:`ssbench.metrics.ssr`);
 * ``<method>.png`` — the pass's reflection colour with its fades; ``<method>_classes.png`` — its per-pixel
-  classes (an unfixable target where the pass still reported a hit is its own error class); ``<method>_visits.png`` —
-  ``debug["visits"]`` (depth fetches per texel, log scale, SSR article Fig. 11); ``<method>_error.png`` — mean
+  classes (an unfixable target where the pass still reported a hit is its own error class); ``<method>_<view>.png`` —
+  each debug buffer the method declares in ``DEBUG_VIEWS`` (e.g. ``debug["visits"]``, depth fetches per texel,
+  log scale, SSR article Fig. 11); ``<method>_error.png`` — mean
   absolute RGB error of the raw (fade-free) colour against the truth radiance (magma, saturating at
   :data:`ERR_RANGE`) where the pass can be blamed, grey where the target is unreachable and the pass returned
   nothing (:func:`scored_error_rgb`);
@@ -238,19 +239,21 @@ def _scene(run_dir, name, methods, channels, width, height, spp, seed, k_px, use
         files = {"color": color_rgb(res.color, valid), "classes": M.class_rgb(ev.classes),
                  "error": scored_error_rgb(M.color_error_map(res.raw_color, truth.radiance), ev.classes, valid,
                                            ERR_RANGE)}
-        visits = ev.debug.get("visits")
-        vmax = None
-        if isinstance(visits, torch.Tensor) and visits.dim() == 4 and tuple(visits.shape[-2:]) == (g.height, g.width):
-            files["visits"], vmax = visits_rgb(visits[:1, :1])
-        else:
-            notes.append(f"{m}: no visit map (debug['visits'] missing)")
+        views = []
+        for key, caption in (declared(ssr_method(m)[0], "DEBUG_VIEWS", None) or {}).items():
+            buf = ev.debug.get(key)                              # what the method says it returns
+            if isinstance(buf, torch.Tensor) and buf.dim() == 4 and tuple(buf.shape[-2:]) == (g.height, g.width):
+                files[key], top = visits_rgb(buf[:1, :1])
+                views.append({"key": key, "caption": caption, "max": top})
+            else:
+                notes.append(f"{m}: declares debug view {key!r} but debug[{key!r}] is missing")
         imgs = {}
         for k, rgb in files.items():
             fn = f"{m}.png" if k == "color" else f"{m}_{k}.png"
             write_png(os.path.join(d, fn), rgb)
             imgs[k] = f"{rel}/{fn}"
         rows.append({**row, "setting": "defaults"})
-        method_rows.append({"method": m, "images": imgs, "visits_max": vmax,
+        method_rows.append({"method": m, "images": imgs, "views": views,
                             "params": ", ".join(f"{k}={v}" for k, v in row["params"].items()),
                             "source": declared(ssr_method(m)[0], "DEFAULTS_SOURCE", ""),
                             "cells": [fmt(row.get(k), spec) for k, _, spec in TABLE]})

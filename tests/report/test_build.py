@@ -346,6 +346,7 @@ def _stub_ssr(monkeypatch, fail_scene=None, visits=True):
 
     stub.__module__ = mod.__name__
     mod.stub, mod.P, mod.REQUIRES = stub, P, ("view_z", "normal", "mask", "color")
+    mod.DEBUG_VIEWS = {"visits": "fetches"}
     monkeypatch.setitem(sys.modules, mod.__name__, mod)
     monkeypatch.setattr(passes, "SSR_METHODS", {"stub": f"{mod.__name__}:stub:P",
                                                 "missing": "ssbench_no_such_module:f:P"})
@@ -387,7 +388,7 @@ def test_ssr_section_with_stubs(tmp_path, monkeypatch):
     assert row["frac_off_screen_target_pass_hit"] == row["frac_unfixable_hit"] == pytest.approx(6 * 4 / n)
     assert row["frac_unfixable"] == pytest.approx(0.5)
     s = ssr["scenes"][0]
-    assert s["truth_cells"]["correct"] == "50.0%" and s["methods"][0]["visits_max"] == 2
+    assert s["truth_cells"]["correct"] == "50.0%" and s["methods"][0]["views"] == [{"key": "visits", "caption": "fetches", "max": 2}]
     html = _render_ssr_section(ssr)
     assert "<strong>stub</strong>" in html and "missing skipped" in html and "renderer exploded" in html
     assert "punch-through" in html and "back-face target" in html and "pixelZSize" in html
@@ -410,7 +411,7 @@ def test_ssr_section_reuses_report_gbuffers_and_notes_missing_visits(tmp_path, m
     full, calls = _stub_ssr(monkeypatch, visits=False)
     ssr = build_ssr_section(str(tmp_path), ["fence"], 16, 12, progress=False, gbuffers={"fence": full})
     assert ssr["available"] and calls == []                                  # no second render
-    assert any("no visit map" in n for n in ssr["scenes"][0]["notes"])
+    assert any("declares debug view 'visits' but debug['visits'] is missing" in n for n in ssr["scenes"][0]["notes"])
     assert "visits (max" not in _render_ssr_section(ssr)
 
 

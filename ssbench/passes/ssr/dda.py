@@ -299,6 +299,9 @@ class DDASSR(nn.Module):
 #: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
 METHOD = Method("dda", ssr_dda, DDASSRParams, DDASSR, order=20, title="perspective-correct DDA (McGuire & Mara 2014)")
 
+#: the debug buffers the report draws (``debug=True`` results): buffer -> caption; each is a per-pixel count
+#: shown on a log scale (the SSR article's Fig. 11 visit map)
+DEBUG_VIEWS = {"visits": "depth fetches per texel"}
 #: the report's speed sweeps (``grids:`` purposes of ssbench/report/sweeps/*.yaml) and artifact plots
 SPEED_GRIDS = {"cost": [{"max_steps": [32, 128], "pixel_stride": 1}, {"max_steps": 128, "pixel_stride": 4},
                         {"max_steps": 128, "pixel_stride": 1, "z_thickness": [0.02, 0.5]},

@@ -226,6 +226,9 @@ class SupercoverDDASSR(nn.Module):
 METHOD = Method("dda_supercover", ssr_dda_supercover, SupercoverDDASSRParams, SupercoverDDASSR, order=30,
                 title="supercover DDA: every crossed pixel once")
 
+#: the debug buffers the report draws (``debug=True`` results): buffer -> caption; each is a per-pixel count
+#: shown on a log scale (the SSR article's Fig. 11 visit map)
+DEBUG_VIEWS = {"visits": "depth fetches per texel"}
 #: the report's speed sweeps (``grids:`` purposes of ssbench/report/sweeps/*.yaml) and artifact plots
 SPEED_GRIDS = {"cost": [{"max_steps": [32, 128]}]}
 SPEED_PANELS = (SpeedPanel("hits", "max_steps", (("z_thickness", 0.1),)),)

@@ -312,6 +312,9 @@ class LinearSSR(nn.Module):
 METHOD = Method("linear", ssr_linear, LinearSSRParams, LinearSSR, order=10,
                 title="linear view-space march (mebiusbox 2022)")
 
+#: the debug buffers the report draws (``debug=True`` results): buffer -> caption; each is a per-pixel count
+#: shown on a log scale (the SSR article's Fig. 11 visit map)
+DEBUG_VIEWS = {"visits": "depth fetches per texel"}
 #: the report's speed sweeps (``grids:`` purposes of ssbench/report/sweeps/*.yaml) and artifact plots
 SPEED_GRIDS = {"cost": [{"iterations": [16, 64], "thickness": 0.1}, {"iterations": 64, "thickness": 1.0},
                         {"iterations": 64, "thickness": 0.1, "jitter": 1.0}]}

@@ -84,8 +84,10 @@ class ImplicitEvaluation:
 
 
 def steps_param(method: str) -> str:
-    """The parameter a ``--steps N`` option sets: ``steps`` (fixed, progressive) or ``max_steps`` (sphere)."""
-    return {"sphere": "max_steps"}.get(method, "steps")
+    """The parameter a ``--steps N`` option sets: what the method's module declares as ``STEPS_PARAM``, else
+    ``steps`` (e.g. ``max_steps`` for sphere tracing, whose step count is a cap)."""
+    from ..passes import declared, implicit_method
+    return declared(implicit_method(method)[0], "STEPS_PARAM", "steps")
 
 
 def lipschitz_diagnostic(surface, samples: int = 20_000, seed: int = 0) -> dict:
@@ -124,9 +126,9 @@ def _prediction(kind: str, truth, h_maps: list, found_maps: list, t_far: torch.T
     from ..metrics import implicit as M
     mask = truth.hit.bool() & ~truth.unfinished.bool()
     w = M.chord(truth)
-    if kind == "progressive" and len(h_maps) == len(found_maps) == frames:
+    if kind == "survivor" and len(h_maps) == len(found_maps) == frames:
         return M.survivor_punch_through(torch.stack(h_maps), w, torch.stack(found_maps), mask=mask).tolist()
-    if kind == "fixed":
+    if kind == "uniform":
         return M.predicted_punch_through(t_far / n, w, frames=1, mask=mask).tolist() * frames
     return None
 
@@ -262,12 +264,12 @@ def run_implicit(scene, method: str, params=None, *, frames: int = 1, width: Opt
     ov, fb = res.debug.get("overshoot"), res.debug.get("fallbacks")
     row["overshoot_pixels"] = int(ov.sum()) if isinstance(ov, torch.Tensor) else None
     row["fallbacks"] = int(fb.sum()) if isinstance(fb, torch.Tensor) else None
-    kind = "progressive" if stateful else ("fixed" if n_steps else None)
+    kind = "survivor" if stateful else ("uniform" if n_steps else None)   # the prediction model (docstring)
     pred = None
     if static and traced and n_steps:
         t_far = camera_rays(cameras[0], dtype=torch.float64).t_far
         pred = _prediction(kind, next(iter(traced.values())), h_maps, found, t_far, n_steps, frames)
-    row.update(predicted_punch_through=pred, prediction_h={"progressive": "t'/N", "fixed": "t_far/N"}.get(kind)
+    row.update(predicted_punch_through=pred, prediction_h={"survivor": "t'/N", "uniform": "t_far/N"}.get(kind)
                if pred is not None else None, frames_to_1pct=_first_under(rates),
                predicted_frames_to_1pct=_first_under(pred) if pred is not None else None)
     row.update(lipschitz_diagnostic(sc.surface(0), lipschitz_samples, seed))

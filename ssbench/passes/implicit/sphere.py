@@ -208,6 +208,9 @@ class SphereTrace(nn.Module):
         return sphere_trace(surface, camera, self.params, jitter=jitter)
 
 
+#: the parameter a ``--steps N`` option sets (a cap on the steps, not a fixed count)
+STEPS_PARAM = "max_steps"
+
 #: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
 METHOD = Method("sphere", sphere_trace, SphereTraceParams, SphereTrace, order=20, title="sphere tracing (Hart 1996)")
 

@@ -86,3 +86,24 @@ def check_count(value: int, name: str) -> None:
         return
     if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
         raise ValueError(f"{name}: must be a positive integer, got {value!r}")
+
+
+#: bytes of the per-sample blocks a pass may hold at once (about a core's L2): the AO passes work on a band of
+#: image rows at a time, so their working set is bounded and their time per pixel does not jump once an
+#: image's blocks would leave the cache
+BLOCK_BYTES = 1 << 20
+
+
+def row_bands(height: int, width: int, samples: int, itemsize: int, budget: Optional[int] = None, *,
+              batch: int = 1) -> list[slice]:
+    """Slices of image rows whose ``(batch, 3, samples, rows, width)`` sample blocks fit in ``budget`` bytes
+    (default :data:`BLOCK_BYTES`, read at each call; one row at least). Every pixel's arithmetic is the same in any band, so a banded pass is bit-identical to
+    the whole-image one.
+
+    Example:
+        >>> row_bands(10, 100, 16, 4, budget=4 * 3 * 16 * 100 * 4)
+        [slice(0, 4, None), slice(4, 8, None), slice(8, 10, None)]
+    """
+    budget = BLOCK_BYTES if budget is None else budget
+    rows = max(1, budget // max(1, 3 * batch * samples * width * itemsize))
+    return [slice(r0, min(height, r0 + rows)) for r0 in range(0, height, rows)]

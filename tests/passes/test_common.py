@@ -1,4 +1,5 @@
-"""ssbench.passes.common.length: torch's vector norm to an ulp, faster over the channel dim, safe gradients."""
+"""ssbench.passes.common: `length` (torch's vector norm to an ulp, faster over the channel dim, safe gradients) and
+the row bands that bound the AO passes' working set (bit-identical to the whole image)."""
 import pytest
 import torch
 
@@ -26,3 +27,31 @@ def test_length_of_zero_vectors_is_zero_and_its_gradient_is_finite():
     assert torch.isfinite(x.grad).all()
     assert torch.allclose(x.grad[0, :, 0, 0], torch.tensor([0.6, 0.8, 0.0]))
     assert (x.grad[0, :, 1, 1] == 0).all()
+
+
+@pytest.mark.parametrize("method", ["crytek", "ssao", "hbao", "gtao"])
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_banded_ao_passes_equal_the_whole_image_bit_for_bit(method, dtype, monkeypatch):
+    """The AO passes work on bands of rows (``row_bands``) to bound their working set; a band of one row and
+    one band for the whole image give the same bits, debug buffers (and GTAO's bent normals) included."""
+    import dataclasses
+
+    import ssbench.passes.common as C
+    from ssbench.passes import ao_method
+    from tests.passes.ssr_scenes import room
+    g = dataclasses.replace(room(40, 30, dtype, slat=True), color=None)
+    fn, params_cls, _ = ao_method(method)
+    kw = {"bent_normals": True} if method == "gtao" else {}
+
+    def run(budget):
+        monkeypatch.setattr(C, "BLOCK_BYTES", budget)
+        return fn(g, params_cls(), generator=torch.Generator().manual_seed(3), debug=True, **kw)
+
+    assert len(C.row_bands(30, 40, 8, 4, 1)) == 30                       # budget 1 byte: one row per band
+    whole, banded = run(1 << 40), run(1)
+    assert torch.equal(whole.ao, banded.ao) and 0 < float(whole.ao.mean()) < 1
+    assert whole.debug.keys() == banded.debug.keys() and whole.debug
+    for k, v in whole.debug.items():
+        assert not isinstance(v, torch.Tensor) or torch.equal(v, banded.debug[k]), k
+    if method == "gtao":
+        assert torch.equal(whole.bent_normal, banded.bent_normal)

@@ -35,10 +35,10 @@ import torch
 from torch import nn
 
 from ...gbuffer import GBuffer
-from ..common import AOResult, make_generator
+from ..common import AOResult, make_generator, row_bands
 from ..sampling import noise_texel, noise_texture, sphere_kernel
 from ..gbuffer_checks import check_gbuffer, half_in_float32
-from .ssao import check_ssao_params, range_check_count, row_bands, ssao_result, view_position
+from .ssao import check_ssao_params, range_check_count, ssao_result, view_position
 from ..registry import Method, SpeedPanel
 
 FLAVOUR = "volume_sphere"  # the ground truth this pass estimates (ssbench.reference.ao_volume)

@@ -33,7 +33,7 @@ import torch
 from torch import nn
 
 from ...gbuffer import GBuffer
-from ..common import AOResult, check_count, check_radius, fetch, make_generator
+from ..common import AOResult, check_count, check_radius, fetch, make_generator, row_bands
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from .gtao_parts import cross3, dot3, hilbert_index, unit3, noise_buffer, slice_visibility  # noqa: F401
 from ..registry import Method, SpeedPanel
@@ -194,18 +194,48 @@ def gtao(gbuffer: GBuffer, params: GTAOParams = GTAOParams(), *, generator: Opti
     S, K = params.slices, params.steps
     noise = noise_buffer(params, B, H, W, generator).to(dtype=dtype, device=dev)   # (B, 2, H, W)
 
-    # ---- Centre pixel: position, view vector, screen radius (vectors are (x, y, z) tuples of (B, 1, H, W)) ----
     z = torch.where(mask, gbuffer.view_z, torch.full_like(gbuffer.view_z, -cam.far))  # sanitised depth texture
-    zc = z * _CENTER_Z_BIAS
+    parts = [_gtao_rows(rs, z, gbuffer.normal, mask, noise, cam, params, debug, bent_normals)
+             for rs in row_bands(H, W, 2 * K, z.element_size(), batch=B)]           # bounded working set
+    vis = torch.cat([p[0] for p in parts], 2)
+    bent = None if not bent_normals else [torch.cat([p[1][i] for p in parts], 2) for i in range(3)]
+    dbg_h, dbg_n, dbg_v, r_px = (torch.cat([p[2][i] for p in parts], -2) for i in range(4)) if debug else \
+        (None,) * 4
+
+    # ---- Final value ----
+    vis = (vis / S).clamp_min(0.0) ** params.final_value_power
+    if params.denoise_passes:                     # before the clip, as XeGTAO: overshoot above 1 averages out
+        from .gtao_denoise import gtao_denoise
+        vis = gtao_denoise(torch.where(mask, vis, torch.ones_like(vis)), gbuffer.view_z, mask,
+                           passes=params.denoise_passes)
+    vis = vis.clamp(0.03, 1.0)
+    ao = torch.where(mask, vis, torch.ones_like(vis))
+    out_bent = (None if bent is None else
+                torch.where(mask, torch.cat(unit3(tuple(bent)), 1), torch.zeros_like(gbuffer.normal)))
+    extra = {"horizon_cos": dbg_h, "normal_angle": dbg_n, "slice_visibility": dbg_v,
+             "screen_radius": r_px} if debug else {}
+    return AOResult(ao=ao, bent_normal=out_bent, debug=extra)
+
+
+def _gtao_rows(rs: slice, z: torch.Tensor, normal: torch.Tensor, mask: torch.Tensor, noise: torch.Tensor,
+               cam, params: GTAOParams, debug: bool, bent_normals: bool) -> tuple:
+    """XeGTAO's main pass on image rows ``rs`` (Jimenez et al. 2016, Algorithm 1; XeGTAO ``XeGTAO_MainPass``):
+    ``(vis, bent, debug)`` before the final power, with every block (B, 2K, rows, W). ``z`` is the sanitised depth
+    texture of the whole image (the horizon search reads any row)."""
+    # ---- Centre pixel: position, view vector, screen radius (vectors are (x, y, z) tuples of (B, 1, h, W)) ----
+    B, _, H, W = z.shape
+    dtype, dev, S, K = z.dtype, z.device, params.slices, params.steps
+    mask, noise = mask[:, :, rs], noise[:, :, rs]
+    zc = z[:, :, rs] * _CENTER_Z_BIAS
     col = torch.arange(W, dtype=dtype, device=dev).view(1, 1, 1, W)
-    row = torch.arange(H, dtype=dtype, device=dev).view(1, 1, H, 1)
+    row = torch.arange(H, dtype=dtype, device=dev)[rs].view(1, 1, -1, 1)
     ray_x = lambda c: (2.0 * (c + 0.5) / W - 1.0) * cam.aspect / cam.focal          # view x at z = -1
     ray_y = lambda r: (1.0 - 2.0 * (r + 0.5) / H) / cam.focal                       # (uv_to_view, v up)
     P = (ray_x(col) * -zc, ray_y(row) * -zc, zc)
     v = unit3(tuple(-c for c in P))                                                  # toward the camera
-    N = tuple(torch.where(mask, gbuffer.normal[:, i:i + 1], v[i]) for i in range(3))
+    N = tuple(torch.where(mask, normal[:, i:i + 1, rs], v[i]) for i in range(3))
     R = params.radius * params.radius_multiplier                                     # effect radius
-    r_px = R * cam.focal * H / (2.0 * -zc)                                           # (B, 1, H, W) pixels
+    r_px = R * cam.focal * H / (2.0 * -zc)                                           # (B, 1, h, W) pixels
     min_s = params.min_offset_pixels / r_px
     fr, toc, tiny = params.falloff_range, params.thin_occluder_compensation, torch.finfo(dtype).tiny
     j = torch.arange(K, dtype=dtype, device=dev).view(1, K, 1, 1)
@@ -215,7 +245,7 @@ def gtao(gbuffer: GBuffer, params: GTAOParams = GTAOParams(), *, generator: Opti
 
     for k in range(S):
         # ---- Slice: direction, projected normal (Algorithm 1, lines 5-15) ----
-        phi = (k + noise[:, :1]) / S * math.pi                                       # (B, 1, H, W)
+        phi = (k + noise[:, :1]) / S * math.pi                                       # (B, 1, h, W)
         cos_phi, sin_phi = torch.cos(phi), torch.sin(phi)
         dv = cos_phi * v[0] + sin_phi * v[1]
         o = (cos_phi - dv * v[0], sin_phi - dv * v[1], -dv * v[2])                  # orthoDirectionVec
@@ -227,14 +257,14 @@ def gtao(gbuffer: GBuffer, params: GTAOParams = GTAOParams(), *, generator: Opti
         n = torch.sign(dot3(o, proj_n)) * torch.acos(cos_n)
         low0, low1 = torch.cos(n + math.pi / 2), torch.cos(n - math.pi / 2)        # lowHorizonCos0/1
         # ---- Horizon search: K steps x 2 sides at once, samples on dim 1 (lines 17-26) ----
-        step_noise = torch.frac(noise[:, 1:] + (k + j * K) * _R1)                   # (B, K, H, W)
+        step_noise = torch.frac(noise[:, 1:] + (k + j * K) * _R1)                   # (B, K, h, W)
         s = ((j + step_noise) / K) ** params.sample_distribution_power + min_s
         off_x, off_y = torch.round(s * cos_phi * r_px), torch.round(-s * sin_phi * r_px)  # screen y down
-        cx = col + torch.cat([off_x, -off_x], 1)                                     # (B, 2K, H, W)
+        cx = col + torch.cat([off_x, -off_x], 1)                                     # (B, 2K, h, W)
         cy = row + torch.cat([off_y, -off_y], 1)
         on = (cx >= 0) & (cx < W) & (cy >= 0) & (cy < H)                             # off screen: ignored
         cx, cy = torch.where(on, cx, col), torch.where(on, cy, row)      # (weight 0; huge r_px overflowed delta)
-        zs = fetch(z, cx.clamp(0, W - 1).long(), cy.clamp(0, H - 1).long())[:, 0]     # (B, 2K, H, W)
+        zs = fetch(z, cx.clamp(0, W - 1).long(), cy.clamp(0, H - 1).long())[:, 0]     # (B, 2K, h, W)
         delta = (ray_x(cx) * -zs - P[0], ray_y(cy) * -zs - P[1], zs - P[2])
         dist = dot3(delta, delta).sqrt().clamp_min(tiny)
         shc = dot3(delta, v) / dist                                                  # sample horizon cos
@@ -261,19 +291,8 @@ def gtao(gbuffer: GBuffer, params: GTAOParams = GTAOParams(), *, generator: Opti
             dbg_n.append(n)
             dbg_v.append(local)
 
-    # ---- Final value ----
-    vis = (vis / S).clamp_min(0.0) ** params.final_value_power
-    if params.denoise_passes:                     # before the clip, as XeGTAO: overshoot above 1 averages out
-        from .gtao_denoise import gtao_denoise
-        vis = gtao_denoise(torch.where(mask, vis, torch.ones_like(vis)), gbuffer.view_z, mask,
-                           passes=params.denoise_passes)
-    vis = vis.clamp(0.03, 1.0)
-    ao = torch.where(mask, vis, torch.ones_like(vis))
-    out_bent = (None if bent is None else
-                torch.where(mask, torch.cat(unit3(tuple(bent)), 1), torch.zeros_like(gbuffer.normal)))
-    extra = {"horizon_cos": torch.cat(dbg_h, 1), "normal_angle": torch.cat(dbg_n, 1),
-             "slice_visibility": torch.cat(dbg_v, 1), "screen_radius": r_px} if debug else {}
-    return AOResult(ao=ao, bent_normal=out_bent, debug=extra)
+    debug_out = (torch.cat(dbg_h, 1), torch.cat(dbg_n, 1), torch.cat(dbg_v, 1), r_px) if debug else None
+    return vis, bent, debug_out
 
 
 class GTAO(nn.Module):

@@ -43,7 +43,7 @@ from torch import nn
 
 from ...camera import Camera
 from ...gbuffer import GBuffer
-from ..common import AOResult, check_count, check_radius, fetch_uv, length, make_generator
+from ..common import AOResult, check_count, check_radius, fetch_uv, length, make_generator, row_bands
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..sampling import hemisphere_kernel, noise_texel, noise_texture
 from ..registry import Method, SpeedPanel
@@ -120,22 +120,6 @@ def view_position(camera: Camera, view_z: torch.Tensor, position_from: str) -> t
         depth = camera.view_z_to_depth(view_z)                                   # getDepth(vUv)
         return camera.view_position_from_depth(uv.expand(view_z.shape[0], -1, -1, -1), depth), depth
     return camera.uv_to_view(uv, view_z), view_z
-
-
-#: bytes of the per-sample blocks a pass may hold at once (about a core's L2): the SSAO passes march a band of
-#: image rows at a time, so their time per pixel does not jump once an image's blocks leave the cache
-BLOCK_BYTES = 1 << 20
-
-
-def row_bands(height: int, width: int, samples: int, itemsize: int, budget: int = BLOCK_BYTES) -> list[slice]:
-    """Slices of image rows whose ``(B, 3, samples, rows, width)`` sample blocks fit in ``budget`` bytes.
-
-    Example:
-        >>> row_bands(10, 100, 16, 4, budget=4 * 3 * 16 * 100 * 4)
-        [slice(0, 4, None), slice(4, 8, None), slice(8, 10, None)]
-    """
-    rows = max(1, budget // max(1, 3 * samples * width * itemsize))
-    return [slice(r0, min(height, r0 + rows)) for r0 in range(0, height, rows)]
 
 
 def range_check_count(camera: Camera, sample_point: torch.Tensor, texture: torch.Tensor, from_depth: bool,

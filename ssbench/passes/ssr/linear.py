@@ -204,7 +204,8 @@ def ssr_linear(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(), *,
     clipped = (rayLength < params.max_ray_distance).reshape(-1)[ray]
     base = (ray // HW) * HW                                                       # batch offset of each ray
     zs, bk, ms = sceneZ.reshape(-1), (back.reshape(-1) if back is not None else None), mask.reshape(-1)
-    visits = torch.zeros(B * HW, dtype=torch.int64, device=dev)
+    counting = debug or trace_pixel is not None                                   # visits: a debug buffer only
+    visits = torch.zeros(B * HW if counting else 0, dtype=torch.int64, device=dev)
     trace_ids = {}
     if trace_pixel is not None:
         pid = torch.arange(B, device=dev) * HW + trace_pixel[1] * W + trace_pixel[0]
@@ -241,7 +242,8 @@ def ssr_linear(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(), *,
         hit = on & intersects(Qa[:, 2], t)
         if trace_ids:
             record(ids, Qa, hit, False)
-        visits += torch.bincount(t[on], minlength=B * HW)
+        if counting:                              # an O(B·H·W) pass per step: only when asked for
+            visits += torch.bincount(t[on], minlength=B * HW)
         term[ids[hit]], hit_i[ids[hit]], hitQ[ids[hit]] = HIT, i, Qa[hit]
         keep = on & ~hit
         ids, Qa = ids[keep], Qa[keep]
@@ -263,7 +265,8 @@ def ssr_linear(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(), *,
             hb = intersects(Qb[:, 2], t)
             if trace_ids:
                 record(h, Qb, hb, True)
-            visits += torch.bincount(t, minlength=B * HW)
+            if counting:
+                visits += torch.bincount(t, minlength=B * HW)
             best = torch.where(hb.unsqueeze(1), Qb, best)
             originalStride *= 0.5
             stride = torch.where(hb, -originalStride, originalStride).unsqueeze(1).to(dtype)

@@ -64,8 +64,10 @@ $(LESSONS_STAMP): $(STAMP)
 lessons-sync: $(DEV_STAMP)
 	$(PYTHON) lessons/_sync.py
 
-## bench: G-buffer timing at 640x360, implicit evaluators (torch vs Dr.Jit) and marchers (prints numbers; not a test)
+## bench: every AO/SSR pass x {320x240, 640x360, 1920x1080} against both floors (ms, ns/px, peak MiB), G-buffer
+## timing, implicit evaluators (torch vs Dr.Jit) and marchers (prints numbers; not a test). BENCH_ARGS adds options.
 bench: setup
+	$(PYTHON) benchmarks/bench_passes.py $(BENCH_ARGS)
 	$(PYTHON) benchmarks/bench_gbuffer.py
 	$(PYTHON) benchmarks/bench_implicit.py
 

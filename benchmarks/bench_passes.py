@@ -5,9 +5,10 @@ its peak memory is its own:
 
 * ``ms`` — median time per call (``ssbench.bench.timing``: interleaved rounds of the pass and its floor, 1 torch
   thread unless ``--threads``), ``ns/px`` = ms / pixels;
-* ``floor×`` — median over rounds of pass time / the *torch gather floor* (``ssbench.passes.common.fetch`` of as
-  many depth texels per pixel as the pass reads: an AO method's declared ``samples_per_pixel``, an SSR march's
-  mean ``steps``), measured side by side in the same process, so it survives a loaded machine;
+* ``floor×`` — median over rounds of pass time / the *torch gather floor* (``ssbench.bench.floors``: as many
+  random depth-texel reads per pixel as the pass makes — an AO method's declared ``samples_per_pixel``, an SSR
+  march's mean ``steps`` — one ``index_select`` per sample), measured side by side in the same process, so it
+  survives a loaded machine; ``fused×`` the same against the *fused floor* (those reads as one Dr.Jit kernel);
 * ``peak MiB`` — the process's peak resident memory while the pass runs twice (once for the timing check, once
   eager for the comparison), minus its resident memory before (the G-buffer and the interpreter excluded);
 * ``compile s`` — with ``--compile``: the first call of ``torch.compile(pass)`` (inductor), reported apart from
@@ -107,6 +108,7 @@ def one(effect: str, method: str, path: str, compiled: bool, min_run_time: float
     return {"method": method, "size": f"{g.width}x{g.height}", "mode": "compiled" if compiled else "eager",
             "ms": row["time_median_ms"], "ns_px": row["time_median_ms"] * 1e6 / px, "floor_ms": row["floor_median_ms"],
             "floor_ratio": row["floor_ratio"], "floor_ratio_iqr": row["floor_ratio_iqr"], "samples": samples,
+            "fused_floor_ratio": row["fused_floor_ratio"], "fused_floor_ms": row["fused_floor_median_ms"],
             "peak_mib": peak, "first_call_s": first_s, "max_diff_eager": diff, "threads": threads,
             "error": row["timing_error"]}
 
@@ -135,8 +137,9 @@ def main() -> int:
     wanted = set(filter(None, a.methods.split(",")))
     rows = []
     print(f"torch {torch.__version__}, {a.threads} thread(s), min_run_time {a.min_run_time} s; "
-          f"floor× = pass / torch gather of as many texels per pixel (median of {a.rounds} rounds ± IQR)")
-    head = f"{'pass':<16}{'size':>10}{'mode':>9}{'ms':>10}{'ns/px':>8}{'floor×':>13}{'reads':>6}{'peak MiB':>9}"
+          f"floor× / fused× = pass / torch gather / Dr.Jit fused gather of as many texels per pixel (median of {a.rounds} rounds ± IQR)")
+    head = (f"{'pass':<16}{'size':>10}{'mode':>9}{'ms':>10}{'ns/px':>8}{'floor×':>13}{'fused×':>8}{'reads':>6}"
+            f"{'peak MiB':>9}")
     head += f"{'compile s':>10}{'Δ eager':>9}" if a.compile else ""
     print(head)
     with tempfile.TemporaryDirectory() as tmp:
@@ -158,7 +161,8 @@ def main() -> int:
                         row = json.loads(r.stdout.strip().splitlines()[-1])
                         rows.append(row)
                         line = (f"{method:<16}{row['size']:>10}{row['mode']:>9}{row['ms']:>10.1f}{row['ns_px']:>8.0f}"
-                                f"{row['floor_ratio']:>7.1f} ±{row['floor_ratio_iqr']:<4.1f}{row['samples']:>6}"
+                                f"{row['floor_ratio']:>7.1f} ±{row['floor_ratio_iqr']:<4.1f}"
+                                f"{row['fused_floor_ratio']:>8.1f}{row['samples']:>6}"
                                 f"{row['peak_mib']:>9.0f}")
                         if a.compile:
                             line += (f"{row['first_call_s']:>10.1f}{row['max_diff_eager']:>9.1e}" if compiled else "")

@@ -50,7 +50,7 @@ import torch.utils.benchmark as tb
 from ssbench.bench import effects as E
 from ssbench.bench import timing as T
 from ssbench.bench.interleave import time_interleaved
-from ssbench.passes.common import fetch
+from ssbench.bench.floors import torch_floor
 
 BASES = ("sweep", "autorange", "rounds", "interleaved")
 MODIFIERS = ("warm", "pin", "heap")
@@ -97,8 +97,7 @@ def time_protocol(inputs: E.BenchInputs, name: str, a: argparse.Namespace) -> di
         spec = T.TimingSpec(min_run_time=a.min_run_time, rounds=a.rounds, warmup=a.warmup)
         row = T.time_pass(inputs, spec, a.threads)
         return dict(row, cost_s=time.perf_counter() - t0)
-    col, rw = T.floor_indices(inputs.texture, int(inputs.samples))
-    floor = lambda: fetch(inputs.texture, col, rw)                               # noqa: E731
+    floor = torch_floor(inputs.texture, int(inputs.samples))
     prev = torch.get_num_threads()
     torch.set_num_threads(a.threads)
     try:

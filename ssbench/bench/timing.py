@@ -1,9 +1,9 @@
 """Timing that can be trusted: interleaved rounds of the pass and its *gather floor*, median and IQR.
 
 :func:`time_pass` checks the pass output first (no NaN/Inf on valid pixels; otherwise nothing is timed and
-``timing_error`` says why), then times the pass beside its **gather floor** (a pure gather,
-:func:`ssbench.passes.common.fetch`, of as many depth texels per pixel as the pass reads) at a fixed torch
-thread count:
+``timing_error`` says why), then times the pass beside its **gather floors** (:mod:`ssbench.bench.floors`: a
+torch gather of as many depth texels per pixel as the pass reads, and the same reads fused into one Dr.Jit
+kernel when Dr.Jit has an LLVM backend) at a fixed torch thread count:
 
 1. inside :func:`steady_heap`: otherwise glibc's malloc page-faults a pass's temporaries on every call or not,
    depending on what the process ran before — by far the largest gap between two runs (up to 4x);
@@ -26,8 +26,9 @@ interleaved groups (:mod:`ssbench.bench.interleave`) and pool the rounds of seve
 ``benchmarks/bench_sweep_repeats.py``, where claims about speed belong.
 
 Fields it returns (:data:`TIMING_FIELDS`): ``time_median_ms, time_iqr_ms, time_blocks, floor_median_ms,
-floor_iqr_ms, floor_samples, floor_ratio, floor_ratio_iqr, threads, timing_min_run_time, timing_processes,
-timing_error`` (``timing_processes``: how many processes' rounds were pooled, :mod:`ssbench.bench.processes`).
+floor_iqr_ms, floor_samples, floor_ratio, floor_ratio_iqr, fused_floor_median_ms, fused_floor_ratio,
+fused_floor_ratio_iqr, threads, timing_min_run_time, timing_processes, timing_error`` (the fused fields are
+``nan`` without an LLVM backend or with ``fused_floor: false``) (``timing_processes``: how many processes' rounds were pooled, :mod:`ssbench.bench.processes`).
 """
 from __future__ import annotations
 
@@ -42,12 +43,13 @@ from typing import Any, Callable, Iterator, Mapping, Optional, Sequence
 import numpy as np
 import torch
 
-__all__ = ["TimingSpec", "floor_indices", "nonfinite_on_valid", "median_iqr", "steady_heap", "sync_device", "timeit_calls",
+__all__ = ["TimingSpec", "nonfinite_on_valid", "median_iqr", "steady_heap", "sync_device", "timeit_calls",
            "warm_up", "plan_rounds", "run_rounds", "round_fields", "prepare", "time_pass", "agree",
            "TIMING_FIELDS", "MIN_ROUNDS"]
 
 TIMING_FIELDS = ("time_median_ms", "time_iqr_ms", "time_blocks", "floor_median_ms", "floor_iqr_ms",
-                 "floor_samples", "floor_ratio", "floor_ratio_iqr", "threads", "timing_min_run_time",
+                 "floor_samples", "floor_ratio", "floor_ratio_iqr", "fused_floor_median_ms", "fused_floor_ratio",
+                 "fused_floor_ratio_iqr", "threads", "timing_min_run_time",
                  "timing_processes", "timing_error")
 
 #: fewest rounds a slow pass is cut to: with 9 identically distributed rounds the medians of two runs fall within
@@ -67,7 +69,9 @@ class TimingSpec:
         min_run_time: seconds of timed calls per measurement (the pass and its floor each), spread over the
             rounds; a slow pass may take longer (see the module docstring).
         warmup: untimed calls of the pass and the floor before timing (at least one is always made).
-        floor: also time the gather floor (``False``: floor fields are ``nan``).
+        floor: also time the torch gather floor (``False``: floor fields are ``nan``, and no fused floor).
+        fused_floor: also time the fused (Dr.Jit) floor when this machine has one (``False``: its fields are
+            ``nan``).
         rounds: interleaved rounds of pass and floor blocks (median and IQR over them), at least 3.
         interleave: ``N >= 2`` (default 8): a sweep times its configurations in groups of ``N``, in randomized
             interleaved rounds (:mod:`ssbench.bench.interleave`), so that each one's rounds spread over the whole
@@ -85,6 +89,7 @@ class TimingSpec:
     min_run_time: float = 0.2
     warmup: int = 1
     floor: bool = True
+    fused_floor: bool = True
     rounds: int = 15
     interleave: int = 8
     processes: int = 3
@@ -95,31 +100,15 @@ class TimingSpec:
             raise ValueError(f"min_run_time: must be a number > 0, got {self.min_run_time!r}")
         if not _is_int(self.warmup) or self.warmup < 0:
             raise ValueError(f"warmup: must be an integer >= 0, got {self.warmup!r}")
-        if not isinstance(self.floor, bool):
-            raise ValueError(f"floor: expected true or false, got {self.floor!r}")
+        for name in ("floor", "fused_floor"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"{name}: expected true or false, got {getattr(self, name)!r}")
         if not _is_int(self.rounds) or self.rounds < 3:
             raise ValueError(f"rounds: must be an integer >= 3, got {self.rounds!r}")
         if not _is_int(self.interleave) or self.interleave < 0 or self.interleave == 1:
             raise ValueError(f"interleave: must be 0 (off) or an integer >= 2, got {self.interleave!r}")
         if not _is_int(self.processes) or self.processes < 1:
             raise ValueError(f"processes: must be an integer >= 1, got {self.processes!r}")
-
-
-def floor_indices(texture: torch.Tensor, samples: int, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
-    """Random ``(col, row)`` of shape :math:`(B, samples, H, W)`: ``samples`` texels per pixel of ``texture``.
-
-    Example:
-        >>> col, row = floor_indices(torch.zeros(1, 1, 4, 6), 3)
-        >>> tuple(col.shape), int(col.max()) < 6, int(row.max()) < 4
-        ((1, 3, 4, 6), True, True)
-    """
-    if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
-        raise ValueError(f"samples: must be an integer >= 1, got {samples!r}")
-    B, _, H, W = texture.shape
-    gen = torch.Generator().manual_seed(seed)
-    col = torch.randint(0, W, (B, samples, H, W), generator=gen).to(texture.device)
-    row = torch.randint(0, H, (B, samples, H, W), generator=gen).to(texture.device)
-    return col, row
 
 
 def nonfinite_on_valid(output: torch.Tensor, valid: torch.Tensor) -> int:
@@ -260,8 +249,9 @@ def run_rounds(calls: Sequence[Callable[[], Any]], numbers: Sequence[int], round
 
 
 def round_fields(per_round: Sequence[Sequence[float]]) -> dict:
-    """The time (and, given a second list, floor) fields of per-round seconds per call ``[pass, floor]``:
-    medians and IQRs in ms, ``floor_ratio`` and ``floor_ratio_iqr`` the median and IQR of per-round ratios.
+    """The time (and, given a second list, floor; a third, fused floor) fields of per-round seconds per call
+    ``[pass, floor, fused]``: medians and IQRs in ms, ``floor_ratio`` and ``floor_ratio_iqr`` the median and IQR
+    of per-round ratios (``fused_floor_ratio`` likewise).
 
     Example:
         >>> f = round_fields([[0.010, 0.012, 0.011], [0.002, 0.002, 0.001]])
@@ -274,6 +264,10 @@ def round_fields(per_round: Sequence[Sequence[float]]) -> dict:
         fm, fi = median_iqr(per_round[1])
         rm, ri = median_iqr([p / f for p, f in zip(per_round[0], per_round[1])])
         out.update(floor_median_ms=fm * 1e3, floor_iqr_ms=fi * 1e3, floor_ratio=rm, floor_ratio_iqr=ri)
+    if len(per_round) > 2:
+        fm, _ = median_iqr(per_round[2])
+        rm, ri = median_iqr([p / f for p, f in zip(per_round[0], per_round[2])])
+        out.update(fused_floor_median_ms=fm * 1e3, fused_floor_ratio=rm, fused_floor_ratio_iqr=ri)
     return out
 
 
@@ -283,6 +277,7 @@ def prepare(inputs, spec: TimingSpec, threads: int, seed: int = 0) -> tuple[dict
     nan = math.nan
     row = {"time_median_ms": nan, "time_iqr_ms": nan, "time_blocks": 0, "floor_median_ms": nan,
            "floor_iqr_ms": nan, "floor_samples": int(inputs.samples), "floor_ratio": nan, "floor_ratio_iqr": nan,
+           "fused_floor_median_ms": nan, "fused_floor_ratio": nan, "fused_floor_ratio_iqr": nan,
            "threads": int(threads), "timing_min_run_time": float(spec.min_run_time), "timing_processes": 0,
            "timing_error": None}
     bad = nonfinite_on_valid(inputs.output, inputs.valid)
@@ -291,9 +286,11 @@ def prepare(inputs, spec: TimingSpec, threads: int, seed: int = 0) -> tuple[dict
         return row, None
     calls = [inputs.call]
     if spec.floor:
-        from ..passes.common import fetch
-        col, rw = floor_indices(inputs.texture, int(inputs.samples), seed)
-        calls.append(lambda: fetch(inputs.texture, col, rw))
+        from .floors import fused_floor, torch_floor
+        calls.append(torch_floor(inputs.texture, int(inputs.samples), seed))
+        fused = fused_floor(inputs.texture, int(inputs.samples), seed, threads) if spec.fused_floor else None
+        if fused is not None:
+            calls.append(fused)
     return row, calls
 
 

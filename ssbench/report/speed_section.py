@@ -146,6 +146,7 @@ def _tables(rows: list, eq_rows: list, spec: dict, fronts: dict, ladders: dict) 
         "summary": [{"scene": s, "method": m, "config": _config(r), "error": fmt(row_value(r, primary), "{:.4g}"),
                      "time": fmt(row_time_ms(r), "{:.2f}"), "time_s": row_time_ms(r) / 1e3,
                      "floor_ratio": fmt(r.get("floor_ratio"), "{:.1f}"),
+                     "fused_floor_ratio": fmt(r.get("fused_floor_ratio"), "{:.1f}"),
                      "front": "yes" if (s, r["config_id"]) in on_front else "no"}
                     for (s, m), r in EQ.best_rows(rows, primary).items()],
         "equal_error": [dict(e, config=_config(by_id[e["config_id"]]), error=fmt(e["error"], "{:.4g}"),

@@ -33,7 +33,7 @@ def _recording_timer(inputs, ms):
 def test_each_round_visits_every_pass_once_in_a_seeded_shuffled_order():
     inputs = [_inputs(k + 1) for k in range(4)]
     timer, log = _recording_timer(inputs, [2.0, 3.0, 4.0, 5.0])
-    rows = time_interleaved([(x, 1, 0) for x in inputs], T.TimingSpec(min_run_time=0.05, rounds=6), timer=timer)
+    rows = time_interleaved([(x, 1, 0) for x in inputs], T.TimingSpec(min_run_time=0.05, fused_floor=False, rounds=6), timer=timer)
     assert [r["time_blocks"] for r in rows] == [6] * 4
     assert all(a[0] == "p" and b == ("f", a[1]) for a, b in zip(log[::2], log[1::2]))   # floor after its pass
     orders = [[e[1] for e in log[2 * 4 * r:2 * 4 * (r + 1):2]] for r in range(6)]
@@ -42,10 +42,10 @@ def test_each_round_visits_every_pass_once_in_a_seeded_shuffled_order():
         assert r["time_median_ms"] == pytest.approx(2.0 + i) and r["floor_ratio"] == pytest.approx(2.0 + i)
         assert r["time_iqr_ms"] == pytest.approx(0) and r["timing_error"] is None
     timer2, log2 = _recording_timer(inputs, [2.0, 3.0, 4.0, 5.0])
-    time_interleaved([(x, 1, 0) for x in inputs], T.TimingSpec(min_run_time=0.05, rounds=6), timer=timer2)
+    time_interleaved([(x, 1, 0) for x in inputs], T.TimingSpec(min_run_time=0.05, fused_floor=False, rounds=6), timer=timer2)
     assert log2 == log                                                  # same order seed, same order
     timer3, log3 = _recording_timer(inputs, [2.0, 3.0, 4.0, 5.0])
-    time_interleaved([(x, 1, 0) for x in inputs], T.TimingSpec(min_run_time=0.05, rounds=6), order_seed=7,
+    time_interleaved([(x, 1, 0) for x in inputs], T.TimingSpec(min_run_time=0.05, fused_floor=False, rounds=6), order_seed=7,
                      timer=timer3)
     assert log3 != log and sorted(log3) == sorted(log)
 
@@ -55,7 +55,7 @@ def test_a_nonfinite_pass_is_not_timed_and_the_others_are():
     bad[0, 0, 1, 1] = float("nan")
     inputs = [_inputs(1.0), _inputs(2.0, output=bad)]
     timer, log = _recording_timer(inputs, [2.0, 3.0])
-    rows = time_interleaved([(x, 1, 0) for x in inputs], T.TimingSpec(min_run_time=0.05, rounds=3), timer=timer)
+    rows = time_interleaved([(x, 1, 0) for x in inputs], T.TimingSpec(min_run_time=0.05, fused_floor=False, rounds=3), timer=timer)
     assert rows[0]["time_blocks"] == 3 and rows[0]["timing_error"] is None
     assert "1 NaN/Inf" in rows[1]["timing_error"] and math.isnan(rows[1]["time_median_ms"])
     assert rows[0]["timing_processes"] == 1 and rows[1]["timing_processes"] == 0

@@ -27,7 +27,7 @@ def _group(toy, processes, child):
     configs = list(_toy().configs[:2])
     inputs = [_inputs(1.0), _inputs(2.0)]
     timer, _ = _recording_timer(inputs, [2.0, 3.0])                  # pass i: (2 + i) ms, floor 1 ms
-    spec = T.TimingSpec(min_run_time=0.05, rounds=3, processes=processes)
+    spec = T.TimingSpec(min_run_time=0.05, fused_floor=False, rounds=3, processes=processes)
     return P.time_group([(x, 1, 0) for x in inputs], configs, spec, order_seed=10, child=child, timer=timer)
 
 

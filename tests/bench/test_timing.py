@@ -16,21 +16,49 @@ def _inputs(samples=5, output=None):
     return E.BenchInputs(lambda: z * 2, out, torch.ones(1, 1, 6, 8, dtype=torch.bool), samples, z)
 
 
-def test_time_pass_fields_and_the_floor_gathers_the_pass_sample_count(monkeypatch):
+def test_time_pass_fields_and_the_floors_gather_the_pass_sample_count(monkeypatch):
+    from ssbench.bench import floors as F
     seen = []
-    real = T.floor_indices
+    real_torch, real_fused = F.torch_floor, F.fused_floor
 
-    def spy(texture, samples, seed=0):
-        col, row = real(texture, samples, seed)
-        seen.append(tuple(col.shape))
-        return col, row
-    monkeypatch.setattr(T, "floor_indices", spy)
+    def spy(name, real):
+        def f(texture, samples, *a):
+            seen.append((name, tuple(texture.shape), samples))
+            return real(texture, samples, *a)
+        return f
+    monkeypatch.setattr(F, "torch_floor", spy("torch", real_torch))
+    monkeypatch.setattr(F, "fused_floor", spy("fused", real_fused))
     row = T.time_pass(_inputs(samples=7), T.TimingSpec(min_run_time=0.01, warmup=0), threads=1)
     assert set(row) == set(T.TIMING_FIELDS)
-    assert seen == [(1, 7, 6, 8)] and row["floor_samples"] == 7                  # 7 texels for each of 6×8 pixels
+    assert seen == [("torch", (1, 1, 6, 8), 7), ("fused", (1, 1, 6, 8), 7)] and row["floor_samples"] == 7
     assert row["time_median_ms"] > 0 and row["floor_median_ms"] > 0 and row["time_blocks"] == 15   # fast calls
     assert row["floor_ratio"] > 0 and row["floor_ratio_iqr"] >= 0
+    fused = real_fused(_inputs().texture, 7)
+    if fused is None:                                                   # no LLVM backend here: nan, not 0
+        assert math.isnan(row["fused_floor_ratio"]) and math.isnan(row["fused_floor_median_ms"])
+    else:
+        assert row["fused_floor_ratio"] > 0 and row["fused_floor_median_ms"] > 0
     assert row["threads"] == 1 and row["timing_error"] is None
+    off = T.time_pass(_inputs(samples=7), T.TimingSpec(min_run_time=0.01, warmup=0, fused_floor=False), threads=1)
+    assert math.isnan(off["fused_floor_ratio"]) and off["floor_ratio"] > 0 and len(seen) == 3
+
+
+def test_the_fused_floor_ratio_is_the_median_of_per_round_ratios(monkeypatch):
+    from ssbench.bench import floors as F
+    inputs = _inputs()
+    fused = lambda: None                                                # noqa: E731  (an injected third call)
+    monkeypatch.setattr(F, "fused_floor", lambda *a: fused)
+    ms = {"p": [10, 12, 11], "f": [2, 2, 1], "u": [1, 4, 1]}            # fused ratios 10, 3, 11
+    seen = []
+
+    def timer(call, number):
+        key = "p" if call is inputs.call else "u" if call is fused else "f"
+        seen.append(key)
+        return number * ms[key][seen.count(key) - 1] * 1e-3
+    row = T.time_pass(inputs, T.TimingSpec(min_run_time=0.05, warmup=0, rounds=3), threads=1, timer=timer)
+    assert seen == ["p", "f", "u"] * 3
+    assert row["fused_floor_median_ms"] == pytest.approx(1) and row["fused_floor_ratio"] == pytest.approx(10)
+    assert row["fused_floor_ratio_iqr"] == pytest.approx(4) and row["floor_ratio"] == pytest.approx(6)
 
 
 def test_time_pass_takes_median_and_iqr_of_interleaved_per_round_ratios():
@@ -43,7 +71,8 @@ def test_time_pass_takes_median_and_iqr_of_interleaved_per_round_ratios():
         seen.append("p" if is_pass else "f")
         ms = (pass_ms if is_pass else floor_ms)[seen.count(seen[-1]) - 1]
         return number * ms * 1e-3
-    row = T.time_pass(inputs, T.TimingSpec(min_run_time=0.05, warmup=0, rounds=5), threads=1, timer=timer)
+    row = T.time_pass(inputs, T.TimingSpec(min_run_time=0.05, warmup=0, rounds=5, fused_floor=False), threads=1,
+                      timer=timer)
     assert seen == ["p", "f"] * 5                                      # pass and floor back to back, 5 rounds
     assert row["time_blocks"] == 5
     assert row["time_median_ms"] == pytest.approx(11) and row["time_iqr_ms"] == pytest.approx(2)

@@ -38,7 +38,7 @@ def _check(texture: torch.Tensor, samples: int) -> None:
 def torch_floor(texture: torch.Tensor, samples: int, seed: int = 0) -> Callable[[], torch.Tensor]:
     """The torch gather floor of ``samples`` reads per pixel of ``texture`` :math:`(B, C, H, W)` (its first
     channel), as a call returning the last sample's reads :math:`(B·H·W,)`; ``call.index_pool`` is its
-    :math:`(\min(POOL, samples), B·H·W)` index pool.
+    ``(min(POOL, samples), B·H·W)`` index pool.
 
     Example:
         >>> z = torch.arange(12.0).view(1, 1, 3, 4)

@@ -11,8 +11,10 @@ its peak memory is its own:
   survives a loaded machine; ``fused×`` the same against the *fused floor* (those reads as one Dr.Jit kernel);
 * ``peak MiB`` — the process's peak resident memory while the pass runs twice (once for the timing check, once
   eager for the comparison), minus its resident memory before (the G-buffer and the interpreter excluded);
-* ``compile s`` — with ``--compile``: the first call of ``torch.compile(pass)`` (inductor), reported apart from
-  the run time; ``Δ eager`` its largest difference from the eager output on valid pixels.
+* ``compile s`` — with ``--compile``: the pass's first call with its band kernels compiled
+  (``ssbench.passes.compiled``: ``torch.compile``, inductor; the on-disk cache can make it short), reported apart
+  from the run time; ``Δ eager`` the largest difference of the compiled output from the eager one on valid
+  pixels. The SSR marchers have no compiled kernel, so their compiled rows time the eager march.
 
 The G-buffers come from the Mitsuba reference at each size (cached), passed to the subprocesses as files.
 A benchmark, not a test: run ``.venv/bin/python benchmarks/bench_passes.py`` (``--sizes 320x240,640x360``,
@@ -73,18 +75,21 @@ def _inputs(effect: str, method: str, g, compiled: bool):
     if effect == "ao":
         from ssbench.evaluate import radius_param
         p = dataclasses.replace(p, **{radius_param(params_cls): 0.5})
-    run = torch.compile(fn, dynamic=False) if compiled else fn
+    from ssbench.passes.compiled import compiling
 
     def call():
-        return run(g, p, generator=torch.Generator().manual_seed(0))
+        with compiling(compiled):
+            return fn(g, p, generator=torch.Generator().manual_seed(0))
 
     t0 = time.perf_counter()
     out = call()
     first_s = time.perf_counter() - t0
+    with compiling(False):
+        eager = fn(g, p, generator=torch.Generator().manual_seed(0))
     if effect == "ao":
-        return call, out.ao, g.mask, ao_samples(method, p), first_s, fn(g, p, generator=torch.Generator().manual_seed(0)).ao
+        return call, out.ao, g.mask, ao_samples(method, p), first_s, eager.ao
     samples = max(1, round(float(out.steps.float().mean())))
-    return call, out.color, g.mask, samples, first_s, fn(g, p, generator=torch.Generator().manual_seed(0)).color
+    return call, out.color, g.mask, samples, first_s, eager.color
 
 
 def one(effect: str, method: str, path: str, compiled: bool, min_run_time: float, threads: int,

@@ -261,6 +261,21 @@ def test_ao_real_run(tmp_path, capsys):
     assert rc == 0, capsys.readouterr().err
     row = json.loads((out / "row.json").read_text())
     assert row["params"]["num_steps"] == 4 and row["nonfinite"] == 0 and row["oracle"] is True
+    assert row["compiled"] is False and row["compile_s"] == 0.0
+
+
+@pytest.mark.slow
+@pytest.mark.mitsuba
+def test_compile_flag_runs_the_compiled_kernels_and_says_so(tmp_path, capsys, monkeypatch):
+    from ssbench.passes import compiled
+    monkeypatch.delenv(compiled.ENV, raising=False)
+    args = ["ao", "sphere_on_plane", "--method", "crytek", "--width", "32", "--height", "24", "--rays", "8",
+            "--repeats", "1"]
+    assert main(args + ["--out", str(tmp_path / "e")]) == 0
+    assert main(["--compile", *args, "--out", str(tmp_path / "c")]) == 0, capsys.readouterr().err
+    eager, comp = (json.loads((tmp_path / d / "row.json").read_text()) for d in ("e", "c"))
+    assert comp["compiled"] is True and comp["compile_s"] > 0 and compiled.ENV not in os.environ   # restored
+    assert comp["rmse_cos"] == eager["rmse_cos"]                              # the same AO bits, compiled
 
 
 # ------------------------------------------------------------------------------------------ ssbench ssr

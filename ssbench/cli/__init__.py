@@ -24,6 +24,10 @@ def _parser() -> Parser:
     from .. import __version__
     p = Parser(prog="ssbench", description="Screen-space rendering passes vs Mitsuba 3 ground truth.")
     p.add_argument("--version", action="version", version=f"ssbench {__version__}")
+    p.add_argument("--compile", action="store_true",
+                   help="run the AO passes' band kernels through torch.compile (sets SSBENCH_COMPILE=1 for this "
+                        "command and its subprocesses; compile time is kept out of the timings and reported as "
+                        "compile_s)")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
     sub.required = True
     q = sub.add_parser("info", help="versions, threads and the chosen Mitsuba variant / libLLVM")
@@ -176,7 +180,18 @@ def _dispatch(argv: Optional[Sequence[str]]) -> int:
     args = None
     try:
         args = _parser().parse_args(argv)
-        return _COMMANDS[args.command](args)
+        if not args.compile:
+            return _COMMANDS[args.command](args)
+        from ..passes.compiled import ENV
+        before = os.environ.get(ENV)
+        os.environ[ENV] = "1"                                # inherited by sweep and timing subprocesses
+        try:
+            return _COMMANDS[args.command](args)
+        finally:
+            if before is None:
+                os.environ.pop(ENV, None)
+            else:
+                os.environ[ENV] = before
     except SystemExit as e:                                  # --help / --version
         return e.code if isinstance(e.code, int) else (0 if e.code is None else 1)
     except UsageError as e:

@@ -191,7 +191,10 @@ def run_ao(scene, method: str, params=None, *, width: int = 320, height: int = 2
         gen = torch.Generator(device="cpu").manual_seed(seed)               # same bits on every repeat
         return fn(g_pass, p, generator=gen)
 
+    from ..passes import compiled
+    compile_before = compiled.compile_seconds()
     result, times = timed_runs(run_pass, repeats, device, warmup)
+    compile_s = compiled.compile_seconds() - compile_before
     raw = result.ao.detach().float().cpu()
     if tuple(raw.shape) != (1, 1, gbuffer.height, gbuffer.width):
         raise ValueError(f"method: {method!r} returned ao of shape {tuple(raw.shape)}, expected "
@@ -230,6 +233,7 @@ def run_ao(scene, method: str, params=None, *, width: int = 320, height: int = 2
         "blur_seconds": statistics.median(blur_times) if blur_times else None, "repeats": repeats,
         "warmup": bool(warmup),
         "threads": torch.get_num_threads(), "device": str(torch.device(device)), "rays": rays, "seed": seed,
+        "compiled": compiled.enabled(), "compile_s": compile_s,
         "coverage": float(mask.float().mean()), "nonfinite": int((~torch.isfinite(raw)).sum()),
         "oracle": "oracle" in refs, "oracle_error": oracle_error,
     }

@@ -51,9 +51,11 @@ def sync_device(device) -> None:
 
 
 def timed_runs(call: Callable[[], Any], repeats: int, device, warmup: bool = True) -> tuple[Any, list[float]]:
-    """One untimed warm-up call (unless ``warmup=False``), then ``repeats`` timed calls; returns the last
-    output and the times."""
-    if warmup:
+    """One untimed warm-up call (unless ``warmup=False`` and the passes run eager: a compiled kernel's first call
+    compiles, which is never timed, :mod:`ssbench.passes.compiled`), then ``repeats`` timed calls; returns the
+    last output and the times."""
+    from ..passes import compiled
+    if warmup or compiled.enabled():
         call()
         sync_device(device)
     out, times = None, []

@@ -36,6 +36,7 @@ from torch import nn
 
 from ...gbuffer import GBuffer
 from ..common import AOResult, make_generator, row_bands
+from ..compiled import kernel
 from ..sampling import noise_texel, noise_texture, sphere_kernel
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from .ssao import check_ssao_params, range_check_count, ssao_result, view_position
@@ -79,6 +80,20 @@ class CrytekSSAOParams:
 
     def __post_init__(self) -> None:
         check_ssao_params(self)
+
+
+@kernel
+def sphere_band(cam, position: torch.Tensor, rnd: torch.Tensor, k: torch.Tensor, texture: torch.Tensor,
+                p: "CrytekSSAOParams") -> torch.Tensor:
+    """Mittring's sample loop on a band of rows: each kernel vector reflected about the pixel's random plane,
+    ``position + reflected · radius``, then the range-checked count (:func:`.ssao.range_check_count`).
+
+    ``position`` :math:`(B, 3, h, W)`, ``rnd`` :math:`(1, 3, 1, h, W)`, ``k`` :math:`(1, 3, K, 1, 1)`; returns the
+    :math:`(B, 1, h, W)` count (the pass's compilable kernel, :mod:`ssbench.passes.compiled`).
+    """
+    reflected = k - 2.0 * (k * rnd).sum(1, keepdim=True) * rnd                      # (1, 3, K, h, W)
+    sample_point = position.unsqueeze(2) + reflected * p.kernel_radius                # (B, 3, K, h, W)
+    return range_check_count(cam, sample_point, texture, False, p.min_distance, p.max_distance)
 
 
 @half_in_float32
@@ -126,10 +141,7 @@ def crytek_ssao(gbuffer: GBuffer, params: CrytekSSAOParams = CrytekSSAOParams(),
     k = kernel.T.reshape(1, 3, -1, 1, 1)                                           # (1, 3, K, 1, 1)
     count = torch.empty(position.shape[0], 1, cam.height, cam.width, dtype=torch.int64, device=device)
     for rs in row_bands(cam.height, cam.width, p.kernel_size, position.element_size()):   # cache-sized bands
-        rnd = random[..., rs, :]
-        reflected = k - 2.0 * (k * rnd).sum(1, keepdim=True) * rnd                  # (1, 3, K, h, W)
-        sample_point = position[..., rs, :].unsqueeze(2) + reflected * p.kernel_radius    # (B, 3, K, h, W)
-        count[..., rs, :] = range_check_count(cam, sample_point, texture, False, p.min_distance, p.max_distance)
+        count[..., rs, :] = sphere_band(cam, position[..., rs, :], random[..., rs, :], k, texture, p)
     return ssao_result(count, p, mask, dtype=dtype, debug=debug, row=row, col=col, kernel=kernel, noise=noise)
 
 

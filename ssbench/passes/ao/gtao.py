@@ -34,6 +34,7 @@ from torch import nn
 
 from ...gbuffer import GBuffer
 from ..common import AOResult, check_count, check_radius, fetch, make_generator, row_bands
+from ..compiled import kernel
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from .gtao_parts import cross3, dot3, hilbert_index, unit3, noise_buffer, slice_visibility  # noqa: F401
 from ..registry import Method, SpeedPanel
@@ -195,8 +196,9 @@ def gtao(gbuffer: GBuffer, params: GTAOParams = GTAOParams(), *, generator: Opti
     noise = noise_buffer(params, B, H, W, generator).to(dtype=dtype, device=dev)   # (B, 2, H, W)
 
     z = torch.where(mask, gbuffer.view_z, torch.full_like(gbuffer.view_z, -cam.far))  # sanitised depth texture
-    parts = [_gtao_rows(rs, z, gbuffer.normal, mask, noise, cam, params, debug, bent_normals)
-             for rs in row_bands(H, W, 2 * K, z.element_size(), batch=B)]           # bounded working set
+    rows = torch.arange(H, dtype=dtype, device=dev)
+    parts = [gtao_rows(cam, z, rows[rs], gbuffer.normal[:, :, rs], mask[:, :, rs], noise[:, :, rs], params, debug,
+                       bent_normals) for rs in row_bands(H, W, 2 * K, z.element_size(), batch=B)]   # bounded set
     vis = torch.cat([p[0] for p in parts], 2)
     bent = None if not bent_normals else [torch.cat([p[1][i] for p in parts], 2) for i in range(3)]
     dbg_h, dbg_n, dbg_v, r_px = (torch.cat([p[2][i] for p in parts], -2) for i in range(4)) if debug else \
@@ -217,23 +219,27 @@ def gtao(gbuffer: GBuffer, params: GTAOParams = GTAOParams(), *, generator: Opti
     return AOResult(ao=ao, bent_normal=out_bent, debug=extra)
 
 
-def _gtao_rows(rs: slice, z: torch.Tensor, normal: torch.Tensor, mask: torch.Tensor, noise: torch.Tensor,
-               cam, params: GTAOParams, debug: bool, bent_normals: bool) -> tuple:
-    """XeGTAO's main pass on image rows ``rs`` (Jimenez et al. 2016, Algorithm 1; XeGTAO ``XeGTAO_MainPass``):
-    ``(vis, bent, debug)`` before the final power, with every block (B, 2K, rows, W). ``z`` is the sanitised depth
-    texture of the whole image (the horizon search reads any row)."""
+@kernel
+def gtao_rows(cam, z: torch.Tensor, row: torch.Tensor, normal: torch.Tensor, mask: torch.Tensor,
+              noise: torch.Tensor, params: GTAOParams, debug: bool, bent_normals: bool) -> tuple:
+    """XeGTAO's main pass on a band of rows (Jimenez et al. 2016, Algorithm 1; XeGTAO ``XeGTAO_MainPass``):
+    ``(vis, bent, debug)`` before the final power, with every block (B, 2K, h, W); the pass's compilable
+    kernel (:mod:`ssbench.passes.compiled`).
+
+    ``z`` :math:`(B, 1, H, W)` is the sanitised depth texture of the whole image (the horizon search reads any
+    row); ``row`` :math:`(h,)` the band's row indices; ``normal``, ``mask``, ``noise`` the band's
+    :math:`(B, ·, h, W)` slices."""
     # ---- Centre pixel: position, view vector, screen radius (vectors are (x, y, z) tuples of (B, 1, h, W)) ----
     B, _, H, W = z.shape
     dtype, dev, S, K = z.dtype, z.device, params.slices, params.steps
-    mask, noise = mask[:, :, rs], noise[:, :, rs]
-    zc = z[:, :, rs] * _CENTER_Z_BIAS
+    row = row.view(1, 1, -1, 1)
+    zc = torch.index_select(z, 2, row.view(-1).long()) * _CENTER_Z_BIAS
     col = torch.arange(W, dtype=dtype, device=dev).view(1, 1, 1, W)
-    row = torch.arange(H, dtype=dtype, device=dev)[rs].view(1, 1, -1, 1)
     ray_x = lambda c: (2.0 * (c + 0.5) / W - 1.0) * cam.aspect / cam.focal          # view x at z = -1
     ray_y = lambda r: (1.0 - 2.0 * (r + 0.5) / H) / cam.focal                       # (uv_to_view, v up)
     P = (ray_x(col) * -zc, ray_y(row) * -zc, zc)
     v = unit3(tuple(-c for c in P))                                                  # toward the camera
-    N = tuple(torch.where(mask, normal[:, i:i + 1, rs], v[i]) for i in range(3))
+    N = tuple(torch.where(mask, normal[:, i:i + 1], v[i]) for i in range(3))
     R = params.radius * params.radius_multiplier                                     # effect radius
     r_px = R * cam.focal * H / (2.0 * -zc)                                           # (B, 1, h, W) pixels
     min_s = params.min_offset_pixels / r_px

@@ -44,6 +44,7 @@ from torch import nn
 from ...camera import Camera
 from ...gbuffer import GBuffer
 from ..common import AOResult, check_count, check_radius, fetch_uv, length, make_generator, row_bands
+from ..compiled import kernel
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..sampling import hemisphere_kernel, noise_texel, noise_texture
 from ..registry import Method, SpeedPanel
@@ -147,6 +148,26 @@ def range_check_count(camera: Camera, sample_point: torch.Tensor, texture: torch
     return ((delta > min_distance) & (delta < max_distance)).sum(2)              # (B, 1, H, W)
 
 
+@kernel
+def hemisphere_band(cam: Camera, position: torch.Tensor, tbn: tuple, k: tuple, texture: torch.Tensor,
+                    p: "HemisphereSSAOParams") -> torch.Tensor:
+    """The sample loop of SSAO article §2.2 on a band of rows: ``samplePoint = viewPosition + (kernelMatrix ·
+    Kernel[i]) · KernelRadius`` for every sample at once, then :func:`range_check_count`.
+
+    Args:
+        position: :math:`(B, 3, h, W)` ``viewPosition``; ``tbn``: tangent, bitangent, normal :math:`(B, 3, h, W)`;
+        k: the kernel's x, y, z :math:`(1, 1, K, 1, 1)`; texture: the buffer ``getLinearDepth`` samples.
+
+    Returns:
+        :math:`(B, 1, h, W)` integer count (the pass's compilable kernel, :mod:`ssbench.passes.compiled`).
+    """
+    (t, b, n), (kx, ky, kz) = tbn, k
+    sample_vector = (t.unsqueeze(2) * kx + b.unsqueeze(2) * ky) + n.unsqueeze(2) * kz
+    sample_point = position.unsqueeze(2) + sample_vector * p.kernel_radius             # (B, 3, K, h, W)
+    return range_check_count(cam, sample_point, texture, p.position_from == "depth", p.min_distance,
+                             p.max_distance)
+
+
 def occlusion_to_ao(count: torch.Tensor, kernel_size: int, strength: float, mask: torch.Tensor,
                     dtype: torch.dtype) -> torch.Tensor:
     """``1 − clamp(count / K, 0, 1) · Strength``, clamped to [0, 1]; 1 off ``mask``."""
@@ -228,11 +249,8 @@ def hemisphere_ssao(gbuffer: GBuffer, params: HemisphereSSAOParams = HemisphereS
     kx, ky, kz = (kernel[:, c].reshape(1, 1, -1, 1, 1) for c in range(3))          # (1, 1, K, 1, 1)
     count = torch.empty(n.shape[0], 1, cam.height, cam.width, dtype=torch.int64, device=device)
     for rs in row_bands(cam.height, cam.width, p.kernel_size, n.element_size()):
-        sample_vector = (tangent[..., rs, :].unsqueeze(2) * kx + bitangent[..., rs, :].unsqueeze(2) * ky) \
-            + n[..., rs, :].unsqueeze(2) * kz
-        sample_point = position[..., rs, :].unsqueeze(2) + sample_vector * p.kernel_radius   # (B, 3, K, h, W)
-        count[..., rs, :] = range_check_count(cam, sample_point, texture, p.position_from == "depth",
-                                              p.min_distance, p.max_distance)      # (B, 1, h, W)
+        count[..., rs, :] = hemisphere_band(cam, position[..., rs, :], (tangent[..., rs, :], bitangent[..., rs, :],
+                                            n[..., rs, :]), (kx, ky, kz), texture, p)      # (B, 1, h, W)
     return ssao_result(count, p, mask, dtype=dtype, debug=debug, row=row, col=col, kernel=kernel, noise=noise)
 
 

@@ -1,0 +1,108 @@
+"""One switch for compiled passes: ``torch.compile`` of each pass's per-band kernel.
+
+A pass marks the pure tensor function it runs per band of rows with :func:`kernel`. With the switch off (the
+default) the kernel runs as written (eager). With it on, the kernel runs through ``torch.compile`` (inductor;
+``dynamic=False``, so an image size compiles at most twice: its full bands and its last band); everything
+around it — parameter checks, noise and kernel draws, the band loop, early exits — stays eager, so a compiled
+pass is the same pass. Compiled: Crytek and hemisphere SSAO (bit for bit equal to eager, tested) and GTAO (AO
+within 1e-6 in float32: inductor's vectorised cos/acos differ from ATen's by an ulp). Not compiled: HBAO (its
+march's early exit breaks the graph every step; unrolled without it, the compiled march ran slower than eager),
+and the SSR marchers, which compact their live rays every step (data-dependent shapes).
+
+The switch, in order of precedence: :func:`compiling` (a context manager), else the environment variable
+``SSBENCH_COMPILE`` (``1``/``true``: on; ``ssbench --compile …`` sets it, so sweep processes inherit it).
+
+Compilation is paid on a kernel's first call per input signature; :func:`compile_seconds` adds up those first
+calls (compile plus one run), so rows can report it apart from the run time. Inductor keeps compiled graphs
+in its on-disk cache (``TORCHINDUCTOR_CACHE_DIR``, by default under the system temporary folder), which later
+runs reuse.
+"""
+from __future__ import annotations
+
+import contextlib
+import functools
+import os
+import threading
+import time
+from typing import Any, Callable, Iterator, Optional
+
+import torch
+
+__all__ = ["enabled", "compiling", "kernel", "compile_seconds", "ENV"]
+
+#: environment variable of the switch
+ENV = "SSBENCH_COMPILE"
+_local = threading.local()
+_first_calls: dict = {}                       # (kernel, signature) -> seconds of its first compiled call
+
+
+def enabled() -> bool:
+    """Whether passes run their compiled kernels now (see the module docstring for the precedence)."""
+    forced: Optional[bool] = getattr(_local, "forced", None)
+    if forced is not None:
+        return forced
+    return os.environ.get(ENV, "").strip().lower() in ("1", "true", "yes", "on")
+
+
+@contextlib.contextmanager
+def compiling(on: bool = True) -> Iterator[None]:
+    """Run the passes compiled (``on=True``) or eager inside the block, whatever ``SSBENCH_COMPILE`` says.
+
+    Example:
+        >>> with compiling(False):
+        ...     enabled()
+        False
+    """
+    if not isinstance(on, bool):
+        raise TypeError(f"on: expected True or False, got {on!r}")
+    prev = getattr(_local, "forced", None)
+    _local.forced = on
+    try:
+        yield
+    finally:
+        _local.forced = prev
+
+
+def _signature(args: tuple, kwargs: dict) -> tuple:
+    """What makes a compiled kernel compile again: tensor shapes, dtypes and devices (inside tuples too, never
+    their values) and the other arguments' values (parameter dataclasses, cameras, flags)."""
+    def one(v: Any) -> Any:
+        if isinstance(v, torch.Tensor):
+            return ("T", tuple(v.shape), v.dtype, v.device.type)
+        if isinstance(v, (tuple, list)):
+            return ("S", tuple(one(x) for x in v))
+        return ("V", repr(v))
+    return tuple(one(v) for v in args) + tuple((k, one(v)) for k, v in sorted(kwargs.items()))
+
+
+def kernel(fn: Callable) -> Callable:
+    """Mark ``fn`` (a pure tensor function, the body a pass runs per band) as the pass's compilable kernel:
+    eager while the switch is off, ``torch.compile(fn)`` while it is on; ``wrapper.eager`` is ``fn`` itself."""
+    compiled: list = []
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        if not enabled():
+            return fn(*args, **kwargs)
+        if not compiled:
+            compiled.append(torch.compile(fn, dynamic=False))
+        key = (fn.__qualname__, fn.__module__, _signature(args, kwargs))
+        if key in _first_calls:
+            return compiled[0](*args, **kwargs)
+        t0 = time.perf_counter()
+        out = compiled[0](*args, **kwargs)
+        _first_calls[key] = time.perf_counter() - t0
+        return out
+
+    wrapper.eager = fn                                       # type: ignore[attr-defined]
+    return wrapper
+
+
+def compile_seconds() -> float:
+    """Seconds spent so far, in this process, in compiled kernels' first calls (compilation plus one run).
+
+    Example:
+        >>> compile_seconds() >= 0.0
+        True
+    """
+    return float(sum(_first_calls.values()))

@@ -1,0 +1,67 @@
+"""The compiled switch: each AO pass's per-band kernel through ``torch.compile`` gives the eager bits, the switch's
+precedence (context manager over ``SSBENCH_COMPILE``) holds, and first calls are counted as compile time."""
+import dataclasses
+
+import pytest
+import torch
+
+from ssbench.passes import compiled as C
+
+
+def test_the_context_manager_overrides_the_environment(monkeypatch):
+    monkeypatch.setenv(C.ENV, "1")
+    assert C.enabled()
+    with C.compiling(False):
+        assert not C.enabled()
+        with C.compiling(True):
+            assert C.enabled()
+        assert not C.enabled()
+    monkeypatch.setenv(C.ENV, "0")
+    assert not C.enabled()
+    with pytest.raises(TypeError, match="^on:"):
+        with C.compiling("yes"):
+            pass
+
+
+def test_a_kernel_runs_eager_when_off_and_compiled_once_per_signature_when_on():
+    @C.kernel
+    def double(x):
+        return x * 2
+
+    x = torch.arange(4.0)
+    before = C.compile_seconds()
+    with C.compiling(False):
+        assert torch.equal(double(x), x * 2) and C.compile_seconds() == before     # eager: nothing compiled
+    with C.compiling(True):
+        assert torch.equal(double(x), x * 2)
+        first = C.compile_seconds()
+        assert first > before
+        assert torch.equal(double(x + 1), (x + 1) * 2) and C.compile_seconds() == first   # same signature
+        assert torch.equal(double(torch.arange(5.0)), torch.arange(5.0) * 2) and C.compile_seconds() > first
+    assert double.eager(x).tolist() == [0.0, 2.0, 4.0, 6.0]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("method", ["crytek", "ssao", "gtao"])
+def test_compiled_ao_passes_equal_eager(method):
+    from ssbench.passes import ao_method
+    from tests.passes.ssr_scenes import room
+    g = dataclasses.replace(room(24, 18, torch.float32, slat=True), color=None)
+    fn, params_cls, _ = ao_method(method)
+    p = params_cls(quality="low") if method == "gtao" else params_cls()
+    with C.compiling(False):
+        eager = fn(g, p, generator=torch.Generator().manual_seed(1), debug=True)
+    before = C.compile_seconds()
+    with C.compiling(True):
+        comp = fn(g, p, generator=torch.Generator().manual_seed(1), debug=True)
+    assert C.compile_seconds() > before                                 # its kernel did go through torch.compile
+    assert 0 < float(eager.ao.mean()) < 1
+    if method != "gtao":
+        assert torch.equal(eager.ao, comp.ao)
+        for k, v in eager.debug.items():
+            assert not isinstance(v, torch.Tensor) or torch.equal(v, comp.debug[k]), k
+    else:   # inductor's vectorised cos/acos differ from ATen's by an ulp; acos near ±1 magnifies that in the
+        # normal angle (~1e-4 rad in float32), which the slice integral then smooths out again
+        assert float((eager.ao - comp.ao).abs().max()) <= 1e-6
+        assert float((eager.debug["slice_visibility"] - comp.debug["slice_visibility"]).abs().max()) <= 2e-6
+        assert float((eager.debug["normal_angle"] - comp.debug["normal_angle"]).abs().max()) <= 1e-3

@@ -33,10 +33,10 @@ import torch
 from torch import nn
 
 from ...gbuffer import GBuffer
-from ..common import AOResult, check_count, check_radius, fetch, make_generator, row_bands
-from ..compiled import kernel
+from ..common import AOResult, check_count, check_radius, make_generator, row_bands
 from ..gbuffer_checks import check_gbuffer, half_in_float32
-from .gtao_parts import cross3, dot3, hilbert_index, unit3, noise_buffer, slice_visibility  # noqa: F401
+from .gtao_parts import hilbert_index, unit3, noise_buffer, slice_visibility  # noqa: F401
+from .gtao_slices import gtao_rows
 from ..registry import Method, SpeedPanel
 
 FLAVOUR = "cosine"  # the ground-truth weighting this pass estimates (ssbench.reference.ao)
@@ -53,9 +53,6 @@ DEFAULTS_SOURCE = ('XeGTAO (Intel, 2021, https://github.com/GameTechDev/XeGTAO):
                    'Hilbert R2 noise, 1 denoise pass')
 #: the parameter that advances the noise from frame to frame (ssbench.evaluate.ao_frames)
 FRAME_PARAM = "frame"
-_CENTER_Z_BIAS = 0.99999        # XE_GTAO_FP32_DEPTHS: move the centre toward the camera
-_SLOPE_FUDGE = 0.05             # |proj n| lerped 5 % toward 1 ("slight overdarkening on high slopes")
-_R1 = 0.6180339887498948482     # golden-ratio step noise
 NoiseSpec = Union[str, torch.Tensor, Sequence]
 
 
@@ -217,88 +214,6 @@ def gtao(gbuffer: GBuffer, params: GTAOParams = GTAOParams(), *, generator: Opti
     extra = {"horizon_cos": dbg_h, "normal_angle": dbg_n, "slice_visibility": dbg_v,
              "screen_radius": r_px} if debug else {}
     return AOResult(ao=ao, bent_normal=out_bent, debug=extra)
-
-
-@kernel
-def gtao_rows(cam, z: torch.Tensor, row: torch.Tensor, normal: torch.Tensor, mask: torch.Tensor,
-              noise: torch.Tensor, params: GTAOParams, debug: bool, bent_normals: bool) -> tuple:
-    """XeGTAO's main pass on a band of rows (Jimenez et al. 2016, Algorithm 1; XeGTAO ``XeGTAO_MainPass``):
-    ``(vis, bent, debug)`` before the final power, with every block (B, 2K, h, W); the pass's compilable
-    kernel (:mod:`ssbench.passes.compiled`).
-
-    ``z`` :math:`(B, 1, H, W)` is the sanitised depth texture of the whole image (the horizon search reads any
-    row); ``row`` :math:`(h,)` the band's row indices; ``normal``, ``mask``, ``noise`` the band's
-    :math:`(B, ·, h, W)` slices."""
-    # ---- Centre pixel: position, view vector, screen radius (vectors are (x, y, z) tuples of (B, 1, h, W)) ----
-    B, _, H, W = z.shape
-    dtype, dev, S, K = z.dtype, z.device, params.slices, params.steps
-    row = row.view(1, 1, -1, 1)
-    zc = torch.index_select(z, 2, row.view(-1).long()) * _CENTER_Z_BIAS
-    col = torch.arange(W, dtype=dtype, device=dev).view(1, 1, 1, W)
-    ray_x = lambda c: (2.0 * (c + 0.5) / W - 1.0) * cam.aspect / cam.focal          # view x at z = -1
-    ray_y = lambda r: (1.0 - 2.0 * (r + 0.5) / H) / cam.focal                       # (uv_to_view, v up)
-    P = (ray_x(col) * -zc, ray_y(row) * -zc, zc)
-    v = unit3(tuple(-c for c in P))                                                  # toward the camera
-    N = tuple(torch.where(mask, normal[:, i:i + 1], v[i]) for i in range(3))
-    R = params.radius * params.radius_multiplier                                     # effect radius
-    r_px = R * cam.focal * H / (2.0 * -zc)                                           # (B, 1, h, W) pixels
-    min_s = params.min_offset_pixels / r_px
-    fr, toc, tiny = params.falloff_range, params.thin_occluder_compensation, torch.finfo(dtype).tiny
-    j = torch.arange(K, dtype=dtype, device=dev).view(1, K, 1, 1)
-    vis = torch.clamp((10.0 - r_px) / 100.0, 0.0, 1.0) * 0.5                        # small-radius fade
-    bent = [0.0, 0.0, 0.0] if bent_normals else None
-    dbg_h, dbg_n, dbg_v = [], [], []
-
-    for k in range(S):
-        # ---- Slice: direction, projected normal (Algorithm 1, lines 5-15) ----
-        phi = (k + noise[:, :1]) / S * math.pi                                       # (B, 1, h, W)
-        cos_phi, sin_phi = torch.cos(phi), torch.sin(phi)
-        dv = cos_phi * v[0] + sin_phi * v[1]
-        o = (cos_phi - dv * v[0], sin_phi - dv * v[1], -dv * v[2])                  # orthoDirectionVec
-        axis = unit3(cross3(o, v))
-        na = dot3(N, axis)
-        proj_n = tuple(N[i] - axis[i] * na for i in range(3))
-        proj_len = dot3(proj_n, proj_n).sqrt()
-        cos_n = (dot3(proj_n, v) / proj_len.clamp_min(tiny)).clamp(0.0, 1.0)
-        n = torch.sign(dot3(o, proj_n)) * torch.acos(cos_n)
-        low0, low1 = torch.cos(n + math.pi / 2), torch.cos(n - math.pi / 2)        # lowHorizonCos0/1
-        # ---- Horizon search: K steps x 2 sides at once, samples on dim 1 (lines 17-26) ----
-        step_noise = torch.frac(noise[:, 1:] + (k + j * K) * _R1)                   # (B, K, h, W)
-        s = ((j + step_noise) / K) ** params.sample_distribution_power + min_s
-        off_x, off_y = torch.round(s * cos_phi * r_px), torch.round(-s * sin_phi * r_px)  # screen y down
-        cx = col + torch.cat([off_x, -off_x], 1)                                     # (B, 2K, h, W)
-        cy = row + torch.cat([off_y, -off_y], 1)
-        on = (cx >= 0) & (cx < W) & (cy >= 0) & (cy < H)                             # off screen: ignored
-        cx, cy = torch.where(on, cx, col), torch.where(on, cy, row)      # (weight 0; huge r_px overflowed delta)
-        zs = fetch(z, cx.clamp(0, W - 1).long(), cy.clamp(0, H - 1).long())[:, 0]     # (B, 2K, h, W)
-        delta = (ray_x(cx) * -zs - P[0], ray_y(cy) * -zs - P[1], zs - P[2])
-        dist = dot3(delta, delta).sqrt().clamp_min(tiny)
-        shc = dot3(delta, v) / dist                                                  # sample horizon cos
-        if toc:
-            dist = (delta[0] ** 2 + delta[1] ** 2 + (delta[2] * (1.0 + toc)) ** 2).sqrt()
-        w = ((dist * (-1.0 / (fr * R)) + ((1.0 - fr) / fr + 1.0)).clamp(0.0, 1.0) if fr > 0
-             else (dist <= R).to(dtype)) * on
-        hc0 = torch.maximum(low0, (low0 + w[:, :K] * (shc[:, :K] - low0)).amax(1, keepdim=True))
-        hc1 = torch.maximum(low1, (low1 + w[:, K:] * (shc[:, K:] - low1)).amax(1, keepdim=True))
-        # ---- Integrate the slice (line ~27) ----
-        proj_len = proj_len + _SLOPE_FUDGE * (1.0 - proj_len)
-        h0, h1 = -torch.acos(hc1.clamp(-1.0, 1.0)), torch.acos(hc0.clamp(-1.0, 1.0))
-        local = proj_len * slice_visibility(h0, h1, n)
-        vis = vis + local
-        if bent is not None:                                                         # Algorithm 2
-            t0 = (6 * torch.sin(h0 - n) - torch.sin(3 * h0 - n) + 6 * torch.sin(h1 - n) - torch.sin(3 * h1 - n)
-                  + 16 * torch.sin(n) - 3 * (torch.sin(h0 + n) + torch.sin(h1 + n))) / 12
-            t1 = (-torch.cos(3 * h0 - n) - torch.cos(3 * h1 - n) + 8 * torch.cos(n)
-                  - 3 * (torch.cos(h0 + n) + torch.cos(h1 + n))) / 12
-            o_hat = unit3(o)
-            bent = [bent[i] + proj_len * (t0 * o_hat[i] + t1 * v[i]) for i in range(3)]
-        if debug:
-            dbg_h.append(torch.stack([hc0, hc1], 2))                                 # (B, 1, 2, H, W)
-            dbg_n.append(n)
-            dbg_v.append(local)
-
-    debug_out = (torch.cat(dbg_h, 1), torch.cat(dbg_n, 1), torch.cat(dbg_v, 1), r_px) if debug else None
-    return vis, bent, debug_out
 
 
 class GTAO(nn.Module):

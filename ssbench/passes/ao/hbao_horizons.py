@@ -1,0 +1,141 @@
+"""HBAO on a band of image rows (SSAO article §3.3): the depth-derived tangent frame (``minDiff``), the step
+count and size (``calculateNumSteps``), the rotated directions, the first sample (``integrateOcclusion``) and the
+horizon march (``calculateHorizonOcclusion``). :func:`ssbench.passes.ao.hbao.hbao` runs it band by band.
+"""
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import torch
+
+from ..common import fetch_uv
+
+if TYPE_CHECKING:
+    from .hbao import HBAOParams
+
+__all__ = ["hbao_band", "rsqrt", "tan_to_sin", "tangent", "snap", "min_diff"]
+
+
+def rsqrt(x: torch.Tensor) -> torch.Tensor:
+    """``rsqrt`` that stays finite at 0 (a zero-length ``T.xy`` gives slope 0 instead of NaN)."""
+    return torch.rsqrt(x.clamp_min(torch.finfo(x.dtype).tiny))
+
+
+def tan_to_sin(x: torch.Tensor) -> torch.Tensor:
+    """``TanToSin``: ``x·rsqrt(x² + 1)``, written ``x / hypot(x, 1)`` so huge slopes do not overflow."""
+    return x / torch.hypot(x, torch.ones_like(x))
+
+
+def tangent(v: torch.Tensor) -> torch.Tensor:
+    """``getTangent``: ``V.z·rsqrt(dot(V.xy, V.xy))`` of a ``(B, 3, ...)`` vector (GL view space, z up)."""
+    return v[:, 2] * rsqrt(v[:, 0] ** 2 + v[:, 1] ** 2)
+
+
+def snap(uv: torch.Tensor, res: torch.Tensor, inv_res: torch.Tensor) -> torch.Tensor:
+    """``snapUVOffset``: ``round(uv·AORes)·InvAORes`` with the article's ``round(a) = floor(a + 0.5)``."""
+    return torch.floor(uv * res + 0.5) * inv_res
+
+
+def min_diff(P: torch.Tensor, Pa: torch.Tensor, Pb: torch.Tensor) -> torch.Tensor:
+    """``minDiff``: the shorter of ``Pa − P`` and ``P − Pb`` (ties take ``P − Pb``)."""
+    v1, v2 = Pa - P, P - Pb
+    return torch.where((v1 * v1).sum(1, keepdim=True) < (v2 * v2).sum(1, keepdim=True), v1, v2)
+
+
+def hbao_band(cam, uv0: torch.Tensor, mask: torch.Tensor, rand: torch.Tensor, tex: torch.Tensor,
+              params: "HBAOParams", debug: bool) -> tuple[torch.Tensor, dict]:
+    """HBAO on a band of rows (SSAO article §3.3). Not compiled (:mod:`ssbench.passes.compiled`): the march's
+    early exit breaks the graph at every step, and without it the unrolled march ran slower compiled than eager.
+
+    Args:
+        uv0: :math:`(B, 2, h, W)` ``vUv`` of the band's pixels; mask: :math:`(B, 1, h, W)`;
+        rand: :math:`(1, 3, h, W)` the noise texel ``(cos, sin, jitter)`` of each pixel;
+        tex: :math:`(B, 1, H, W)` the whole depth buffer the samples read (GL depth or view z).
+
+    Returns:
+        ``(ao, debug)``: :math:`(B, 1, h, W)` and the band's debug buffers (empty unless ``debug``).
+    """
+    H, W = tex.shape[-2], tex.shape[-1]
+    D, dtype, dev = params.num_directions, tex.dtype, tex.device
+    to_view_z = cam.depth_to_view_z if params.position_from == "depth" else (lambda z: z)
+
+    def viewPos(uv: torch.Tensor) -> torch.Tensor:             # (B, 2, *S) -> (B, 3, *S), nearest + clamp
+        return cam.uv_to_view(uv, to_view_z(fetch_uv(tex, uv)), dim=1)
+
+    AORes = torch.tensor([W, H], dtype=dtype, device=dev).view(1, 2, 1, 1)     # (1, 2, 1, 1)
+    InvAORes = 1.0 / AORes
+    R = params.radius if torch.is_tensor(params.radius) else float(params.radius)   # a tensor keeps autograd
+    R2 = R * R
+    FocalLength = cam.focal * H / W
+    ex = torch.tensor([1.0, 0.0], dtype=dtype, device=dev).view(1, 2, 1, 1) * InvAORes
+    ey = torch.tensor([0.0, 1.0], dtype=dtype, device=dev).view(1, 2, 1, 1) * InvAORes
+    angle = (2.0 * math.pi / D) * torch.arange(D, dtype=dtype, device=dev).view(1, D, 1, 1)
+    res, inv = AORes.unsqueeze(2), InvAORes.unsqueeze(2)
+
+    P = viewPos(uv0)                                                         # (B, 3, h, W)
+
+    # ---- projected radius (diskRadiusInUV, radiusInPixels) ----
+    radiusInPixels = 0.5 * R * FocalLength / -P[:, 2:3] * W                  # (B, 1, h, W)
+    active = mask & (radiusInPixels > 1.0)
+
+    # ---- tangent basis from the 4 neighbours (minDiff) ----
+    Pr, Pl, Pt, Pb = viewPos(uv0 + ex), viewPos(uv0 - ex), viewPos(uv0 + ey), viewPos(uv0 - ey)
+    dPdu = min_diff(P, Pr, Pl).unsqueeze(2)                                 # (B, 3, 1, h, W)
+    dPdv = (min_diff(P, Pt, Pb) * (H / W)).unsqueeze(2)
+
+    # ---- calculateNumSteps (the noise's jitter rounds a clamped step count) ----
+    numSteps = torch.clamp(radiusInPixels, max=float(params.num_steps))
+    stepSizeInPixels = radiusInPixels / (numSteps + 1.0)
+    maxNumSteps = params.max_radius_pixels / stepSizeInPixels
+    clamp = maxNumSteps < numSteps
+    numSteps = torch.where(clamp, torch.floor(maxNumSteps + rand[:, 2:3]).clamp_min(1.0), numSteps)
+    stepSizeInPixels = torch.where(clamp, params.max_radius_pixels / numSteps, stepSizeInPixels)
+    stepSizeInUV = (stepSizeInPixels * InvAORes).unsqueeze(2)                # (B, 2, 1, h, W)
+
+    # ---- directions: rotateDirections(vec2(cos(angle), sin(angle)), rand.xy) ----
+    c, s = rand[:, 0:1], rand[:, 1:2]                                        # (1, 1, h, W)
+    dir = torch.stack([torch.cos(angle) * c - torch.sin(angle) * s,
+                       torch.cos(angle) * s + torch.sin(angle) * c], 1)     # (1, 2, D, h, W)
+    dUv = dir * stepSizeInUV                                                 # (B, 2, D, h, W)
+    texelDeltaUV = dir * inv
+    randstep = rand[:, 2:3].unsqueeze(2)                                     # (1, 1, 1, h, W)
+    uv0d, Pd = uv0.unsqueeze(2), P.unsqueeze(2)
+
+    # ---- calculateHorizonOcclusion, all directions at once ----
+    uv = uv0d + snap(randstep * dUv, res, inv)                              # (B, 2, D, h, W)
+    deltaUV = snap(dUv, res, inv)
+    T = deltaUV[:, 0:1] * dPdu + deltaUV[:, 1:2] * dPdv                     # (B, 3, D, h, W)
+    tanH = tangent(T) + params.tan_angle_bias                               # (B, D, h, W)
+    # integrateOcclusion: a first sample between uv0 and uv0 + deltaUV, against the tangent of its own offset
+    snapped_duv = snap(randstep * deltaUV + texelDeltaUV, res, inv)
+    T1 = snapped_duv[:, 0:1] * dPdu + snapped_duv[:, 1:2] * dPdv
+    tanT = tangent(T1) + params.tan_angle_bias
+    diff = viewPos(uv0d + snapped_duv) - Pd
+    tanS, d2 = tangent(diff), (diff * diff).sum(1)
+    hit = active & (d2 < R2) & (tanS > tanT)
+    ao = torch.where(hit, (1.0 - d2 / R2) * (tan_to_sin(tanS) - tan_to_sin(tanT)).clamp(0.0, 1.0), 0.0)
+    tanH = torch.where(hit, torch.maximum(tanH, tanS), tanH)
+    numStepsLeft = numSteps - 1.0                                            # --numSteps
+    sinH = tan_to_sin(tanH)
+    samples = torch.ones_like(numSteps)
+    for j in range(1, params.num_steps):                                     # the march: j < numSteps
+        live = active & (j < numStepsLeft)                                   # (B, 1, h, W)
+        if live.device.type != "meta" and not bool(live.any()):               # (meta: shapes only)
+            break
+        samples = samples + live.to(dtype)
+        uv = uv + deltaUV
+        diff = viewPos(uv) - Pd
+        tanS, d2 = tangent(diff), (diff * diff).sum(1)                      # (B, D, h, W)
+        hit = live & (d2 < R2) & (tanS > tanH)
+        sinS = tan_to_sin(tanS)
+        ao = ao + torch.where(hit, (1.0 - d2 / R2) * (sinS - sinH).clamp(0.0, 1.0), 0.0)
+        tanH, sinH = torch.where(hit, tanS, tanH), torch.where(hit, sinS, sinH)
+
+    out = (1.0 - ao.sum(1, keepdim=True) / D * params.ao_strength).clamp(0.0, 1.0)
+    out = torch.where(active, out, torch.ones_like(out))
+    dbg = {}
+    if debug:
+        dbg = {"num_steps": torch.where(active, numSteps, 0.0), "samples": torch.where(active, samples, 0.0),
+               "horizons": torch.where(active, torch.atan(tanH), 0.0), "radius_pixels": radiusInPixels}
+    return out, dbg

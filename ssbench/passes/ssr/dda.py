@@ -67,7 +67,7 @@ from .common import (BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS,
                      reflection_rays)
 from .dda_assemble import assemble
 from .dda_refine import count_visits, fetch_cell, refine_hits, ray_view_z
-from .dda_state import DDARays, MarchOutput
+from .dda_state import DDARays, MarchOutput, march_in_chunks
 from .fade import FadeParams
 from ..registry import Method, SpeedPanel
 
@@ -281,7 +281,8 @@ def ssr_dda(gbuffer: GBuffer, params: DDASSRParams = DDASSRParams(), *, generato
     jitter = jitter_fractions(params, (B, 1, H, W), make_generator(params.seed, generator))
     s, sel, P0, P1 = dda_rays(gbuffer, params, jitter)
     visits = torch.zeros(B * H * W, dtype=torch.int32, device=gbuffer.view_z.device) if debug else None
-    o = dda_march(s, (gbuffer.view_z.reshape(-1), gbuffer.mask.reshape(-1)), params, H, W, visits)
+    tex = (gbuffer.view_z.reshape(-1), gbuffer.mask.reshape(-1))
+    o = march_in_chunks(s, lambda rays: dda_march(rays, tex, params, H, W, visits))   # bounded working set
     return assemble(gbuffer, params, sel, P1, o, visits)
 
 

@@ -10,11 +10,14 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Optional
+from typing import Callable, Optional
 
 import torch
 
-__all__ = ["DDARays", "MarchOutput"]
+__all__ = ["DDARays", "MarchOutput", "RAY_CHUNK", "march_in_chunks"]
+
+#: rays marched at once: a march's per-step temporaries stay a few MB, whatever the image size
+RAY_CHUNK = 1 << 16
 
 
 @dataclass
@@ -102,3 +105,28 @@ class MarchOutput:
                    steps=torch.zeros(n, dtype=torch.int32, device=device),
                    P=torch.full((n, 2), -1.0, dtype=dtype, device=device),
                    Q=torch.zeros(n, 3, dtype=dtype, device=device), k=torch.ones(n, dtype=dtype, device=device))
+
+
+def march_in_chunks(s: DDARays, march: Callable[[DDARays], MarchOutput], chunk: Optional[int] = None
+                    ) -> MarchOutput:
+    """``march(s)`` run on ``chunk`` rays (default :data:`RAY_CHUNK`) at a time and joined: the same outputs (rays
+    do not interact; debug visit counts are sums), with a working set that no longer grows with the image.
+    ``s`` comes straight from the set-up (``s.i`` = 0 … N−1).
+
+    Example:
+        >>> s = DDARays(**{f.name: torch.zeros(5) for f in dataclasses.fields(DDARays)})
+        >>> s.i = torch.arange(5)
+        >>> march = lambda r: MarchOutput.empty(r.count, torch.float32, "cpu", 4 + int(r.i.max()))
+        >>> march_in_chunks(s, march, chunk=2).term.tolist()        # chunks of 2, 2, 1 rays, each from i = 0
+        [5, 5, 5, 5, 4]
+    """
+    chunk = RAY_CHUNK if chunk is None else int(chunk)
+    if s.count <= chunk:
+        return march(s)
+    parts = []
+    for c0 in range(0, s.count, chunk):
+        part = s.select(torch.arange(c0, min(c0 + chunk, s.count), device=s.i.device))
+        part.i = part.i - c0                                # rows of this chunk's own output
+        parts.append(march(part))
+    return MarchOutput(**{f.name: torch.cat([getattr(o, f.name) for o in parts], 0)
+                          for f in dataclasses.fields(MarchOutput)})

@@ -42,7 +42,7 @@ from ..gbuffer_checks import half_in_float32
 from .dda import (DEFAULTS_SOURCE, EQUAL_SETTINGS, REQUIRES, DDASSRParams, check_inputs, count_visits,
                   dda_rays, ray_view_z)
 from .dda_assemble import assemble
-from .dda_state import DDARays, MarchOutput
+from .dda_state import DDARays, MarchOutput, march_in_chunks
 from .fade import FadeParams
 from ..registry import Method, SpeedPanel
 
@@ -206,8 +206,9 @@ def ssr_dda_supercover(gbuffer: GBuffer, params: SupercoverDDASSRParams = Superc
     g64 = gbuffer.select(("view_z", "normal", "mask")).to(dtype=torch.float64)   # the walk reads no colour
     s, sel, P0, P1 = dda_rays(g64, dda, zero)
     visits = torch.zeros(B * H * W, dtype=torch.int32, device=gbuffer.view_z.device) if debug else None
-    o = supercover_march(s, (g64.view_z.reshape(-1), g64.mask.reshape(-1)), params.z_thickness, params.max_steps,
-                         H, W, visits)
+    tex = (g64.view_z.reshape(-1), g64.mask.reshape(-1))
+    o = march_in_chunks(s, lambda rays: supercover_march(rays, tex, params.z_thickness, params.max_steps, H, W,
+                                                         visits))                # bounded working set
     return assemble(gbuffer, params, sel, P1, o, visits)
 
 

@@ -361,3 +361,27 @@ def test_last_footprint_reaches_the_image_edge(stride):
         r = fn(g, DDASSRParams(max_ray_distance=50.0, pixel_stride=stride, pixel_stride_z_cutoff=math.inf))
         assert at(r.termination, 16, 20) == HIT and finite(r)
         assert r.hit_pixel[0, :, 20, 16].floor().tolist() == [16.0, 0.0]
+
+
+@pytest.mark.parametrize("method", ["dda", "dda_supercover"])
+def test_marching_in_chunks_of_rays_changes_no_bit(method, monkeypatch):
+    """The DDA marchers march RAY_CHUNK rays at a time (a bounded working set): chunks of 7 rays give the same
+    outputs, debug visit counts included, as one chunk for every ray."""
+    import dataclasses
+
+    import ssbench.passes.ssr.dda_state as DS
+    from ssbench.passes import ssr_method
+    from tests.passes.ssr_scenes import room
+    g = room(40, 30, slat=True)
+    fn, params_cls, _ = ssr_method(method)
+
+    def run(chunk):
+        monkeypatch.setattr(DS, "RAY_CHUNK", chunk)
+        return fn(g, params_cls(), debug=True)
+    whole, chunked = run(1 << 40), run(7)
+    assert int(whole.hit.sum()) > 0
+    for f in dataclasses.fields(whole):
+        v = getattr(whole, f.name)
+        if isinstance(v, torch.Tensor):
+            assert torch.equal(v, getattr(chunked, f.name)), f.name
+    assert torch.equal(whole.debug["visits"], chunked.debug["visits"])

@@ -68,6 +68,7 @@ lessons-sync: $(DEV_STAMP)
 ## timing, implicit evaluators (torch vs Dr.Jit) and marchers (prints numbers; not a test). BENCH_ARGS adds options.
 bench: setup
 	$(PYTHON) benchmarks/bench_passes.py $(BENCH_ARGS)
+	$(PYTHON) benchmarks/bench_ao_reference.py
 	$(PYTHON) benchmarks/bench_gbuffer.py
 	$(PYTHON) benchmarks/bench_implicit.py
 

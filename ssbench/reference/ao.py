@@ -73,19 +73,23 @@ def _check(gbuffer: GBuffer, radius: float, rays: int, weighting: str, seed: int
 
 
 def _estimate(mi, dr, mscene, origin_si, eye, n_view, R_v2s, active, radius, rays, weighting, seed, N):
-    """Accumulate per-pixel mean and variance over ``rays`` directions (one evaluated kernel per ray)."""
+    """Accumulate per-pixel mean and variance over ``rays`` directions, in one Dr.Jit kernel (a symbolic
+    ``while_loop`` over the rays: the same draws and sums, in the same order, as one kernel per ray, which
+    launched ``rays`` kernels and ran 1.1–2.5× slower: 33 → 53 Mrays/s on cornell_box, cosine, 320×240, 256 rays,
+    2 threads)."""
     frame = mi.Frame3f(n_view)
     rng = mi.PCG32(size=N, initstate=dr.opaque(mi.UInt64, seed), initseq=dr.arange(mi.UInt64, N))
-    s1, s2 = dr.zeros(mi.Float, N), dr.zeros(mi.Float, N)
     R = dr.opaque(mi.Float, radius)
-    for _ in range(rays):
+
+    def body(k, s1, s2, rng):
         if weighting in ao_volume.VOLUME_WEIGHTINGS:
             v = ao_volume.visibility(mi, dr, mscene, origin_si.p, eye, frame, R_v2s, R, rng, active, weighting)
         else:
             v = _ray_visibility(mi, dr, mscene, origin_si, frame, R_v2s, R, rng, active, weighting)
-        s1 += v
-        s2 += v * v
-        dr.eval(s1, s2, rng.state)
+        return k + 1, s1 + v, s2 + v * v, rng
+
+    _, s1, s2, rng = dr.while_loop((mi.UInt32(0), dr.zeros(mi.Float, N), dr.zeros(mi.Float, N), rng),
+                                   lambda k, *_: k < rays, body)
     mean = s1 / rays
     n = float(rays)
     if weighting == "obscurance":                  # continuous visibility: sample variance, Jeffreys floor

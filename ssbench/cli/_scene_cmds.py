@@ -104,7 +104,7 @@ def cmd_report(args) -> int:
         from ..report.build import render_run
         from ..report.compare import resolve_run
         building = [d for d, v in vars(args).items() if d not in ("command", "out", "from_run", "report_parser",
-                                                                   "screenshots")
+                                                                   "screenshots", "compile")   # compile: global
                     and v != args.report_parser.get_default(d)]
         if building:
             args.report_parser.error("--from cannot be combined with report-building options "

@@ -284,7 +284,8 @@ def write_comparison(c: dict, root: str) -> str:
 def cmd_compare(args, parser) -> int:
     """``ssbench report --compare RUN_A RUN_B``: print the comparison and write it under ``--out``."""
     building = [d for d, v in vars(args).items() if d not in ("command", "out", "compare", "rtol", "time_rtol",
-                                                              "report_parser") and v != parser.get_default(d)]
+                                                              "report_parser", "compile")   # compile: global
+                and v != parser.get_default(d)]
     if building:
         parser.error("--compare cannot be combined with report-building options "
                      f"({', '.join('--' + d.replace('_', '-') for d in building)})")

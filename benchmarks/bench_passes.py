@@ -9,6 +9,8 @@ its peak memory is its own:
   random depth-texel reads per pixel as the pass makes — an AO method's declared ``samples_per_pixel``, an SSR
   march's mean ``steps`` — one ``index_select`` per sample), measured side by side in the same process, so it
   survives a loaded machine; ``fused×`` the same against the *fused floor* (those reads as one Dr.Jit kernel);
+  ``anchor×`` (hemisphere SSAO only) against the same method written as one Dr.Jit kernel
+  (``ssbench.bench.anchors``, tested to count the same samples);
 * ``peak MiB`` — the process's peak resident memory while the pass runs twice (once for the timing check, once
   eager for the comparison), minus its resident memory before (the G-buffer and the interpreter excluded);
 * ``compile s`` — with ``--compile``: the pass's first call with its band kernels compiled
@@ -109,13 +111,31 @@ def one(effect: str, method: str, path: str, compiled: bool, min_run_time: float
                     TimingSpec(min_run_time=min_run_time, warmup=1, rounds=rounds), threads)
     v = valid.expand_as(out)
     diff = float((out.double() - eager.double()).abs()[v].max()) if v.any() else 0.0
+    anchor = _anchor_ratio(effect, method, g, call, threads, rounds)
     px = g.width * g.height
     return {"method": method, "size": f"{g.width}x{g.height}", "mode": "compiled" if compiled else "eager",
             "ms": row["time_median_ms"], "ns_px": row["time_median_ms"] * 1e6 / px, "floor_ms": row["floor_median_ms"],
             "floor_ratio": row["floor_ratio"], "floor_ratio_iqr": row["floor_ratio_iqr"], "samples": samples,
             "fused_floor_ratio": row["fused_floor_ratio"], "fused_floor_ms": row["fused_floor_median_ms"],
             "peak_mib": peak, "first_call_s": first_s, "max_diff_eager": diff, "threads": threads,
-            "error": row["timing_error"]}
+            "anchor_ratio": anchor, "error": row["timing_error"]}
+
+
+def _anchor_ratio(effect: str, method: str, g, call, threads: int, rounds: int) -> float:
+    """Pass time / the Dr.Jit anchor's (``ssbench.bench.anchors``; hemisphere SSAO only), median of per-round
+    ratios of alternating blocks; ``nan`` for other passes or without an LLVM backend."""
+    import statistics
+
+    from ssbench.bench.anchors import ssao_anchor
+    from ssbench.bench.timing import timeit_calls
+    if (effect, method) != ("ao", "ssao"):
+        return float("nan")
+    from ssbench.passes.ao.ssao import HemisphereSSAOParams
+    anchor = ssao_anchor(g, HemisphereSSAOParams(kernel_radius=0.5), threads=threads)
+    if anchor is None:
+        return float("nan")
+    ratios = [timeit_calls(call, 3) / timeit_calls(anchor, 3) for _ in range(max(3, rounds))]
+    return statistics.median(ratios)
 
 
 def main() -> int:
@@ -143,8 +163,8 @@ def main() -> int:
     rows = []
     print(f"torch {torch.__version__}, {a.threads} thread(s), min_run_time {a.min_run_time} s; "
           f"floor× / fused× = pass / torch gather / Dr.Jit fused gather of as many texels per pixel (median of {a.rounds} rounds ± IQR)")
-    head = (f"{'pass':<16}{'size':>10}{'mode':>9}{'ms':>10}{'ns/px':>8}{'floor×':>13}{'fused×':>8}{'reads':>6}"
-            f"{'peak MiB':>9}")
+    head = (f"{'pass':<16}{'size':>10}{'mode':>9}{'ms':>10}{'ns/px':>8}{'floor×':>13}{'fused×':>8}{'anchor×':>8}"
+            f"{'reads':>6}{'peak MiB':>9}")
     head += f"{'compile s':>10}{'Δ eager':>9}" if a.compile else ""
     print(head)
     with tempfile.TemporaryDirectory() as tmp:
@@ -167,7 +187,7 @@ def main() -> int:
                         rows.append(row)
                         line = (f"{method:<16}{row['size']:>10}{row['mode']:>9}{row['ms']:>10.1f}{row['ns_px']:>8.0f}"
                                 f"{row['floor_ratio']:>7.1f} ±{row['floor_ratio_iqr']:<4.1f}"
-                                f"{row['fused_floor_ratio']:>8.1f}{row['samples']:>6}"
+                                f"{row['fused_floor_ratio']:>8.1f}{row['anchor_ratio']:>8.1f}{row['samples']:>6}"
                                 f"{row['peak_mib']:>9.0f}")
                         if a.compile:
                             line += (f"{row['first_call_s']:>10.1f}{row['max_diff_eager']:>9.1e}" if compiled else "")

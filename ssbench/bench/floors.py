@@ -22,7 +22,7 @@ from typing import Any, Callable, Optional
 
 import torch
 
-__all__ = ["POOL", "torch_floor", "fused_floor"]
+__all__ = ["POOL", "torch_floor", "fused_floor", "drjit_llvm"]
 
 #: index rows the torch floor cycles through (sample ``k`` reads at row ``k mod POOL``)
 POOL = 8
@@ -63,7 +63,7 @@ def torch_floor(texture: torch.Tensor, samples: int, seed: int = 0) -> Callable[
     return call
 
 
-def _drjit_llvm() -> Optional[Any]:
+def drjit_llvm() -> Optional[Any]:
     """``drjit.llvm`` when the backend chosen for this process has a working libLLVM, else ``None``."""
     from ..reference import backend
     try:
@@ -92,7 +92,7 @@ def fused_floor(texture: torch.Tensor, samples: int, seed: int = 0, threads: Opt
     _check(texture, samples)
     if texture.device.type != "cpu":
         return None
-    llvm = _drjit_llvm()
+    llvm = drjit_llvm()
     if llvm is None:
         return None
     import drjit as dr

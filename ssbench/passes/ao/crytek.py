@@ -39,7 +39,7 @@ from ..common import AOResult, make_generator, row_bands
 from ..compiled import kernel
 from ..sampling import noise_texel, noise_texture, sphere_kernel
 from ..gbuffer_checks import check_gbuffer, half_in_float32
-from .ssao import check_ssao_params, range_check_count, ssao_result, view_position
+from .ssao_common import check_ssao_params, range_check_count, ssao_result, view_position
 from ..registry import Method, SpeedPanel
 
 FLAVOUR = "volume_sphere"  # the ground truth this pass estimates (ssbench.reference.ao_volume)

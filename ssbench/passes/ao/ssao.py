@@ -43,11 +43,12 @@ from torch import nn
 
 from ...camera import Camera
 from ...gbuffer import GBuffer
-from ..common import AOResult, check_count, check_radius, fetch_uv, length, make_generator, row_bands
+from ..common import AOResult, length, make_generator, row_bands
 from ..compiled import kernel
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..sampling import hemisphere_kernel, noise_texel, noise_texture
 from ..registry import Method, SpeedPanel
+from .ssao_common import check_ssao_params, range_check_count, ssao_result, view_position
 
 FLAVOUR = "volume_hemisphere"  # the ground truth this pass estimates (ssbench.reference.ao_volume)
 #: continuous parameters ``ssbench tune`` may fit: name -> (lo, hi, relative); relative ranges are multiples of the
@@ -59,21 +60,6 @@ DEFAULTS_SOURCE = ('three.js SSAOPass (32-sample kernel, 4×4 noise; https://git
                    'scaled to the catalog scenes')
 REQUIRES = ("view_z", "normal", "mask")
 POSITION_FROM = ("depth", "view_z")
-
-
-def check_ssao_params(p) -> None:
-    """Parameter checks shared by both SSAO variants; every error names the field."""
-    check_count(p.kernel_size, "kernel_size")
-    check_radius(p.kernel_radius, "kernel_radius")
-    check_count(p.noise_size, "noise_size")
-    for name in ("min_distance", "max_distance", "strength"):
-        v = getattr(p, name)
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 <= v < float("inf"):
-            raise ValueError(f"{name}: must be a finite number >= 0, got {v!r}")
-    if not p.min_distance < p.max_distance:
-        raise ValueError(f"max_distance: must exceed min_distance={p.min_distance}, got {p.max_distance}")
-    if isinstance(p.seed, bool) or not isinstance(p.seed, int) or p.seed < 0:
-        raise ValueError(f"seed: must be a non-negative integer, got {p.seed!r}")
 
 
 @dataclass(frozen=True)
@@ -113,41 +99,6 @@ class HemisphereSSAOParams:
             raise ValueError(f"position_from: expected one of {POSITION_FROM}, got {self.position_from!r}")
 
 
-def view_position(camera: Camera, view_z: torch.Tensor, position_from: str) -> tuple[torch.Tensor, torch.Tensor]:
-    """``(viewPosition, texture)``: :math:`(B, 3, H, W)` positions and the :math:`(B, 1, H, W)` buffer
-    that ``getLinearDepth`` samples (the GL depth buffer for ``"depth"``, ``view_z`` otherwise)."""
-    uv = camera.uv_grid(view_z.dtype, view_z.device).unsqueeze(0)                # (1, 2, H, W) vUv
-    if position_from == "depth":
-        depth = camera.view_z_to_depth(view_z)                                   # getDepth(vUv)
-        return camera.view_position_from_depth(uv.expand(view_z.shape[0], -1, -1, -1), depth), depth
-    return camera.uv_to_view(uv, view_z), view_z
-
-
-def range_check_count(camera: Camera, sample_point: torch.Tensor, texture: torch.Tensor, from_depth: bool,
-                      min_distance: float, max_distance: float) -> torch.Tensor:
-    """The shader's sample loop body for all samples at once: project, fetch, compare, count.
-
-    Args:
-        sample_point: :math:`(B, 3, K, H, W)` view-space ``samplePoint``.
-        texture: :math:`(B, 1, H, W)` GL depth buffer (``from_depth``) or view z.
-
-    Returns:
-        :math:`(B, 1, H, W)` integer count of samples with ``min_distance < delta < max_distance``.
-    """
-    z = sample_point[:, 2:3]                                                     # (B, 1, K, H, W)
-    # NOTE: w = -z = 0 would divide by zero; the GPU result is undefined, ours reads as "just in front"
-    z_proj = torch.where(z == 0, torch.full_like(z, -torch.finfo(z.dtype).tiny), z)
-    ndc = camera.view_to_ndc(torch.cat([sample_point[:, :2], z_proj], 1), dim=1)  # (B, 3, K, H, W)
-    uv = torch.nan_to_num(camera.ndc_to_uv(ndc[:, :2]))                          # (B, 2, K, H, W) samplePointUv
-    real = fetch_uv(texture, uv)                                                 # (B, 1, K, H, W) NEAREST, clamp
-    if from_depth:
-        real = camera.depth_to_view_z(real)                                      # perspectiveDepthToViewZ
-    real_depth = camera.view_z_to_orthographic_depth(real)                       # realDepth
-    sample_depth = camera.view_z_to_orthographic_depth(z)                        # sampleDepth
-    delta = sample_depth - real_depth
-    return ((delta > min_distance) & (delta < max_distance)).sum(2)              # (B, 1, H, W)
-
-
 @kernel
 def hemisphere_band(cam: Camera, position: torch.Tensor, tbn: tuple, k: tuple, texture: torch.Tensor,
                     p: "HemisphereSSAOParams") -> torch.Tensor:
@@ -166,27 +117,6 @@ def hemisphere_band(cam: Camera, position: torch.Tensor, tbn: tuple, k: tuple, t
     sample_point = position.unsqueeze(2) + sample_vector * p.kernel_radius             # (B, 3, K, h, W)
     return range_check_count(cam, sample_point, texture, p.position_from == "depth", p.min_distance,
                              p.max_distance)
-
-
-def occlusion_to_ao(count: torch.Tensor, kernel_size: int, strength: float, mask: torch.Tensor,
-                    dtype: torch.dtype) -> torch.Tensor:
-    """``1 − clamp(count / K, 0, 1) · Strength``, clamped to [0, 1]; 1 off ``mask``."""
-    occlusion = (count.to(dtype) / float(kernel_size)).clamp(0.0, 1.0)
-    ao = (1.0 - occlusion * strength).clamp(0.0, 1.0)
-    return torch.where(mask, ao, torch.ones_like(ao))
-
-
-def ssao_result(count: torch.Tensor, p, mask: torch.Tensor, *, dtype: torch.dtype, debug: bool,
-                row: torch.Tensor, col: torch.Tensor, kernel: torch.Tensor, noise: torch.Tensor) -> AOResult:
-    """AO from the range-check ``count`` plus, with ``debug``, the per-pixel sample count, noise index,
-    kernel and noise (shared by both SSAO passes)."""
-    ao = occlusion_to_ao(count, p.kernel_size, p.strength, mask, dtype)
-    extra = {}
-    if debug:
-        extra = {"samples": torch.where(mask, count, torch.zeros_like(count)),
-                 "noise_index": (row * p.noise_size + col).expand(mask.shape),
-                 "kernel": kernel, "noise": noise}
-    return AOResult(ao=ao, debug=extra)
 
 
 @half_in_float32
@@ -225,33 +155,59 @@ def hemisphere_ssao(gbuffer: GBuffer, params: HemisphereSSAOParams = HemisphereS
         >>> out.ao.shape, float(out.ao.min())
         (torch.Size([1, 1, 6, 8]), 1.0)
     """
+    fr = hemisphere_frame(gbuffer, params, generator)
+    cam, p, n = gbuffer.camera, params, fr.normal
+
+    # ---- §2.2 sample loop, all K samples of a band of rows at once (the working set stays cache-sized) -
+    kx, ky, kz = (fr.kernel[:, c].reshape(1, 1, -1, 1, 1) for c in range(3))       # (1, 1, K, 1, 1)
+    count = torch.empty(n.shape[0], 1, cam.height, cam.width, dtype=torch.int64, device=n.device)
+    for rs in row_bands(cam.height, cam.width, p.kernel_size, n.element_size()):
+        count[..., rs, :] = hemisphere_band(cam, fr.position[..., rs, :], (fr.tangent[..., rs, :],
+                                            fr.bitangent[..., rs, :], n[..., rs, :]), (kx, ky, kz), fr.texture, p)
+    return ssao_result(count, p, gbuffer.mask, dtype=n.dtype, debug=debug, row=fr.row, col=fr.col, kernel=fr.kernel,
+                       noise=fr.noise)
+
+
+@dataclass(frozen=True)
+class HemisphereFrame:
+    """What the sample loop reads (SSAO article §2.2 up to the loop), from :func:`hemisphere_frame`.
+
+    Attributes:
+        position: :math:`(B, 3, H, W)` ``viewPosition``; texture: :math:`(B, 1, H, W)` the buffer
+            ``getLinearDepth`` samples; tangent, bitangent, normal: :math:`(B, 3, H, W)` ``kernelMatrix``;
+        kernel: :math:`(K, 3)` ``Kernel[i]``; noise: :math:`(3, S, S)`; row, col: :math:`(H, W)` noise texel.
+    """
+
+    position: torch.Tensor
+    texture: torch.Tensor
+    tangent: torch.Tensor
+    bitangent: torch.Tensor
+    normal: torch.Tensor
+    kernel: torch.Tensor
+    noise: torch.Tensor
+    row: torch.Tensor
+    col: torch.Tensor
+
+
+def hemisphere_frame(gbuffer: GBuffer, params: HemisphereSSAOParams,
+                     generator: torch.Generator | None = None) -> HemisphereFrame:
+    """Checks, draws (the kernel, then the noise, from ``generator`` or ``params.seed``) and the per-pixel frame
+    of SSAO article §2.2: ``viewPosition``, the noise ``random``, Gram–Schmidt ``tangent``, ``bitangent``."""
     if not isinstance(params, HemisphereSSAOParams):
         raise TypeError(f"params: expected HemisphereSSAOParams, got {type(params).__name__}")
     check_gbuffer(gbuffer, REQUIRES)
     cam, p = gbuffer.camera, params
-    n, mask = gbuffer.normal.to(gbuffer.view_z.dtype), gbuffer.mask
+    n = gbuffer.normal.to(gbuffer.view_z.dtype)
     dtype, device = n.dtype, n.device
     g = make_generator(p.seed, generator)
     kernel = hemisphere_kernel(p.kernel_size, g).to(dtype=dtype, device=device)    # (K, 3) Kernel[i]
     noise = noise_texture(p.noise_size, g).to(dtype=dtype, device=device)          # (3, S, S)
-
-    # ---- §2.2 viewPosition, viewNormal ------------------------------------------------------------
-    position, texture = view_position(cam, gbuffer.view_z, p.position_from)       # (B, 3, H, W)
-
-    # ---- §2.2 random rotation, Gram–Schmidt, kernelMatrix = (tangent, bitangent, normal) ------------
+    position, texture = view_position(cam, gbuffer.view_z, p.position_from)       # (B, 3, H, W) viewPosition
     col, row = noise_texel(cam.uv_grid(dtype, device), cam.width, cam.height, p.noise_size)   # (H, W)
     random = noise[:, row, col].unsqueeze(0)                                       # (1, 3, H, W)
-    tangent = random - n * (random * n).sum(1, keepdim=True)                      # (B, 3, H, W)
+    tangent = random - n * (random * n).sum(1, keepdim=True)                      # (B, 3, H, W) Gram–Schmidt
     tangent = tangent / length(tangent).clamp_min(torch.finfo(dtype).tiny)
-    bitangent = torch.cross(n, tangent, dim=1)
-
-    # ---- §2.2 sample loop, all K samples of a band of rows at once (the working set stays cache-sized) -
-    kx, ky, kz = (kernel[:, c].reshape(1, 1, -1, 1, 1) for c in range(3))          # (1, 1, K, 1, 1)
-    count = torch.empty(n.shape[0], 1, cam.height, cam.width, dtype=torch.int64, device=device)
-    for rs in row_bands(cam.height, cam.width, p.kernel_size, n.element_size()):
-        count[..., rs, :] = hemisphere_band(cam, position[..., rs, :], (tangent[..., rs, :], bitangent[..., rs, :],
-                                            n[..., rs, :]), (kx, ky, kz), texture, p)      # (B, 1, h, W)
-    return ssao_result(count, p, mask, dtype=dtype, debug=debug, row=row, col=col, kernel=kernel, noise=noise)
+    return HemisphereFrame(position, texture, tangent, torch.cross(n, tangent, dim=1), n, kernel, noise, row, col)
 
 
 class HemisphereSSAO(nn.Module):

@@ -1,0 +1,83 @@
+"""What both point-sampling SSAO passes share (SSAO article §2): parameter checks, the view position and the
+buffer ``getLinearDepth`` samples, the range-checked sample count and the count → AO step. Used by
+:mod:`ssbench.passes.ao.crytek` (sphere kernel) and :mod:`ssbench.passes.ao.ssao` (hemisphere kernel).
+"""
+from __future__ import annotations
+
+import torch
+
+from ...camera import Camera
+from ..common import AOResult, check_count, check_radius, fetch_uv
+
+__all__ = ["check_ssao_params", "view_position", "range_check_count", "occlusion_to_ao", "ssao_result"]
+
+
+def check_ssao_params(p) -> None:
+    """Parameter checks shared by both SSAO variants; every error names the field."""
+    check_count(p.kernel_size, "kernel_size")
+    check_radius(p.kernel_radius, "kernel_radius")
+    check_count(p.noise_size, "noise_size")
+    for name in ("min_distance", "max_distance", "strength"):
+        v = getattr(p, name)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 <= v < float("inf"):
+            raise ValueError(f"{name}: must be a finite number >= 0, got {v!r}")
+    if not p.min_distance < p.max_distance:
+        raise ValueError(f"max_distance: must exceed min_distance={p.min_distance}, got {p.max_distance}")
+    if isinstance(p.seed, bool) or not isinstance(p.seed, int) or p.seed < 0:
+        raise ValueError(f"seed: must be a non-negative integer, got {p.seed!r}")
+
+
+def view_position(camera: Camera, view_z: torch.Tensor, position_from: str) -> tuple[torch.Tensor, torch.Tensor]:
+    """``(viewPosition, texture)``: :math:`(B, 3, H, W)` positions and the :math:`(B, 1, H, W)` buffer
+    that ``getLinearDepth`` samples (the GL depth buffer for ``"depth"``, ``view_z`` otherwise)."""
+    uv = camera.uv_grid(view_z.dtype, view_z.device).unsqueeze(0)                # (1, 2, H, W) vUv
+    if position_from == "depth":
+        depth = camera.view_z_to_depth(view_z)                                   # getDepth(vUv)
+        return camera.view_position_from_depth(uv.expand(view_z.shape[0], -1, -1, -1), depth), depth
+    return camera.uv_to_view(uv, view_z), view_z
+
+
+def range_check_count(camera: Camera, sample_point: torch.Tensor, texture: torch.Tensor, from_depth: bool,
+                      min_distance: float, max_distance: float) -> torch.Tensor:
+    """The shader's sample loop body for all samples at once: project, fetch, compare, count.
+
+    Args:
+        sample_point: :math:`(B, 3, K, H, W)` view-space ``samplePoint``.
+        texture: :math:`(B, 1, H, W)` GL depth buffer (``from_depth``) or view z.
+
+    Returns:
+        :math:`(B, 1, H, W)` integer count of samples with ``min_distance < delta < max_distance``.
+    """
+    z = sample_point[:, 2:3]                                                     # (B, 1, K, H, W)
+    # NOTE: w = -z = 0 would divide by zero; the GPU result is undefined, ours reads as "just in front"
+    z_proj = torch.where(z == 0, torch.full_like(z, -torch.finfo(z.dtype).tiny), z)
+    ndc = camera.view_to_ndc(torch.cat([sample_point[:, :2], z_proj], 1), dim=1)  # (B, 3, K, H, W)
+    uv = torch.nan_to_num(camera.ndc_to_uv(ndc[:, :2]))                          # (B, 2, K, H, W) samplePointUv
+    real = fetch_uv(texture, uv)                                                 # (B, 1, K, H, W) NEAREST, clamp
+    if from_depth:
+        real = camera.depth_to_view_z(real)                                      # perspectiveDepthToViewZ
+    real_depth = camera.view_z_to_orthographic_depth(real)                       # realDepth
+    sample_depth = camera.view_z_to_orthographic_depth(z)                        # sampleDepth
+    delta = sample_depth - real_depth
+    return ((delta > min_distance) & (delta < max_distance)).sum(2)              # (B, 1, H, W)
+
+
+def occlusion_to_ao(count: torch.Tensor, kernel_size: int, strength: float, mask: torch.Tensor,
+                    dtype: torch.dtype) -> torch.Tensor:
+    """``1 − clamp(count / K, 0, 1) · Strength``, clamped to [0, 1]; 1 off ``mask``."""
+    occlusion = (count.to(dtype) / float(kernel_size)).clamp(0.0, 1.0)
+    ao = (1.0 - occlusion * strength).clamp(0.0, 1.0)
+    return torch.where(mask, ao, torch.ones_like(ao))
+
+
+def ssao_result(count: torch.Tensor, p, mask: torch.Tensor, *, dtype: torch.dtype, debug: bool,
+                row: torch.Tensor, col: torch.Tensor, kernel: torch.Tensor, noise: torch.Tensor) -> AOResult:
+    """AO from the range-check ``count`` plus, with ``debug``, the per-pixel sample count, noise index,
+    kernel and noise (shared by both SSAO passes)."""
+    ao = occlusion_to_ao(count, p.kernel_size, p.strength, mask, dtype)
+    extra = {}
+    if debug:
+        extra = {"samples": torch.where(mask, count, torch.zeros_like(count)),
+                 "noise_index": (row * p.noise_size + col).expand(mask.shape),
+                 "kernel": kernel, "noise": noise}
+    return AOResult(ao=ao, debug=extra)

@@ -147,17 +147,26 @@ def check_inputs(gbuffer: GBuffer, params: DDASSRParams) -> None:
     check_gbuffer(gbuffer, REQUIRES, finite=("color",), meta_ok=False)
 
 
-def dda_rays(gbuffer: GBuffer, params: DDASSRParams, jitter: torch.Tensor):
-    """Per-ray set-up (article §2.2 up to the loop) of every ``mask`` pixel that starts a ray: ``(DDARays, sel, P0,
-    P1)``, ``sel`` the rays' flat pixel indices ``b·H·W + j·W + i`` and ``P0``, ``P1`` their end points in pixels."""
+def ray_pixels(gbuffer: GBuffer) -> torch.Tensor:
+    """:math:`(N,)` flat indices ``b·H·W + j·W + i`` of the pixels that start a ray: ``mask`` pixels not nearer
+    than the near plane (such geometry cannot be in a depth buffer; its rays would start behind w = 0)."""
+    return (gbuffer.mask & (gbuffer.view_z <= -gbuffer.camera.near))[:, 0].reshape(-1).nonzero().squeeze(1)
+
+
+def dda_rays(gbuffer: GBuffer, params: DDASSRParams, jitter: torch.Tensor, sel: Optional[torch.Tensor] = None):
+    """Per-ray set-up (article §2.2 up to the loop) of the pixels ``sel`` (default :func:`ray_pixels`, every
+    pixel that starts a ray): ``(DDARays, sel, P0, P1)``, ``sel`` the rays' flat pixel indices
+    ``b·H·W + j·W + i`` and ``P0``, ``P1`` their end points in pixels. Per ray, so a subset of ``sel`` sets up
+    exactly those rays of the full set-up (the marchers set up and march chunks of rays)."""
     cam, vz = gbuffer.camera, gbuffer.view_z
     B, _, H, W = vz.shape
     dt, dev = vz.dtype, vz.device
-    pos = cam.uv_to_view(cam.uv_grid(dt, dev).unsqueeze(0), vz)                   # (B, 3, H, W) rayOrg
-    R = reflection_rays(pos, gbuffer.normal.to(dt))                               # (B, 3, H, W) rayDir
-    # geometry nearer than the near plane cannot be in a depth buffer (its rays would start behind w = 0)
-    sel = (gbuffer.mask & (vz <= -cam.near))[:, 0].reshape(-1).nonzero().squeeze(1)   # (N,) flat b·H·W + j·W + i
-    o, d = pos.permute(0, 2, 3, 1).reshape(-1, 3)[sel], R.permute(0, 2, 3, 1).reshape(-1, 3)[sel]   # (N, 3)
+    sel = ray_pixels(gbuffer) if sel is None else sel
+    col = lambda x: x.permute(1, 0, 2, 3).reshape(x.shape[1], -1)[:, sel].unsqueeze(0)   # noqa: E731  (1, C, N)
+    uv = cam.uv_grid(dt, dev).unsqueeze(0).expand(B, -1, -1, -1)
+    pos = cam.uv_to_view(col(uv).unsqueeze(-1), col(vz).unsqueeze(-1))           # (1, 3, N, 1) rayOrg
+    R = reflection_rays(pos, col(gbuffer.normal.to(dt)).unsqueeze(-1))           # (1, 3, N, 1) rayDir
+    o, d = pos[0, :, :, 0].T, R[0, :, :, 0].T                                     # (N, 3)
     end = o + d * clip_ray_length(o[:, 2], d[:, 2], params.max_ray_distance, cam.near)[:, None]   # rayEnd
     M = project_to_pixel_matrix(cam, dt, dev)
     hom = lambda c: c[:, :1] * M[:, 0] + c[:, 1:2] * M[:, 1] + c[:, 2:3] * M[:, 2] + M[:, 3]   # noqa: E731  M·(c, 1)
@@ -279,10 +288,11 @@ def ssr_dda(gbuffer: GBuffer, params: DDASSRParams = DDASSRParams(), *, generato
     check_inputs(gbuffer, params)
     B, _, H, W = gbuffer.view_z.shape
     jitter = jitter_fractions(params, (B, 1, H, W), make_generator(params.seed, generator))
-    s, sel, P0, P1 = dda_rays(gbuffer, params, jitter)
+    sel = ray_pixels(gbuffer)
     visits = torch.zeros(B * H * W, dtype=torch.int32, device=gbuffer.view_z.device) if debug else None
     tex = (gbuffer.view_z.reshape(-1), gbuffer.mask.reshape(-1))
-    o = march_in_chunks(s, lambda rays: dda_march(rays, tex, params, H, W, visits))   # bounded working set
+    o, P1 = march_in_chunks(sel, lambda part: dda_rays(gbuffer, params, jitter, part),
+                            lambda rays: dda_march(rays, tex, params, H, W, visits))   # bounded working set
     return assemble(gbuffer, params, sel, P1, o, visits)
 
 

@@ -107,26 +107,31 @@ class MarchOutput:
                    Q=torch.zeros(n, 3, dtype=dtype, device=device), k=torch.ones(n, dtype=dtype, device=device))
 
 
-def march_in_chunks(s: DDARays, march: Callable[[DDARays], MarchOutput], chunk: Optional[int] = None
-                    ) -> MarchOutput:
-    """``march(s)`` run on ``chunk`` rays (default :data:`RAY_CHUNK`) at a time and joined: the same outputs (rays
-    do not interact; debug visit counts are sums), with a working set that no longer grows with the image.
-    ``s`` comes straight from the set-up (``s.i`` = 0 … N−1).
+def march_in_chunks(sel: torch.Tensor, setup: Callable[[torch.Tensor], tuple], march: Callable[[DDARays], MarchOutput],
+                    chunk: Optional[int] = None) -> tuple[MarchOutput, torch.Tensor]:
+    """Set up and march the rays of pixels ``sel`` :math:`(N,)` ``chunk`` rays (default :data:`RAY_CHUNK`) at a
+    time and join the results: ``(MarchOutput, P1)`` for all ``N`` rays, in ``sel``'s order.
+
+    ``setup(part)`` returns ``(DDARays, sel, P0, P1)`` for the pixels ``part`` (rows ``i`` = 0 … len(part)−1, as
+    :func:`~ssbench.passes.ssr.dda.dda_rays` does); ``march(rays)`` a :class:`MarchOutput`. Rays do not
+    interact and debug visit counts are sums, so the outputs are those of one chunk holding every ray, with a
+    working set (set-up and march temporaries) that no longer grows with the image.
 
     Example:
-        >>> s = DDARays(**{f.name: torch.zeros(5) for f in dataclasses.fields(DDARays)})
-        >>> s.i = torch.arange(5)
+        >>> def setup(part):
+        ...     rays = DDARays(**{f.name: part.double() for f in dataclasses.fields(DDARays)})
+        ...     rays.i = torch.arange(len(part))
+        ...     return rays, part, None, part[:, None].double()
         >>> march = lambda r: MarchOutput.empty(r.count, torch.float32, "cpu", 4 + int(r.i.max()))
-        >>> march_in_chunks(s, march, chunk=2).term.tolist()        # chunks of 2, 2, 1 rays, each from i = 0
-        [5, 5, 5, 5, 4]
+        >>> out, P1 = march_in_chunks(torch.arange(5), setup, march, chunk=2)   # chunks of 2, 2, 1 rays
+        >>> out.term.tolist(), P1[:, 0].tolist()
+        ([5, 5, 5, 5, 4], [0.0, 1.0, 2.0, 3.0, 4.0])
     """
     chunk = RAY_CHUNK if chunk is None else int(chunk)
-    if s.count <= chunk:
-        return march(s)
-    parts = []
-    for c0 in range(0, s.count, chunk):
-        part = s.select(torch.arange(c0, min(c0 + chunk, s.count), device=s.i.device))
-        part.i = part.i - c0                                # rows of this chunk's own output
-        parts.append(march(part))
-    return MarchOutput(**{f.name: torch.cat([getattr(o, f.name) for o in parts], 0)
-                          for f in dataclasses.fields(MarchOutput)})
+    outs, ends = [], []
+    for c0 in range(0, max(1, sel.numel()), chunk):
+        rays, _, _, P1 = setup(sel[c0:c0 + chunk])
+        outs.append(march(rays))
+        ends.append(P1)
+    return (MarchOutput(**{f.name: torch.cat([getattr(o, f.name) for o in outs], 0)
+                           for f in dataclasses.fields(MarchOutput)}), torch.cat(ends, 0))

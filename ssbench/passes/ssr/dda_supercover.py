@@ -40,7 +40,7 @@ from ..common import check_count
 from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS, SSRResult
 from ..gbuffer_checks import half_in_float32
 from .dda import (DEFAULTS_SOURCE, EQUAL_SETTINGS, REQUIRES, DDASSRParams, check_inputs, count_visits,
-                  dda_rays, ray_view_z)
+                  dda_rays, ray_pixels, ray_view_z)
 from .dda_assemble import assemble
 from .dda_state import DDARays, MarchOutput, march_in_chunks
 from .fade import FadeParams
@@ -204,11 +204,12 @@ def ssr_dda_supercover(gbuffer: GBuffer, params: SupercoverDDASSRParams = Superc
     # The walk runs in float64 whatever the input dtype: which of two cells a ray enters at a pixel corner is a
     # discrete choice, and float32 rounding flipped it on 13 of 3072 cornell_box pixels (another texel's colour).
     g64 = gbuffer.select(("view_z", "normal", "mask")).to(dtype=torch.float64)   # the walk reads no colour
-    s, sel, P0, P1 = dda_rays(g64, dda, zero)
+    sel = ray_pixels(g64)
     visits = torch.zeros(B * H * W, dtype=torch.int32, device=gbuffer.view_z.device) if debug else None
     tex = (g64.view_z.reshape(-1), g64.mask.reshape(-1))
-    o = march_in_chunks(s, lambda rays: supercover_march(rays, tex, params.z_thickness, params.max_steps, H, W,
-                                                         visits))                # bounded working set
+    o, P1 = march_in_chunks(sel, lambda part: dda_rays(g64, dda, zero, part),
+                            lambda rays: supercover_march(rays, tex, params.z_thickness, params.max_steps, H, W,
+                                                          visits))               # bounded working set
     return assemble(gbuffer, params, sel, P1, o, visits)
 
 

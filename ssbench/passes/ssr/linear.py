@@ -218,10 +218,11 @@ def ssr_linear(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(), *,
         return uv, base_q + row * W + col
 
     def intersects(z, t):                          # rayIntersectsDepth (§1.2), dist = z − sceneZMax
-        dist = z - zs[t]                           # a cleared background texel is never hit (three.js
-        if bk is None:                             # SSRShader: if (-vZ >= cameraFar) continue)
-            return (dist < 0) & (dist > -T) & ms[t]
-        return (dist < 0) & (z > bk[t] - T) & ms[t]   # back-face interval [back − T, front)
+        dist = z - zs.index_select(0, t)           # a cleared background texel is never hit (three.js
+        m = ms.index_select(0, t)                  # SSRShader: if (-vZ >= cameraFar) continue)
+        if bk is None:
+            return (dist < 0) & (dist > -T) & m
+        return (dist < 0) & (z > bk.index_select(0, t) - T) & m   # back-face interval [back − T, front)
 
     def record(ids, q, hit, refine):
         for b, k in trace_ids.items():
@@ -230,23 +231,30 @@ def ssr_linear(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(), *,
     # ---- the march (§1.2): only live rays are updated ----
     term, steps = torch.full((n,), NO_RAY, dtype=torch.int8, device=dev), torch.zeros(n, dtype=torch.int32, device=dev)
     hit_i, hitQ = torch.full((n,), -1, device=dev), torch.zeros(n, 3, dtype=dtype, device=dev)   # hit step, sample
-    ids, Qa, n_run = torch.arange(n, device=dev), Q, min(N_it, params.max_iterations)
+    ids, Qa, dSa, basea = torch.arange(n, device=dev), Q, dS, base      # live rays, compacted as they stop
+    n_run = min(N_it, params.max_iterations)
     for i in range(n_run):
         if ids.numel() == 0:
             break
-        Qa = Qa + dS[ids]                                                         # Q += deltaStep
-        uv, t = project(Qa, base[ids])
-        steps[ids] += 1
+        Qa = Qa + dSa                                                             # Q += deltaStep
+        uv, t = project(Qa, basea)
         on = ((uv >= 0) & (uv <= 1)).all(1)
-        term[ids[~on]] = OFF_SCREEN
         hit = on & intersects(Qa[:, 2], t)
         if trace_ids:
             record(ids, Qa, hit, False)
         if counting:                              # an O(B·H·W) pass per step: only when asked for
             visits += torch.bincount(t[on], minlength=B * HW)
-        term[ids[hit]], hit_i[ids[hit]], hitQ[ids[hit]] = HIT, i, Qa[hit]
-        keep = on & ~hit
-        ids, Qa = ids[keep], Qa[keep]
+        gone = (hit | ~on).nonzero().squeeze(1)                                   # rays that stop here
+        if gone.numel():
+            g_hit = hit.index_select(0, gone)
+            g_ids = ids.index_select(0, gone)
+            steps[g_ids] = i + 1                                                  # samples taken, this one too
+            term[g_ids] = torch.where(g_hit, HIT, OFF_SCREEN).to(torch.int8)
+            h_ray = gone[g_hit]
+            hit_i[ids[h_ray]], hitQ[ids[h_ray]] = i, Qa[h_ray]
+            keep = (on & ~hit).nonzero().squeeze(1)
+            ids, Qa, dSa, basea = (x.index_select(0, keep) for x in (ids, Qa, dSa, basea))
+    steps[ids] = n_run                                                            # live to the loop's end
     end = torch.where(clipped[ids], BEHIND_CAMERA, MAX_DISTANCE)                  # reached the end point
     term[ids] = (end if n_run == N_it else torch.full_like(end, OUT_OF_STEPS)).to(torch.int8)  # or the loop bound
 

@@ -5,7 +5,7 @@
 torch gather of as many depth texels per pixel as the pass reads, and the same reads fused into one Dr.Jit
 kernel when Dr.Jit has an LLVM backend) at a fixed torch thread count:
 
-1. inside :func:`steady_heap`: otherwise glibc's malloc page-faults a pass's temporaries on every call or not,
+1. inside :func:`~ssbench.bench.heap.steady_heap`: otherwise glibc's malloc page-faults a pass's temporaries on every call or not,
    depending on what the process ran before — by far the largest gap between two runs (up to 4x);
 2. after ``warmup`` untimed calls of each (at least one: it sizes the blocks);
 3. in ``rounds`` rounds, each a block of pass calls then a block of floor calls (about ``min_run_time /
@@ -27,21 +27,22 @@ interleaved groups (:mod:`ssbench.bench.interleave`) and pool the rounds of seve
 
 Fields it returns (:data:`TIMING_FIELDS`): ``time_median_ms, time_iqr_ms, time_blocks, floor_median_ms,
 floor_iqr_ms, floor_samples, floor_ratio, floor_ratio_iqr, fused_floor_median_ms, fused_floor_ratio,
-fused_floor_ratio_iqr, threads, timing_min_run_time, timing_processes, timing_error`` (the fused fields are
-``nan`` without an LLVM backend or with ``fused_floor: false``) (``timing_processes``: how many processes' rounds were pooled, :mod:`ssbench.bench.processes`).
+fused_floor_ratio_iqr, threads, timing_min_run_time, timing_processes, timing_error``. The fused fields are
+``nan`` without an LLVM backend or with ``fused_floor: false``; ``timing_processes`` is how many processes' rounds
+were pooled (:mod:`ssbench.bench.processes`).
 """
 from __future__ import annotations
 
-import contextlib
-import ctypes
 import dataclasses
 import math
 import time
 import timeit
-from typing import Any, Callable, Iterator, Mapping, Optional, Sequence
+from typing import Any, Callable, Mapping, Optional, Sequence
 
 import numpy as np
 import torch
+
+from .heap import steady_heap
 
 __all__ = ["TimingSpec", "nonfinite_on_valid", "median_iqr", "steady_heap", "sync_device", "timeit_calls",
            "warm_up", "plan_rounds", "run_rounds", "round_fields", "prepare", "time_pass", "agree",
@@ -135,48 +136,6 @@ def median_iqr(values: Sequence[float]) -> tuple[float, float]:
         raise ValueError("values: expected at least one value, got none")
     q1, q2, q3 = np.quantile(np.asarray(values, dtype=np.float64), [0.25, 0.5, 0.75])
     return float(q2), float(q3 - q1)
-
-
-#: glibc ``mallopt`` parameters
-_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
-#: where glibc's dynamic thresholds settle on 64-bit once a block of 32 MiB was freed (mmap 32 MiB, trim 2x)
-SETTLED_MMAP, SETTLED_TRIM = 32 << 20, 64 << 20
-#: the trim threshold while timing: the largest ``mallopt`` takes, so freed heap stays with the process
-TIMING_TRIM = (1 << 31) - 1
-
-
-def _glibc() -> Any:
-    """glibc's ``mallopt``/``malloc_trim`` (an object with both), or ``None`` off glibc."""
-    try:
-        libc = ctypes.CDLL(None)
-        libc.mallopt, libc.malloc_trim                                        # noqa: B018 - probe
-        return libc
-    except (OSError, AttributeError, TypeError):
-        return None
-
-
-@contextlib.contextmanager
-def steady_heap() -> Iterator[bool]:
-    """Keep freed heap memory in the process for the ``with`` block; yields whether it could (glibc only).
-
-    glibc's malloc serves blocks above its *mmap threshold* from fresh pages and gives freed heap above its
-    *trim threshold* back to the kernel; both thresholds grow with the largest block the process has freed so far.
-    So one pass either reuses memory or page-faults all of its temporaries on every call (2-4x slower for a large
-    gather), depending on what the process did before, and two runs of one configuration disagree far beyond
-    their IQR. Inside the block, blocks up to 32 MiB come from the heap and freed heap is kept (up to 2 GiB;
-    larger blocks page-fault on every call, the same in every run); on leaving, the thresholds
-    are where glibc's own adjustment settles (:data:`SETTLED_MMAP`, :data:`SETTLED_TRIM`; ``mallopt`` cannot
-    switch the adjustment back on) and ``malloc_trim(0)`` returns the free memory to the kernel.
-    """
-    libc = _glibc()
-    ok = libc is not None and libc.mallopt(_M_MMAP_THRESHOLD, SETTLED_MMAP) == 1 \
-        and libc.mallopt(_M_TRIM_THRESHOLD, TIMING_TRIM) == 1
-    try:
-        yield ok
-    finally:
-        if ok:
-            libc.mallopt(_M_TRIM_THRESHOLD, SETTLED_TRIM)
-            libc.malloc_trim(0)
 
 
 def sync_device() -> None:

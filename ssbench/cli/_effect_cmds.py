@@ -136,7 +136,8 @@ def cmd_ssr(args) -> int:
     if args.out:
         from ..metrics import ssr as M
         from ..report.ao_section import write_png
-        from ..report.ssr_section import ERR_RANGE, color_rgb, magma_rgb, visits_rgb
+        from ..report.ssr_images import color_rgb, magma_rgb, visits_rgb
+        from ..report.ssr_section import ERR_RANGE
         res, truth = ev.result, ev.truth
         valid = truth.valid.bool()
         images = {"color.png": color_rgb(res.color, valid), "raw_color.png": color_rgb(res.raw_color, valid),

@@ -2,7 +2,6 @@
 so an error map can be read without opening the legend text."""
 from __future__ import annotations
 
-import os
 
 
 def colorbar_png(path: str, cmap: str, vmin: float, vmax: float, label: str, *, low: str = "", high: str = "",

@@ -52,7 +52,7 @@ def class_rgb(classes: torch.Tensor) -> np.ndarray:
 def color_image(result, camera, scene) -> np.ndarray:
     """``(H, W, 3)`` uint8 shaded hits (``to_gbuffer`` colour, linear → sRGB; background black)."""
     from ..passes.implicit.gbuffer import to_gbuffer
-    from .ssr_section import color_rgb
+    from .ssr_images import color_rgb
     g = to_gbuffer(result, None, camera, scene.materials, scene.lights)
     return color_rgb(g.color, g.mask)
 

@@ -113,39 +113,6 @@ def test_warm_up_runs_until_the_time_and_count_and_returns_fastest_calls():
     assert calls == {"a": 3, "b": 3}
 
 
-class _FakeLibc:
-    def __init__(self, ok=1):
-        self.ok, self.log = ok, []
-
-    def mallopt(self, param, value):
-        self.log.append(("mallopt", param, value))
-        return self.ok
-
-    def malloc_trim(self, pad):
-        self.log.append(("malloc_trim", pad))
-        return 1
-
-
-def test_steady_heap_keeps_freed_memory_while_timing_and_settles_after(monkeypatch):
-    libc = _FakeLibc()
-    monkeypatch.setattr(T, "_glibc", lambda: libc)
-    with pytest.raises(RuntimeError):
-        with T.steady_heap() as ok:
-            assert ok and libc.log == [("mallopt", -3, 32 << 20), ("mallopt", -1, T.TIMING_TRIM)]
-            raise RuntimeError("a failing pass")
-    assert libc.log[2:] == [("mallopt", -1, T.SETTLED_TRIM), ("malloc_trim", 0)]      # restored on errors too
-
-
-@pytest.mark.parametrize("libc", [None, _FakeLibc(ok=0)])
-def test_steady_heap_without_glibc_changes_nothing(monkeypatch, libc):
-    monkeypatch.setattr(T, "_glibc", lambda: libc)
-    with T.steady_heap() as ok:
-        assert ok is False
-    assert libc is None or all(entry[0] == "mallopt" for entry in libc.log)       # no settling, no trim
-    with T.steady_heap():                                              # the real one (glibc or not) runs
-        pass
-
-
 def test_nonfinite_output_is_not_timed():
     bad = torch.zeros(1, 1, 6, 8)
     bad[0, 0, 2, 3] = float("nan")

@@ -4,7 +4,7 @@ import numpy as np
 import torch
 
 from ssbench.metrics import ssr as M
-from ssbench.report.ssr_section import NOT_REFLECTIVE_GREY, UNSCORED_GREY, magma_rgb, scored_error_rgb
+from ssbench.report.ssr_images import NOT_REFLECTIVE_GREY, UNSCORED_GREY, magma_rgb, scored_error_rgb
 
 
 def test_unreachable_targets_with_no_output_are_grey_and_everything_else_keeps_its_error():

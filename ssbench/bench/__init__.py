@@ -14,7 +14,8 @@ from __future__ import annotations
 
 from .config import Config, Sweep, SweepError, load_sweep, parse_sweep, sweep_from_dict
 from .effects import EFFECTS, Effect, get_effect
-from .rows import RowStore, canonical_json, is_volatile, stable
+from .rows import canonical_json, is_volatile, stable
+from .rowstore import RowStore
 from .sweep import SweepResult, run_config, run_sweep
 from .timing import TimingSpec, agree, time_pass
 

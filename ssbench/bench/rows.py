@@ -14,7 +14,7 @@ duplicate nor half-write a row. ``rows/`` is the truth: the consolidated tables 
 each run (a killed run leaves the previous ones, and its ``runs/<run_id>.json`` says ``"status": "running"``).
 Two invocations on one folder at once at worst compute a configuration twice; the later rename wins.
 Rows are strict JSON (RFC 8259): a non-finite number is written as ``null`` and its place recorded in the
-row's ``"nonfinite"`` field (``{"rmse": "nan", "params.radius": "inf"}``), so :meth:`RowStore.read_row` gives
+row's ``"nonfinite"`` field (``{"rmse": "nan", "params.radius": "inf"}``), so :meth:`ssbench.bench.rowstore.RowStore.read_row` gives
 back the same floats, and pandas/pyarrow/jq read the files as they are. A row file that does not parse is
 moved aside to ``rows/<config_id>.json.corrupt-<time>`` (with a warning naming it) and recomputed.
 
@@ -27,11 +27,11 @@ import datetime as _dt
 import json
 import os
 import secrets
-from typing import Any, Optional, Sequence
+from typing import Any, Sequence
 
 from .timing import TIMING_FIELDS as _PASS_TIMING
 
-__all__ = ["RowStore", "TIMING_FIELDS", "METADATA_FIELDS", "is_volatile", "stable", "canonical_json",
+__all__ = ["TIMING_FIELDS", "json_default", "write_text_atomic", "write_tables", "METADATA_FIELDS", "is_volatile", "stable", "canonical_json",
            "new_run_id", "run_metadata", "tidy_columns", "encode_row", "decode_row", "dumps_row"]
 
 #: wall-time fields: the evaluation's own, the per-config wall time, and :mod:`ssbench.bench.timing`'s numbers
@@ -54,7 +54,8 @@ def stable(row: dict) -> dict:
     return {k: v for k, v in row.items() if not is_volatile(k)}
 
 
-def _default(x: Any) -> Any:
+def json_default(x: Any) -> Any:
+    """``json.dumps``' ``default`` for rows: tensors and arrays as lists, sets and tuples as lists, else ``str``."""
     if hasattr(x, "tolist"):                        # torch / numpy values
         return x.tolist()
     if isinstance(x, (set, frozenset, tuple)):
@@ -112,14 +113,14 @@ def decode_row(row: dict) -> dict:
 
 def dumps_row(row: dict, **kw) -> str:
     """Strict JSON text of ``row`` (:func:`encode_row`; never a bare ``NaN``)."""
-    return json.dumps(encode_row(row), default=_default, allow_nan=False, **kw)
+    return json.dumps(encode_row(row), default=json_default, allow_nan=False, **kw)
 
 
 def canonical_json(row: dict) -> str:
     """Sorted strict JSON of the stable part of ``row`` (``NaN == NaN`` here, unlike in a dict comparison); a row
     read raw from a file (``null`` + ``nonfinite``) and the same row decoded give the same text."""
     import copy
-    return json.dumps(stable(encode_row(decode_row(copy.deepcopy(row)))), sort_keys=True, default=_default,
+    return json.dumps(stable(encode_row(decode_row(copy.deepcopy(row)))), sort_keys=True, default=json_default,
                       allow_nan=False)
 
 
@@ -181,126 +182,6 @@ def write_tables(rows: Sequence[dict], base: str) -> dict[str, str]:
     return out
 
 
-def _pid_alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except (PermissionError, OSError):
-        return True
-    return True
-
-
-class RowStore:
-    """A sweep's output folder (see the module docstring).
-
-    Example:
-        >>> import tempfile
-        >>> s = RowStore(tempfile.mkdtemp())
-        >>> _ = s.write_row({"config_id": "abc", "x": float("nan")}); sorted(s.done_ids())
-        ['abc']
-        >>> s.read_row("abc")["x"]
-        nan
-    """
-
-    def __init__(self, root: "str | os.PathLike"):
-        self.root = os.path.abspath(os.fspath(root))
-        self.rows_dir = os.path.join(self.root, "rows")
-        self.runs_dir = os.path.join(self.root, "runs")
-        os.makedirs(self.rows_dir, exist_ok=True)
-        os.makedirs(self.runs_dir, exist_ok=True)
-        self._clean_tmp()
-
-    # ------------------------------------------------------------------ writing
-    def _write_atomic(self, path: str, text: str, fsync: bool = True) -> None:
-        write_text_atomic(path, text, fsync)
-
-    def write_json(self, name: str, obj: Any) -> str:
-        """Write ``obj`` as JSON to ``root/name`` atomically; returns the path."""
-        path = os.path.join(self.root, name)
-        os.makedirs(os.path.dirname(path), exist_ok=True)
-        self._write_atomic(path, json.dumps(obj, indent=2, default=_default) + "\n")
-        return path
-
-    def write_row(self, row: dict) -> str:
-        """Write one finished row to ``rows/<config_id>.json`` atomically (replacing an older one)."""
-        cid = row.get("config_id")
-        if not isinstance(cid, str) or not cid or os.sep in cid or cid.startswith("."):
-            raise ValueError(f"row: needs a plain string config_id, got {cid!r}")
-        path = os.path.join(self.rows_dir, f"{cid}.json")
-        self._write_atomic(path, dumps_row(row) + "\n")
-        return path
-
-    def _clean_tmp(self) -> None:
-        """Remove temporary files left by writers that died (their pid is in the name)."""
-        for d in (self.rows_dir, self.runs_dir, self.root):
-            for name in os.listdir(d):
-                if name.startswith(".") and name.endswith(".tmp"):
-                    parts = name.split(".")
-                    pid = int(parts[-3]) if len(parts) >= 4 and parts[-3].isdigit() else None
-                    if pid is None or not _pid_alive(pid) or pid == os.getpid():
-                        try:
-                            os.remove(os.path.join(d, name))
-                        except FileNotFoundError:
-                            pass
-
-    # ------------------------------------------------------------------ reading
-    def done_ids(self) -> set[str]:
-        """``config_id`` of every finished row (temporary files ignored)."""
-        return {n[:-5] for n in os.listdir(self.rows_dir) if n.endswith(".json") and not n.startswith(".")}
-
-    def read_row(self, cid: str) -> dict:
-        """The row ``cid`` (non-finite floats restored); ``ValueError`` naming the file when it does not parse."""
-        path = os.path.join(self.rows_dir, f"{cid}.json")
-        with open(path, encoding="utf-8") as f:
-            text = f.read()
-        try:
-            row = json.loads(text)
-        except ValueError as e:
-            raise ValueError(f"{path}: not a JSON row ({e})") from None
-        if not isinstance(row, dict) or row.get("config_id") != cid:
-            raise ValueError(f"{path}: not the row of {cid} (got {type(row).__name__} with config_id "
-                             f"{row.get('config_id') if isinstance(row, dict) else None!r})")
-        return decode_row(row)
-
-    def quarantine_corrupt(self, ids: Optional[Sequence[str]] = None) -> list[str]:
-        """Move every finished row among ``ids`` (all when None) that does not parse to
-        ``<file>.corrupt-<UTC time>``, warning with its name, so that it is recomputed; returns the new paths."""
-        import warnings
-        moved = []
-        done = self.done_ids()
-        for cid in sorted(done if ids is None else set(ids) & done):
-            try:
-                self.read_row(cid)
-            except (ValueError, UnicodeDecodeError) as e:
-                src = os.path.join(self.rows_dir, f"{cid}.json")
-                dst = src + ".corrupt-" + _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%dT%H%M%S%fZ")
-                os.replace(src, dst)
-                warnings.warn(f"sweep row {src} is corrupt ({str(e).split(' (', 1)[-1].rstrip(')')}); moved to "
-                              f"{dst} and recomputing it", RuntimeWarning, stacklevel=2)
-                moved.append(dst)
-        return moved
-
-    def rows(self, ids: Optional[Sequence[str]] = None) -> list[dict]:
-        """The finished rows with these ids, in this order (missing ones skipped); all when ``ids`` is None."""
-        done = self.done_ids()
-        ids = sorted(done) if ids is None else [i for i in ids if i in done]
-        return [self.read_row(i) for i in ids]
-
-    def read_json(self, name: str) -> Optional[Any]:
-        path = os.path.join(self.root, name)
-        if not os.path.isfile(path):
-            return None
-        with open(path, encoding="utf-8") as f:
-            return json.load(f)
-
-    # ------------------------------------------------------------------ tables
-    def consolidate(self, ids: Sequence[str]) -> dict[str, str]:
-        """Write ``rows.jsonl`` and ``rows.parquet`` (``rows.csv`` without pyarrow) of the rows ``ids``, in that
-        order; returns ``{"jsonl": path, "parquet"|"csv": path}``."""
-        return write_tables(self.rows(ids), os.path.join(self.root, "rows"))
-
-
 def tidy_columns(rows: Sequence[dict]) -> dict[str, list]:
     """Column-wise rows for Parquet/CSV: ``params`` also flattened to ``param.<name>`` columns; nested values
     (dicts, lists) as JSON text; a column mixing types other than int/float/None becomes JSON text.
@@ -319,13 +200,13 @@ def tidy_columns(rows: Sequence[dict]) -> dict[str, list]:
     cols: dict[str, list] = {}
     for k in keys:
         vals = [f.get(k) for f in flat]
-        vals = [json.dumps(v, sort_keys=True, default=_default) if isinstance(v, (dict, list, tuple)) else v
+        vals = [json.dumps(v, sort_keys=True, default=json_default) if isinstance(v, (dict, list, tuple)) else v
                 for v in vals]
         kinds = {type(v) for v in vals if v is not None}
         if kinds == {int, float}:
             vals = [None if v is None else float(v) for v in vals]
         elif len(kinds) > 1:
-            vals = [None if v is None else json.dumps(v, default=_default) for v in vals]
+            vals = [None if v is None else json.dumps(v, default=json_default) for v in vals]
         cols[k] = vals
     return cols
 

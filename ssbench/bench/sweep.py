@@ -2,7 +2,7 @@
 
 :func:`run_sweep` validates the sweep (:mod:`ssbench.bench.config`), skips the configurations whose row is
 already in the output folder (resume), runs the rest on an executor (:mod:`ssbench.bench.executors`) with a
-tqdm bar, writes each row as it arrives (:class:`ssbench.bench.rows.RowStore`) and finally the consolidated
+tqdm bar, writes each row as it arrives (:class:`ssbench.bench.rowstore.RowStore`) and finally the consolidated
 ``rows.jsonl`` + ``rows.parquet`` in sweep order and the run's metadata. :func:`run_group` is the unit of
 work (what a Dask worker runs): it never raises for a failing configuration, it returns rows whose
 ``error`` reads ``"<ExceptionType>: <message>"``. Ground truth comes from the reference layer's cache. Without
@@ -42,7 +42,8 @@ from typing import Any, Optional, Union
 from .config import Config, Sweep, SweepError, load_sweep
 from .effects import get_effect
 from .executors import make_executor
-from .rows import RowStore, new_run_id, run_metadata
+from .rows import new_run_id, run_metadata
+from .rowstore import RowStore
 from .timing import TIMING_FIELDS, TimingSpec
 
 __all__ = ["run_config", "run_group", "run_sweep", "SweepResult", "default_out"]

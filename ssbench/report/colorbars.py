@@ -3,14 +3,13 @@ so an error map can be read without opening the legend text."""
 from __future__ import annotations
 
 
-
 def colorbar_png(path: str, cmap: str, vmin: float, vmax: float, label: str, *, low: str = "", high: str = "",
                  dpi: int = 100) -> str:
     """Write a horizontal colour bar of ``cmap`` over ``[vmin, vmax]`` (ticks at both ends and the middle), with
     ``label`` below and optional words at the ``low`` / ``high`` ends; returns ``path``.
 
     Example:
-        >>> import tempfile, matplotlib.image as mimage
+        >>> import os, tempfile, matplotlib.image as mimage
         >>> p = colorbar_png(os.path.join(tempfile.mkdtemp(), "bar.png"), "RdBu", -0.5, 0.5, "AO − GT")
         >>> mimage.imread(p).shape[1] > 3 * mimage.imread(p).shape[0]       # wide and flat
         True

@@ -33,6 +33,7 @@ __all__ = ["enabled", "compiling", "kernel", "compile_seconds", "ENV"]
 
 #: environment variable of the switch
 ENV = "SSBENCH_COMPILE"
+_ON, _OFF = ("1", "true", "yes", "on"), ("", "0", "false", "no", "off")
 _local = threading.local()
 _first_calls: dict = {}                       # (kernel, signature) -> seconds of its first compiled call
 
@@ -42,7 +43,12 @@ def enabled() -> bool:
     forced: Optional[bool] = getattr(_local, "forced", None)
     if forced is not None:
         return forced
-    return os.environ.get(ENV, "").strip().lower() in ("1", "true", "yes", "on")
+    value = os.environ.get(ENV, "").strip().lower()
+    if value in _ON:
+        return True
+    if value in _OFF:
+        return False
+    raise ValueError(f"{ENV}: expected 1/true/yes/on or 0/false/no/off (or unset), got {os.environ[ENV]!r}")
 
 
 @contextlib.contextmanager

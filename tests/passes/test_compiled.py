@@ -18,6 +18,11 @@ def test_the_context_manager_overrides_the_environment(monkeypatch):
         assert not C.enabled()
     monkeypatch.setenv(C.ENV, "0")
     assert not C.enabled()
+    monkeypatch.setenv(C.ENV, "maybe")                                  # a typo is an error, not "off"
+    with pytest.raises(ValueError, match=f"^{C.ENV}: .*'maybe'"):
+        C.enabled()
+    with C.compiling(False):                                            # the context manager still decides
+        assert not C.enabled()
     with pytest.raises(TypeError, match="^on:"):
         with C.compiling("yes"):
             pass

@@ -30,7 +30,8 @@ def ssao_anchor(gbuffer, params, generator: Optional[torch.Generator] = None, th
         gbuffer: as for :func:`~ssbench.passes.ao.ssao.hemisphere_ssao` (float32; float64 is run in float32).
         params: :class:`~ssbench.passes.ao.ssao.HemisphereSSAOParams`.
         generator: draws the kernel and the noise, as the pass does.
-        threads: Dr.Jit worker threads while the call runs (default: torch's).
+        threads: Dr.Jit worker threads the call sets (default: torch's); it does not restore them (wrap timing
+            in :func:`~ssbench.bench.floors.drjit_threads_restored`).
     """
     from ..passes.ao.ssao import hemisphere_frame
     llvm = drjit_llvm()
@@ -81,16 +82,11 @@ def ssao_anchor(gbuffer, params, generator: Optional[torch.Generator] = None, th
         return k + 1, count + dr.select((delta > lo) & (delta < hi), 1, 0)
 
     def call():
-        prev = dr.thread_count()
-        if prev != want:
+        if dr.thread_count() != want:        # set once (see ssbench.bench.floors.drjit_threads_restored)
             dr.set_thread_count(want)
-        try:
-            _, count = dr.while_loop((UInt32(0), dr.zeros(Int32, n_px)), lambda k, c: k < p.kernel_size, body)
-            dr.eval(count)
-            return count.torch().reshape(B, 1, H, W)
-        finally:
-            if prev != want:
-                dr.set_thread_count(prev)
+        _, count = dr.while_loop((UInt32(0), dr.zeros(Int32, n_px)), lambda k, c: k < p.kernel_size, body)
+        dr.eval(count)
+        return count.torch().reshape(B, 1, H, W)
 
     for _ in range(2):                                        # trace and compile now, not while timed
         call()

@@ -18,11 +18,13 @@ the method's arithmetic and framework overhead rather than memory traffic. Two f
 """
 from __future__ import annotations
 
-from typing import Any, Callable, Optional
+import contextlib
+import sys
+from typing import Any, Callable, Iterator, Optional
 
 import torch
 
-__all__ = ["POOL", "torch_floor", "fused_floor", "drjit_llvm"]
+__all__ = ["POOL", "torch_floor", "fused_floor", "drjit_llvm", "drjit_threads_restored"]
 
 #: index rows the torch floor cycles through (sample ``k`` reads at row ``k mod POOL``)
 POOL = 8
@@ -80,7 +82,8 @@ def fused_floor(texture: torch.Tensor, samples: int, seed: int = 0, threads: Opt
                 ) -> Optional[Callable[[], Any]]:
     """The fused floor of ``samples`` reads per pixel of ``texture`` (its first channel) as a call, or ``None``
     (no LLVM backend, or a texture off the CPU). The kernel is compiled here (Dr.Jit caches it on disk), so
-    the call's time is the reads'. ``threads``: Dr.Jit's worker threads while the call runs
+    the call's time is the reads'. The call leaves Dr.Jit at ``threads`` workers; wrap the timing in
+    :func:`drjit_threads_restored` to put the count back. ``threads``: Dr.Jit's worker threads while the call runs
     (default: torch's, so both floors and the pass use alike many cores).
 
     Example:
@@ -109,23 +112,41 @@ def fused_floor(texture: torch.Tensor, samples: int, seed: int = 0, threads: Opt
         return (word >> 22) ^ word
 
     def call():
-        prev = dr.thread_count()
-        if prev != want:
-            dr.set_thread_count(want)
-        try:
-            pixel = dr.arange(UInt32, n)
+        if dr.thread_count() != want:        # set once, not toggled per call (resizing the pool costs ms);
+            dr.set_thread_count(want)        # timing restores it afterwards (drjit_threads_restored)
+        pixel = dr.arange(UInt32, n)
 
-            def body(k, acc):
-                return k + 1, acc + dr.gather(Float, tex, pcg(pixel * count + k + salt) % size)
+        def body(k, acc):
+            return k + 1, acc + dr.gather(Float, tex, pcg(pixel * count + k + salt) % size)
 
-            _, acc = dr.while_loop((UInt32(0), dr.zeros(Float, n)), lambda k, acc: k < count, body)
-            dr.eval(acc)
-            dr.sync_thread()
-            return acc
-        finally:
-            if prev != want:
-                dr.set_thread_count(prev)
+        _, acc = dr.while_loop((UInt32(0), dr.zeros(Float, n)), lambda k, acc: k < count, body)
+        dr.eval(acc)
+        dr.sync_thread()
+        return acc
 
     for _ in range(2):              # trace and compile now, not while timed (a cold cache compiles on both calls)
         call()
     return call
+
+
+@contextlib.contextmanager
+def drjit_threads_restored(load: bool = False) -> Iterator[None]:
+    """Put Dr.Jit's worker-thread count back, on leaving, to what it was on entering: the fused floor and the
+    anchor set the count they time with once, instead of resizing the pool around every call. ``load``: load
+    Dr.Jit (:func:`drjit_llvm`) first when it is not yet, so that its count on entry is known; otherwise an
+    unloaded Dr.Jit makes this a no-op.
+
+    Example:
+        >>> with drjit_threads_restored():
+        ...     pass
+    """
+    if load and "drjit" not in sys.modules:
+        drjit_llvm()
+    dr = sys.modules.get("drjit")
+    before = dr.thread_count() if dr is not None else None
+    try:
+        yield
+    finally:
+        dr = sys.modules.get("drjit")
+        if dr is not None and before is not None and dr.thread_count() != before:
+            dr.set_thread_count(before)

@@ -47,3 +47,20 @@ def test_fused_floor_sums_the_texels_its_hash_names():
                     .astype(np.int64)] for k in range(5))
     assert np.allclose(got, want, rtol=1e-6, atol=0)
     assert F.fused_floor(z.to("meta"), 5) is None                       # not on the CPU: no fused floor
+
+
+def test_timing_with_the_fused_floor_leaves_drjit_threads_as_it_found_them():
+    from ssbench.bench import effects as E
+    from ssbench.bench import timing as T
+    if F.drjit_llvm() is None:
+        pytest.skip("no Dr.Jit LLVM backend on this machine")
+    import drjit as dr
+    z = -torch.rand(1, 1, 6, 8) - 1
+    inputs = E.BenchInputs(lambda: z * 2, z, torch.ones(1, 1, 6, 8, dtype=torch.bool), 3, z)
+    before = dr.thread_count()
+    dr.set_thread_count(2)
+    try:
+        row = T.time_pass(inputs, T.TimingSpec(min_run_time=0.01, warmup=0), threads=1)
+        assert row["fused_floor_ratio"] > 0 and dr.thread_count() == 2                 # timed at 1, restored
+    finally:
+        dr.set_thread_count(before)

@@ -102,6 +102,10 @@ def one(effect: str, method: str, path: str, compiled: bool, min_run_time: float
     from ssbench.bench.effects import BenchInputs
     from ssbench.bench.timing import TimingSpec, time_pass
     torch.set_num_threads(threads)
+    from ssbench.bench.floors import drjit_llvm
+    if drjit_llvm() is not None:             # this process writes no EXR: its Dr.Jit pool may be sized once, here,
+        import drjit as dr                   # before any kernel, so both floors and the anchor use `threads` too
+        dr.set_thread_count(threads)
     g = torch.load(path, weights_only=False)
     _reset_peak()
     before = _status_mib("VmRSS")
@@ -131,7 +135,7 @@ def _anchor_ratio(effect: str, method: str, g, call, threads: int, rounds: int) 
     if (effect, method) != ("ao", "ssao"):
         return float("nan")
     from ssbench.passes.ao.ssao import HemisphereSSAOParams
-    anchor = ssao_anchor(g, HemisphereSSAOParams(kernel_radius=0.5), threads=threads)
+    anchor = ssao_anchor(g, HemisphereSSAOParams(kernel_radius=0.5))
     if anchor is None:
         return float("nan")
     ratios = [timeit_calls(call, 3) / timeit_calls(anchor, 3) for _ in range(max(3, rounds))]

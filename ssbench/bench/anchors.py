@@ -20,8 +20,7 @@ from .floors import drjit_llvm
 __all__ = ["ssao_anchor"]
 
 
-def ssao_anchor(gbuffer, params, generator: Optional[torch.Generator] = None, threads: Optional[int] = None
-                ) -> Optional[Callable[[], Any]]:
+def ssao_anchor(gbuffer, params, generator: Optional[torch.Generator] = None) -> Optional[Callable[[], Any]]:
     """A call running hemisphere SSAO's sample loop as one Dr.Jit kernel and returning the :math:`(B, 1, H, W)`
     int32 count of samples that pass the range check, or ``None`` (no LLVM backend here). The inputs are drawn
     and uploaded once, here, and the kernel compiled, so the call's time is the loop's.
@@ -30,8 +29,9 @@ def ssao_anchor(gbuffer, params, generator: Optional[torch.Generator] = None, th
         gbuffer: as for :func:`~ssbench.passes.ao.ssao.hemisphere_ssao` (float32; float64 is run in float32).
         params: :class:`~ssbench.passes.ao.ssao.HemisphereSSAOParams`.
         generator: draws the kernel and the noise, as the pass does.
-        threads: Dr.Jit worker threads the call sets (default: torch's); it does not restore them (wrap timing
-            in :func:`~ssbench.bench.floors.drjit_threads_restored`).
+
+    It runs on Dr.Jit's worker threads as they are (see :func:`~ssbench.bench.floors.fused_floor`: the count is
+    never changed here).
     """
     from ..passes.ao.ssao import hemisphere_frame
     llvm = drjit_llvm()
@@ -59,7 +59,6 @@ def ssao_anchor(gbuffer, params, generator: Optional[torch.Generator] = None, th
     tiny = -float(torch.finfo(torch.float32).tiny)
     lo, hi = f32(p.min_distance), f32(p.max_distance)
     from_depth = p.position_from == "depth"
-    want = torch.get_num_threads() if threads is None else int(threads)
 
     def ortho(z):                                             # viewZToOrthographicDepth
         return (z + n_) / nmf
@@ -82,8 +81,6 @@ def ssao_anchor(gbuffer, params, generator: Optional[torch.Generator] = None, th
         return k + 1, count + dr.select((delta > lo) & (delta < hi), 1, 0)
 
     def call():
-        if dr.thread_count() != want:        # set once (see ssbench.bench.floors.drjit_threads_restored)
-            dr.set_thread_count(want)
         _, count = dr.while_loop((UInt32(0), dr.zeros(Int32, n_px)), lambda k, c: k < p.kernel_size, body)
         dr.eval(count)
         return count.torch().reshape(B, 1, H, W)

@@ -18,13 +18,11 @@ the method's arithmetic and framework overhead rather than memory traffic. Two f
 """
 from __future__ import annotations
 
-import contextlib
-import sys
-from typing import Any, Callable, Iterator, Optional
+from typing import Any, Callable, Optional
 
 import torch
 
-__all__ = ["POOL", "torch_floor", "fused_floor", "drjit_llvm", "drjit_threads_restored"]
+__all__ = ["POOL", "torch_floor", "fused_floor", "drjit_llvm"]
 
 #: index rows the torch floor cycles through (sample ``k`` reads at row ``k mod POOL``)
 POOL = 8
@@ -78,13 +76,12 @@ def drjit_llvm() -> Optional[Any]:
         return None
 
 
-def fused_floor(texture: torch.Tensor, samples: int, seed: int = 0, threads: Optional[int] = None
-                ) -> Optional[Callable[[], Any]]:
+def fused_floor(texture: torch.Tensor, samples: int, seed: int = 0) -> Optional[Callable[[], Any]]:
     """The fused floor of ``samples`` reads per pixel of ``texture`` (its first channel) as a call, or ``None``
     (no LLVM backend, or a texture off the CPU). The kernel is compiled here (Dr.Jit caches it on disk), so
-    the call's time is the reads'. The call leaves Dr.Jit at ``threads`` workers; wrap the timing in
-    :func:`drjit_threads_restored` to put the count back. ``threads``: Dr.Jit's worker threads while the call runs
-    (default: torch's, so both floors and the pass use alike many cores).
+    the call's time is the reads'. It runs on Dr.Jit's worker threads (all cores unless the process set
+    otherwise, ``ssbench info``): changing Dr.Jit's thread count inside a process that also writes EXR files
+    through Mitsuba hung that process (OpenEXR's pool), so the floor never changes it.
 
     Example:
         >>> z = torch.arange(12.0).view(1, 1, 3, 4)
@@ -103,7 +100,6 @@ def fused_floor(texture: torch.Tensor, samples: int, seed: int = 0, threads: Opt
     flat = texture[:, :1].reshape(-1).to(torch.float32).contiguous()
     n = flat.numel()
     tex = Float(flat.numpy())
-    want = torch.get_num_threads() if threads is None else int(threads)
     salt, count, size = UInt32(seed * 2654435761 % 2 ** 32), UInt32(samples), UInt32(n)
 
     def pcg(v):                                             # PCG-RXS-M-XS 32 (O'Neill 2014), one round
@@ -112,8 +108,6 @@ def fused_floor(texture: torch.Tensor, samples: int, seed: int = 0, threads: Opt
         return (word >> 22) ^ word
 
     def call():
-        if dr.thread_count() != want:        # set once, not toggled per call (resizing the pool costs ms);
-            dr.set_thread_count(want)        # timing restores it afterwards (drjit_threads_restored)
         pixel = dr.arange(UInt32, n)
 
         def body(k, acc):
@@ -127,26 +121,3 @@ def fused_floor(texture: torch.Tensor, samples: int, seed: int = 0, threads: Opt
     for _ in range(2):              # trace and compile now, not while timed (a cold cache compiles on both calls)
         call()
     return call
-
-
-@contextlib.contextmanager
-def drjit_threads_restored(load: bool = False) -> Iterator[None]:
-    """Put Dr.Jit's worker-thread count back, on leaving, to what it was on entering: the fused floor and the
-    anchor set the count they time with once, instead of resizing the pool around every call. ``load``: load
-    Dr.Jit (:func:`drjit_llvm`) first when it is not yet, so that its count on entry is known; otherwise an
-    unloaded Dr.Jit makes this a no-op.
-
-    Example:
-        >>> with drjit_threads_restored():
-        ...     pass
-    """
-    if load and "drjit" not in sys.modules:
-        drjit_llvm()
-    dr = sys.modules.get("drjit")
-    before = dr.thread_count() if dr is not None else None
-    try:
-        yield
-    finally:
-        dr = sys.modules.get("drjit")
-        if dr is not None and before is not None and dr.thread_count() != before:
-            dr.set_thread_count(before)

@@ -26,7 +26,6 @@ from typing import Any, Callable, Optional, Sequence
 import torch
 
 from . import timing as T
-from .floors import drjit_threads_restored
 
 __all__ = ["interleaved_rounds", "summarize_rounds", "time_interleaved"]
 
@@ -41,32 +40,31 @@ def interleaved_rounds(items: Sequence[tuple[Any, int, int]], spec: T.TimingSpec
     round by round (``[pass]`` without a floor), or ``None`` for a pass that was not timed.
     :mod:`ssbench.bench.processes` pools these lists over several processes.
     """
+    prepared = [T.prepare(inputs, spec, threads, seed) for inputs, threads, seed in items]
+    rows = [row for row, _ in prepared]
+    live = [i for i, (_, calls) in enumerate(prepared) if calls is not None]
+    plans: dict[int, tuple[int, list[int]]] = {}
+    per_round: list[Optional[list[list[float]]]] = [None] * len(items)
+    for i in live:
+        per_round[i] = [[] for _ in prepared[i][1]]
     prev = torch.get_num_threads()
-    with drjit_threads_restored(load=spec.floor and spec.fused_floor):     # the fused floor sets Dr.Jit's
-        prepared = [T.prepare(inputs, spec, threads, seed) for inputs, threads, seed in items]   # threads
-        rows = [row for row, _ in prepared]
-        live = [i for i, (_, calls) in enumerate(prepared) if calls is not None]
-        plans: dict[int, tuple[int, list[int]]] = {}
-        per_round: list[Optional[list[list[float]]]] = [None] * len(items)
-        for i in live:
-            per_round[i] = [[] for _ in prepared[i][1]]
-        try:
-            with T.steady_heap():
-                for i in live:
+    try:
+        with T.steady_heap():
+            for i in live:
+                torch.set_num_threads(items[i][1])
+                best = T.warm_up(prepared[i][1], at_least=spec.warmup)
+                plans[i] = T.plan_rounds(best, spec.min_run_time, spec.rounds)
+            rng = random.Random(order_seed)
+            for r in range(max((plans[i][0] for i in live), default=0)):
+                order = [i for i in live if plans[i][0] > r]
+                rng.shuffle(order)
+                for i in order:
                     torch.set_num_threads(items[i][1])
-                    best = T.warm_up(prepared[i][1], at_least=spec.warmup)
-                    plans[i] = T.plan_rounds(best, spec.min_run_time, spec.rounds)
-                rng = random.Random(order_seed)
-                for r in range(max((plans[i][0] for i in live), default=0)):
-                    order = [i for i in live if plans[i][0] > r]
-                    rng.shuffle(order)
-                    for i in order:
-                        torch.set_num_threads(items[i][1])
-                        got = T.run_rounds(prepared[i][1], plans[i][1], 1, timer)
-                        for k, seconds in enumerate(got):
-                            per_round[i][k] += seconds
-        finally:
-            torch.set_num_threads(prev)
+                    got = T.run_rounds(prepared[i][1], plans[i][1], 1, timer)
+                    for k, seconds in enumerate(got):
+                        per_round[i][k] += seconds
+    finally:
+        torch.set_num_threads(prev)
     return rows, per_round
 
 

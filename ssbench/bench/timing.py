@@ -247,7 +247,7 @@ def prepare(inputs, spec: TimingSpec, threads: int, seed: int = 0) -> tuple[dict
     if spec.floor:
         from .floors import fused_floor, torch_floor
         calls.append(torch_floor(inputs.texture, int(inputs.samples), seed))
-        fused = fused_floor(inputs.texture, int(inputs.samples), seed, threads) if spec.fused_floor else None
+        fused = fused_floor(inputs.texture, int(inputs.samples), seed) if spec.fused_floor else None
         if fused is not None:
             calls.append(fused)
     return row, calls

@@ -36,7 +36,7 @@ def _pcg(v: np.ndarray) -> np.ndarray:                      # PCG-RXS-M-XS 32, w
 
 def test_fused_floor_sums_the_texels_its_hash_names():
     z = torch.rand(1, 1, 6, 8, generator=torch.Generator().manual_seed(0))
-    call = F.fused_floor(z, 5, seed=2, threads=1)
+    call = F.fused_floor(z, 5, seed=2)
     if call is None:
         pytest.skip("no Dr.Jit LLVM backend on this machine")
     got = np.array(call())
@@ -49,7 +49,8 @@ def test_fused_floor_sums_the_texels_its_hash_names():
     assert F.fused_floor(z.to("meta"), 5) is None                       # not on the CPU: no fused floor
 
 
-def test_timing_with_the_fused_floor_leaves_drjit_threads_as_it_found_them():
+def test_timing_with_the_fused_floor_never_changes_drjit_threads():
+    """Resizing Dr.Jit's pool in a process that also writes EXR files through Mitsuba hung it: never done."""
     from ssbench.bench import effects as E
     from ssbench.bench import timing as T
     if F.drjit_llvm() is None:
@@ -58,9 +59,5 @@ def test_timing_with_the_fused_floor_leaves_drjit_threads_as_it_found_them():
     z = -torch.rand(1, 1, 6, 8) - 1
     inputs = E.BenchInputs(lambda: z * 2, z, torch.ones(1, 1, 6, 8, dtype=torch.bool), 3, z)
     before = dr.thread_count()
-    dr.set_thread_count(2)
-    try:
-        row = T.time_pass(inputs, T.TimingSpec(min_run_time=0.01, warmup=0), threads=1)
-        assert row["fused_floor_ratio"] > 0 and dr.thread_count() == 2                 # timed at 1, restored
-    finally:
-        dr.set_thread_count(before)
+    row = T.time_pass(inputs, T.TimingSpec(min_run_time=0.01, warmup=0), threads=1)
+    assert row["fused_floor_ratio"] > 0 and dr.thread_count() == before

@@ -162,10 +162,11 @@ def dda_rays(gbuffer: GBuffer, params: DDASSRParams, jitter: torch.Tensor, sel: 
     B, _, H, W = vz.shape
     dt, dev = vz.dtype, vz.device
     sel = ray_pixels(gbuffer) if sel is None else sel
-    col = lambda x: x.permute(1, 0, 2, 3).reshape(x.shape[1], -1)[:, sel].unsqueeze(0)   # noqa: E731  (1, C, N)
-    uv = cam.uv_grid(dt, dev).unsqueeze(0).expand(B, -1, -1, -1)
-    pos = cam.uv_to_view(col(uv).unsqueeze(-1), col(vz).unsqueeze(-1))           # (1, 3, N, 1) rayOrg
-    R = reflection_rays(pos, col(gbuffer.normal.to(dt)).unsqueeze(-1))           # (1, 3, N, 1) rayDir
+    b, px = sel // (H * W), sel % (H * W)                                         # image and pixel of each ray
+    col = lambda x: x.reshape(x.shape[0], x.shape[1], -1)[b, :, px].T[None, :, :, None]   # noqa: E731  (1, C, N, 1)
+    uv = cam.uv_grid(dt, dev).reshape(2, -1)[:, px][None, :, :, None]
+    pos = cam.uv_to_view(uv, col(vz))                                             # (1, 3, N, 1) rayOrg
+    R = reflection_rays(pos, col(gbuffer.normal).to(dt))                          # (1, 3, N, 1) rayDir
     o, d = pos[0, :, :, 0].T, R[0, :, :, 0].T                                     # (N, 3)
     end = o + d * clip_ray_length(o[:, 2], d[:, 2], params.max_ray_distance, cam.near)[:, None]   # rayEnd
     M = project_to_pixel_matrix(cam, dt, dev)
@@ -198,7 +199,7 @@ def dda_rays(gbuffer: GBuffer, params: DDASSRParams, jitter: torch.Tensor, sel: 
     P0p, Q0, k0 = P0p + dP * j[:, None], Q0 + dQ * j[:, None], k0 + dk * j
     zlo, zhi = torch.minimum(o[:, 2], end[:, 2]), torch.maximum(o[:, 2], end[:, 2])
     end = P1p[:, 0] * stepDir
-    s = DDARays(i=torch.arange(sel.numel(), device=dev), b=sel // (H * W), Px=P0p[:, 0], Py=P0p[:, 1], Qz=Q0[:, 2],
+    s = DDARays(i=torch.arange(sel.numel(), device=dev), b=b, Px=P0p[:, 0], Py=P0p[:, 1], Qz=Q0[:, 2],
                 k=k0, n=torch.zeros_like(k0), dPx=dP[:, 0], dPy=dP[:, 1], dQz=dQ[:, 2], dk=dk, stride=pixelStride,
                 Q0x=Q0[:, 0], Q0y=Q0[:, 1], dQx=dQ[:, 0], dQy=dQ[:, 1], end=end,
                 stop=torch.minimum(end, exit_),                                   # P1 or the viewport edge

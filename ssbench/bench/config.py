@@ -20,6 +20,8 @@ Format (YAML shown; TOML carries the same keys, e.g. ``[methods.hbao]`` tables):
     timing: {min_run_time: 0.2}          # optional: time each pass and its gather floor (ssbench.bench.timing;
                                          #   also warmup, floor, rounds, interleave, processes: the fields of its
                                          #   TimingSpec)
+    images: true                         # optional: also write each configuration's image and error map
+                                         #   (ssbench.bench.pictures; not part of config_id)
 
 A value that is itself a list (a GTAO noise tile) is given as ``{values: [[...]]}``. Every error is a
 :class:`SweepError` reading ``file:line: field.path: what is wrong`` (the scene files' machinery,
@@ -47,7 +49,7 @@ from .timing import TimingSpec
 __all__ = ["SweepError", "Config", "Sweep", "load_sweep", "parse_sweep", "sweep_from_dict", "config_id",
            "expand_range", "expand_logrange"]
 
-_TOP = {"name", "description", "effect", "scenes", "methods", "seeds", "resolution", "timing"}
+_TOP = {"name", "description", "effect", "scenes", "methods", "seeds", "resolution", "timing", "images"}
 
 
 def config_id(canonical: Mapping) -> str:
@@ -95,7 +97,8 @@ class Config:
 @dataclasses.dataclass(frozen=True)
 class Sweep:
     """A validated sweep: its configurations in expansion order (scene, method, grid, resolution, settings,
-    seed), the timing block (``None``: no timing) and where it came from."""
+    seed), the timing block (``None``: no timing), whether each configuration's pictures are written
+    (``images``) and where it came from."""
 
     name: str
     effect: str
@@ -104,6 +107,7 @@ class Sweep:
     source: str
     sha256: str
     description: str = ""
+    images: bool = False
 
     def __len__(self) -> int:
         return len(self.configs)
@@ -250,6 +254,7 @@ def sweep_from_dict(data: Any, locate=None, source: str = "<dict>", base_dir: Op
         check.integer = spec.types == (int,)
         axes.append([(key, x) for x in grid_values(c, d.get(key, spec.default), (key,), check)])
     timing = _timing(c, d.get("timing"))
+    images = c.boolean(d.get("images", False), ("images",))
     configs, seen = [], set()
     for (scene, sfile, ssha), (method, combos) in itertools.product(scenes, grids.items()):
         for params, (w, h), settings, seed in itertools.product(combos, resolutions, itertools.product(*axes),
@@ -260,7 +265,7 @@ def sweep_from_dict(data: Any, locate=None, source: str = "<dict>", base_dir: Op
                 configs.append(cfg)
     if sha256 is None:
         sha256 = hashlib.sha256(json.dumps(data, sort_keys=True, default=str).encode()).hexdigest()
-    return Sweep(name, effect.name, tuple(configs), timing, source, sha256, description)
+    return Sweep(name, effect.name, tuple(configs), timing, source, sha256, description, images)
 
 
 def _read(text: str, filename: str, fmt: str):

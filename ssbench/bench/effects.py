@@ -126,6 +126,11 @@ class Effect:
     help: str = ""
     scene_names: Any = "ssbench.scenes.catalog:names"   # () -> built-in scene names
     load_scene: Any = "ssbench.scenes:load"              # name or file -> scene (raises on a bad file)
+    pictures: Any = None  # a ssbench.bench.pictures.Pictures: what `images: true` draws per configuration
+
+    def picture_spec(self):
+        """The effect's :class:`ssbench.bench.pictures.Pictures` (``None`` when it draws nothing)."""
+        return None if self.pictures is None else _load(self.pictures)
 
     def method_names(self) -> list[str]:
         """Names of the effect's methods, in registry order."""
@@ -272,6 +277,7 @@ EFFECTS: dict[str, Effect] = {
     "ao": Effect(
         "ao", methods="ssbench.passes:AO_METHODS", resolve="ssbench.passes:ao_method",
         evaluate="ssbench.evaluate:run_ao", bench="ssbench.bench.effects:ao_bench",
+        pictures="ssbench.bench.pictures:AO_PICTURES",
         settings={"rays": Setting((int,), 256, lo=2, help="ground-truth rays per pixel"),
                   "blur": Setting((str, _NULL), None, choices=("box", "cross_bilateral", "joint_bilateral")),
                   "weighting": Setting((str, _NULL), None, choices=AO_WEIGHTINGS),
@@ -281,6 +287,7 @@ EFFECTS: dict[str, Effect] = {
     "ssr": Effect(
         "ssr", methods="ssbench.passes:SSR_METHODS", resolve="ssbench.passes:ssr_method",
         evaluate="ssbench.evaluate:run_ssr", bench="ssbench.bench.effects:ssr_bench",
+        pictures="ssbench.bench.pictures:SSR_PICTURES",
         settings={"spp": Setting((int,), 16, lo=1, help="colour samples per pixel"),
                   "k_px": Setting((float,), 1.5, lo=0.0, help="hit tolerance in pixels"),
                   "reflective": Setting((str, _NULL), None, choices=("marched", "specular")),
@@ -289,6 +296,7 @@ EFFECTS: dict[str, Effect] = {
     "implicit": Effect(
         "implicit", methods="ssbench.passes:IMPLICIT_METHODS", resolve="ssbench.bench.effects:implicit_resolve",
         evaluate="ssbench.bench.effects:implicit_run", bench="ssbench.bench.effects:implicit_bench",
+        pictures="ssbench.bench.pictures:IMPLICIT_PICTURES",
         settings={"frames": Setting((int,), 1, lo=1, help="frames cast per configuration (progressive state "
                                                           "carries across them)"),
                   "truth_frames": Setting((str,), "all", choices=("all", "last", "none"),

@@ -21,6 +21,8 @@ Row schema (one flat dict per configuration):
   ``params`` (the overrides), ``seed, width, height`` and the settings;
 * with a ``timing:`` block, :data:`ssbench.bench.timing.TIMING_FIELDS` (``time_median_ms, time_iqr_ms,
   floor_median_ms, floor_ratio, threads, ...``);
+* with ``images: true``, ``images``: ``{"image": "img/<config_id>.png", "error": "img/<config_id>_error.png"}``
+  (relative to the sweep folder; :mod:`ssbench.bench.pictures`), ``None`` plus ``images_error`` when drawing failed;
 * ``config`` (the canonical configuration hashed into ``config_id``), ``elapsed_s`` (wall time of the
   configuration), ``variant`` (Mitsuba variant of the process that ran it), ``run_id, git_commit, git_dirty``
   (the invocation that wrote it; its full metadata is ``runs/<run_id>.json``).
@@ -82,9 +84,14 @@ def error_row(config: Config, exc: BaseException, timing: Optional[TimingSpec] =
     return row
 
 
-def evaluate_config(config: Config, timing: Optional[TimingSpec]) -> tuple[dict, Any, int, float]:
+def evaluate_config(config: Config, timing: Optional[TimingSpec],
+                    images: Optional[str] = None) -> tuple[dict, Any, int, float]:
     """``(row, bench inputs or None, threads, seconds)``: the configuration's row without timing fields (an error
-    row when it fails), the inputs to time (``None`` when nothing is to be timed) and its wall time."""
+    row when it fails), the inputs to time (``None`` when nothing is to be timed) and its wall time.
+
+    With ``images`` (a folder), the effect's pictures of the evaluation go to ``images/img/<config_id>*.png``
+    (:func:`ssbench.bench.pictures.write_pictures`) and the row's ``images`` names them (relative to ``images``);
+    a picture that cannot be drawn leaves ``images`` ``None`` and says why in ``images_error``."""
     import torch
     effect = get_effect(config.effect)
     threads = int(config.settings.get("threads", 1))
@@ -104,6 +111,8 @@ def evaluate_config(config: Config, timing: Optional[TimingSpec]) -> tuple[dict,
             row.update({k: v for k, v in ev.row.items() if k not in row})
             row.update({k: v for k, v in config.settings.items() if k not in row})
             row["error"] = None
+            if images is not None:
+                _pictures(effect, ev, images, config, row)
             if timing is not None:
                 try:
                     inputs = effect.bench_inputs(ev, config.method, config.params, config.seed)
@@ -114,6 +123,17 @@ def evaluate_config(config: Config, timing: Optional[TimingSpec]) -> tuple[dict,
     return row, inputs, threads, time.perf_counter() - t0
 
 
+def _pictures(effect, ev, folder: str, config: Config, row: dict) -> None:
+    from .pictures import write_pictures
+    try:
+        spec = effect.picture_spec()
+        if spec is None:
+            raise ValueError(f"effect {effect.name!r} declares no pictures")
+        row["images"] = write_pictures(spec, ev, folder, config.config_id)
+    except Exception as e:                               # noqa: BLE001 - keep the evaluation's row
+        row["images"], row["images_error"] = None, _error_text(e)
+
+
 def _finish(config: Config, row: dict, seconds: float) -> dict:
     row.setdefault("config", config.canonical())
     row["elapsed_s"] = seconds
@@ -121,15 +141,16 @@ def _finish(config: Config, row: dict, seconds: float) -> dict:
     return row
 
 
-def run_config(config: Config, timing: Optional[TimingSpec] = None) -> dict:
-    """Evaluate one configuration (and time it when ``timing`` is given); always returns a row.
+def run_config(config: Config, timing: Optional[TimingSpec] = None, images: Optional[str] = None) -> dict:
+    """Evaluate one configuration (and time it when ``timing`` is given; draw its pictures into the folder
+    ``images`` when given); always returns a row.
 
     Torch threads are set to ``config.settings["threads"]`` for the call and restored afterwards.
     """
-    return run_group([config], timing)[0]
+    return run_group([config], timing, images)[0]
 
 
-def run_group(configs: list, timing: Optional[TimingSpec] = None) -> list:
+def run_group(configs: list, timing: Optional[TimingSpec] = None, images: Optional[str] = None) -> list:
     """Evaluate several configurations, then (given ``timing``) time them together in randomized interleaved rounds
     (:func:`ssbench.bench.interleave.time_interleaved`; the order seeded from their ids), pooled over
     ``timing.processes`` processes (:func:`ssbench.bench.processes.time_group`); one row each, in order.
@@ -137,7 +158,7 @@ def run_group(configs: list, timing: Optional[TimingSpec] = None) -> list:
     ``elapsed_s`` is each configuration's evaluation plus an equal share of the group's timing.
     """
     from .processes import time_group
-    done = [evaluate_config(c, timing) for c in configs]
+    done = [evaluate_config(c, timing, images) for c in configs]
     live = [k for k, d in enumerate(done) if d[1] is not None]
     share = 0.0
     if live:
@@ -210,15 +231,19 @@ def run_sweep(sweep: Union[Sweep, str, "os.PathLike"], out: Optional[str] = None
         done = store.done_ids()
         for cid in ids:
             if cid in done:
-                if retry_errors and store.read_row(cid).get("error"):
-                    continue
+                row = store.read_row(cid)
+                if (retry_errors and row.get("error")) or (sweep.images and not row.get("error")
+                                                            and not row.get("images")):
+                    continue                             # re-run: failed, or stored without its pictures
                 skip.add(cid)
     todo = [c for c in sweep.configs if c.config_id not in skip]
     store.write_json("sweep.json", {"name": sweep.name, "effect": sweep.effect, "source": sweep.source,
                                     "sha256": sweep.sha256, "description": sweep.description,
                                     "timing": None if sweep.timing is None else vars(sweep.timing),
+                                    "images": sweep.images,
                                     "configs": [{"config_id": c.config_id, **c.canonical()} for c in sweep.configs]})
     run_id = new_run_id()
+    images = os.path.abspath(store.root) if sweep.images else None
     ex = make_executor(executor, workers=workers, address=address) if isinstance(executor, str) else executor
     ran = errors = 0
     meta: dict = {}
@@ -237,7 +262,7 @@ def run_sweep(sweep: Union[Sweep, str, "os.PathLike"], out: Optional[str] = None
         n = max(1, sweep.timing.interleave if sweep.timing is not None else 1)        # configurations per task
         try:
             for configs, rows_, exc in ex.imap_unordered(run_group, [todo[i:i + n] for i in range(0, len(todo), n)],
-                                                         timing=sweep.timing):
+                                                         timing=sweep.timing, images=images):
                 if exc is not None:                      # the task itself died (e.g. a lost Dask worker)
                     rows_ = [error_row(c, exc, sweep.timing) for c in configs]
                 for row in rows_:

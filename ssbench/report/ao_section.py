@@ -27,6 +27,7 @@ import numpy as np
 import torch
 
 from ..passes import ao_method, declared
+from ..pictures import ao_rgb, error_rgb
 from .summary import unavailable_md
 from .flip_maps import flip_rgb
 
@@ -60,20 +61,6 @@ def fmt(value, spec: str = "{:.4f}") -> str:
 # ------------------------------------------------------------------------------------------ pictures
 def _hw(x: torch.Tensor) -> np.ndarray:
     return x.detach().float().cpu().reshape(x.shape[-2], x.shape[-1]).numpy()
-
-
-def ao_rgb(ao: torch.Tensor, mask: torch.Tensor) -> np.ndarray:
-    """``(H, W, 3)`` uint8 grey AO (values as display levels), background black."""
-    a, m = np.clip(_hw(ao), 0, 1), _hw(mask) > 0.5
-    return (np.repeat(np.where(m, a, 0.0)[..., None], 3, -1) * 255 + 0.5).astype(np.uint8)
-
-
-def error_rgb(err: torch.Tensor, mask: torch.Tensor, vmax: float = ERR_RANGE) -> np.ndarray:
-    """``(H, W, 3)`` uint8 signed error on ``RdBu`` (red < 0 = too dark, blue > 0 = too bright), background black."""
-    import matplotlib
-    e, m = _hw(err), _hw(mask) > 0.5
-    rgb = matplotlib.colormaps["RdBu"](np.clip(0.5 + np.nan_to_num(e) / (2 * vmax), 0, 1))[..., :3]
-    return (np.where(m[..., None], rgb, 0.0) * 255 + 0.5).astype(np.uint8)
 
 
 def region_rgb(base: torch.Tensor, region: torch.Tensor, mask: torch.Tensor, color=(1.0, 0.55, 0.0)) -> np.ndarray:

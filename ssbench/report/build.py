@@ -173,6 +173,16 @@ def _render_index(tpl_env, meta: dict) -> str:
     return tpl_env.get_template("index.html.j2").render(meta=meta, fmt=_fmt, sections=summary.SECTIONS)
 
 
+def _explorer_pages(run_dir: str, tpl_env, meta: dict) -> None:
+    """The speed section's sweep explorers (:mod:`.explorer`); never raises (a failure is a note)."""
+    try:
+        from .explorer import write_pages
+        write_pages(run_dir, meta.get("speed") or {}, tpl_env, meta)
+    except Exception as e:                                   # noqa: BLE001 - the report must not crash
+        meta.setdefault("speed", {}).setdefault("notes", []).append(
+            f"sweep explorers not written: {type(e).__name__}: {e}")
+
+
 def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = None, width: int = 320,
                  height: int = 240, spp: int = 64, seed: int = 0, *, use_cache: bool = True,
                  progress: Optional[bool] = None, ao: bool = True, ao_radius: float = 0.5,
@@ -250,11 +260,15 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
                                                                                   progress=progress))
     meta["total_s"] = time.perf_counter() - t_start
     meta["images_mb"] = _folder_mb(os.path.join(run_dir, "img"))      # what the page loads, besides its HTML
+    meta["explorer_mb"] = sum(_folder_mb(os.path.join(run_dir, "sweeps", d, "img"))   # what the explorers load
+                              for d in (os.listdir(os.path.join(run_dir, "sweeps"))
+                                        if os.path.isdir(os.path.join(run_dir, "sweeps")) else ()))
     meta["metadata_rows"] = summary.metadata_rows(meta)
     meta["glance"] = summary.glance(meta)
     tpl_env = _templates()
     raw = summary.rows_jsonl(meta)
     meta["rows_files"] = {key: f"rows/{key}.jsonl" for key in raw}
+    _explorer_pages(run_dir, tpl_env, meta)                  # first: the index links only pages that exist
     html = _render_index(tpl_env, meta)
     for key, text in raw.items():                            # raw rows first: index.html links to them
         os.makedirs(os.path.join(run_dir, "rows"), exist_ok=True)
@@ -300,7 +314,9 @@ def render_run(run_dir: str) -> str:
                 pass
     meta["glance"] = summary.glance(meta)
     meta.setdefault("rows_files", {})
-    html = _render_index(_templates(), meta)
+    tpl_env = _templates()
+    _explorer_pages(run_dir, tpl_env, meta)                  # first: the index links only pages that exist
+    html = _render_index(tpl_env, meta)
     _write_text(os.path.join(run_dir, "index.html"), html)
     _write_text(os.path.join(run_dir, "summary.md"), summary.summary_md(meta)
                 + "".join(meta[k].get("summary_md", "") for k, _ in summary.SECTIONS))

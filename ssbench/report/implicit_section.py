@@ -25,6 +25,7 @@ from typing import Optional
 import numpy as np
 import torch
 
+from ..pictures import implicit_class_rgb as class_rgb, implicit_color_rgb as color_image
 from .ao_section import fmt, write_png
 from .summary import unavailable_md
 
@@ -39,24 +40,6 @@ def _hw(x: torch.Tensor) -> np.ndarray:
     return x.detach().double().cpu().reshape(x.shape[-2], x.shape[-1]).numpy()
 
 
-def class_rgb(classes: torch.Tensor) -> np.ndarray:
-    """``(H, W, 3)`` uint8 class map in the colours of :data:`ssbench.metrics.implicit.CLASS_COLORS`."""
-    from ..metrics.implicit import CLASS_COLORS
-    c = _hw(classes).astype(np.int64)
-    lut = np.zeros((max(CLASS_COLORS) + 1, 3))
-    for code, rgb in CLASS_COLORS.items():
-        lut[code] = rgb
-    return (lut[c] * 255 + 0.5).astype(np.uint8)
-
-
-def color_image(result, camera, scene) -> np.ndarray:
-    """``(H, W, 3)`` uint8 shaded hits (``to_gbuffer`` colour, linear → sRGB; background black)."""
-    from ..passes.implicit.gbuffer import to_gbuffer
-    from .ssr_images import color_rgb
-    g = to_gbuffer(result, None, camera, scene.materials, scene.lights)
-    return color_rgb(g.color, g.mask)
-
-
 def heat_rgb(x: torch.Tensor, vmax: float, cmap: str = "magma") -> np.ndarray:
     """``(H, W, 3)`` uint8 ``x / vmax`` on ``cmap``."""
     import matplotlib
@@ -69,7 +52,8 @@ def save_fig(fig, path: str) -> None:
     save_figure(fig, path, dpi=100)
 
 
-def _legend() -> list[dict]:
+def class_legend() -> list[dict]:
+    """``[{label, description, color}]`` of the implicit casters' class map colours (a legend beside the maps)."""
     from ..metrics.implicit import CLASS_COLORS, CLASS_DESCRIPTIONS, CLASS_NAMES
     return [{"label": CLASS_NAMES[c].replace("_", " "), "description": CLASS_DESCRIPTIONS[c],
              "color": "#%02x%02x%02x" % tuple(int(255 * v + 0.5) for v in CLASS_COLORS[c])} for c in CLASS_NAMES]
@@ -273,7 +257,7 @@ def _build(run_dir, width, height, frames, steps, seed, use_cache, lipschitz_sam
         for mod in ("ssbench.evaluate", "ssbench.metrics.implicit", "ssbench.reference.implicit"):
             importlib.import_module(mod)
         out = _empty()
-        out.update(legend=_legend(), size=f"{width}×{height}", frames=frames, steps=steps)
+        out.update(legend=class_legend(), size=f"{width}×{height}", frames=frames, steps=steps)
     except Exception as e:
         return _empty(f"Implicit section skipped: the implicit slice is not importable ({type(e).__name__}: {e}).")
     _parts(run_dir, (width, height), frames, steps, seed, use_cache, lipschitz_samples, out)

@@ -185,6 +185,7 @@ def _effect(effect: str, sweeps: list, run_dir: str, progress, use_cache: bool) 
     fronts = error_time_figure(rows, spec["metrics"], fig, scenes=list(dict.fromkeys(r["scene"] for r in rows)),
                                ladders=ladders, ladder_metric=eq_metric,
                                title=f"{EFFECT_TITLES[effect]}: error against time")
+    explorer = _explorer(effect, rows, spec, fronts, img, rel)
     multiples = []
     for key, (title, panels) in figures(effect).items():
         if not panels:
@@ -196,8 +197,22 @@ def _effect(effect: str, sweeps: list, run_dir: str, progress, use_cache: bool) 
     return {"name": effect, "title": EFFECT_TITLES[effect], "available": True, "note": "", "notes": notes,
             "rows": len(rows), "errors": sum(bool(r.get("error")) for r in rows), "sweeps": runs,
             "files": {k: rel(v) for k, v in files.items()}, "metric": spec["metrics"][0][1], "eq_metric": eq_metric,
-            "figure": rel(fig), "multiples": multiples, **_tables(rows, eq_rows, spec, fronts, ladders),
+            "figure": rel(fig), "multiples": multiples, "explorer": explorer, **_tables(rows, eq_rows, spec, fronts, ladders),
             "seconds": t[-1] - t[0], "stages": {"sweeps": t[1] - t[0], "ladders": t[2] - t[1], "figures": t[3] - t[2]}}
+
+
+def _explorer(effect: str, rows: list, spec: dict, fronts: dict, img: str, rel) -> dict:
+    """The sweep explorer's data (:mod:`ssbench.report.explorer`), with the error map's colour bar written."""
+    from ..bench import get_effect
+    from .colorbars import colorbar_png
+    from .explorer import explorer_data
+    pics = get_effect(effect).picture_spec()
+    bar = None
+    if pics is not None and pics.scale is not None:
+        sc = pics.scale
+        bar = rel(colorbar_png(os.path.join(img, f"{effect}_explorer_colorbar.png"), sc.cmap, sc.vmin, sc.vmax,
+                               sc.label, low=sc.low, high=sc.high))
+    return explorer_data(effect, EFFECT_TITLES[effect], rows, spec["metrics"], fronts, bar, pics)
 
 
 def build_speed_section(run_dir: str, *, width: int, height: int, seed: int = 0, use_cache: bool = True,

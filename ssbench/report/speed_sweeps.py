@@ -85,7 +85,8 @@ def write_rows(rows: list, base: str) -> dict:
 
 
 def run_sweeps(sweeps: list, run_dir: str, progress, notes: list) -> tuple[list, list]:
-    """Run every sweep (fresh, into ``run_dir/sweeps/<name>``); rows pooled in order, duplicates dropped."""
+    """Run every sweep (fresh, into ``run_dir/sweeps/<name>``); rows pooled in order, duplicates dropped, each
+    row's ``images`` (sweeps with ``images: true``) made relative to ``run_dir``."""
     from ..bench import run_sweep
     rows, seen, runs = [], set(), []
     for s in sweeps:
@@ -95,5 +96,7 @@ def run_sweeps(sweeps: list, run_dir: str, progress, notes: list) -> tuple[list,
         for r in res.rows:
             if r["config_id"] not in seen:
                 seen.add(r["config_id"])
+                if r.get("images"):
+                    r = dict(r, images={k: v and f"sweeps/{s.name}/{v}" for k, v in r["images"].items()})
                 rows.append(r)
     return rows, runs

@@ -145,7 +145,8 @@ def metadata_rows(meta: dict) -> list[tuple[str, Any]]:
             ("spp / seed", f"{meta['spp']} / {meta['seed']}"), ("render cache", "on" if meta["use_cache"] else "off"),
             ("ground-truth cache", "on" if meta.get("gt_cache") else "off"),
             ("backend start-up s", fmt(meta["backend_init_s"])), ("total wall time s", fmt(meta["total_s"])),
-            ("page weight (images)", f"{fmt(meta.get('images_mb'), '{:.1f}')} MB")]
+            ("page weight (images)", f"{fmt(meta.get('images_mb'), '{:.1f}')} MB"),
+            ("sweep explorers (images)", f"{fmt(meta.get('explorer_mb'), '{:.1f}')} MB")]
 
 
 def summary_md(meta: dict) -> str:

@@ -89,6 +89,25 @@ CHECKER = """<script>/* ssbench browser check: test copy only */
       c.zoom2 = stage.getBoundingClientRect().width / box.querySelector("img.b").naturalWidth;
       result.compare = c;
     }
+    var ex = document.querySelector(".explorer");
+    if (ex) {                      /* drive the sweep explorer: move its first slider to the other end */
+      var state = function () {
+        var sel = ex.querySelector("#sel");
+        return {point: ex.getAttribute("data-point"), image: ex.querySelector("#image").getAttribute("src"),
+                error: ex.querySelector("#error").getAttribute("src"),
+                ring: sel ? sel.getAttribute("cx") + "," + sel.getAttribute("cy") : null,
+                rows: ex.querySelectorAll("#numbers tr").length};
+      };
+      var x = {sliders: ex.querySelectorAll("#knobs input").length, methods: ex.querySelector("#method").options.length,
+               points: ex.querySelectorAll("#plot circle[data-id]").length, before: state()};
+      var s = ex.querySelector("#knobs input");
+      if (s) {
+        s.value = Number(s.value) === Number(s.max) ? s.min : s.max;
+        s.dispatchEvent(new Event("input"));
+        x.after = state();
+      }
+      result.explorer = x;
+    }
     var pre = document.createElement("pre");
     pre.id = "ssbench-check";
     pre.textContent = JSON.stringify(result);

@@ -57,7 +57,8 @@ def _trim(png: str, background=(250, 251, 252)) -> tuple[int, int]:
 def section_screenshots(index_html: str, out_dir: Optional[str] = None, *, width: int = 1400, height: int = 16000,
                         chromium: Optional[str] = None, timeout: float = 180) -> dict[str, str]:
     """Screenshot every section of the report page ``index_html`` into ``out_dir`` (default: ``screenshots/``
-    beside it) as ``<key>.png``; returns ``{key: path}``. A section taller than ``height`` pixels is cut there
+    beside it) as ``<key>.png``, and every sweep explorer beside it (``explore_<effect>.html``) as
+    ``explore_<effect>.png``; returns ``{key: path}``. A section taller than ``height`` pixels is cut there
     (the default report's tallest, the scenes, is ~7000 px at 1400 px). Raises ``RuntimeError`` when no Chromium
     is found."""
     chromium = chromium or find_chromium()
@@ -70,21 +71,36 @@ def section_screenshots(index_html: str, out_dir: Optional[str] = None, *, width
     out_dir = out_dir or os.path.join(os.path.dirname(os.path.abspath(index_html)), "screenshots")
     os.makedirs(out_dir, exist_ok=True)
     shots = {}
+    here = os.path.dirname(os.path.abspath(index_html))
     with tempfile.TemporaryDirectory() as tmp:
         for key, html in split_sections(page).items():
-            copy = os.path.join(os.path.dirname(os.path.abspath(index_html)), f"_section_{key}.html")
+            copy = os.path.join(here, f"_section_{key}.html")
             with open(copy, "w", encoding="utf-8") as f:
                 f.write(head + html + tail)
-            png = os.path.join(out_dir, f"{key}.png")
             try:
-                subprocess.run([chromium, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
-                                f"--user-data-dir={os.path.join(tmp, 'profile')}", "--host-resolver-rules=MAP * ~NOTFOUND",
-                                "--virtual-time-budget=3000", f"--window-size={width},{height}",
-                                f"--screenshot={png}", "file://" + os.path.abspath(copy)],
-                               capture_output=True, timeout=timeout, check=False)
+                png = _shoot(chromium, copy, os.path.join(out_dir, f"{key}.png"), width, height, tmp, timeout)
             finally:
                 os.remove(copy)
-            if os.path.isfile(png):
-                _trim(png)
+            if png:
+                shots[key] = png
+        for name in sorted(n for n in os.listdir(here) if re.fullmatch(r"explore_\w+\.html", n)):
+            key = name[:-len(".html")]                  # the sweep explorers, as they open (first configuration)
+            png = _shoot(chromium, os.path.join(here, name), os.path.join(out_dir, f"{key}.png"), width,
+                         min(height, 2000), tmp, timeout)
+            if png:
                 shots[key] = png
     return shots
+
+
+def _shoot(chromium: str, page: str, png: str, width: int, height: int, tmp: str, timeout: float) -> Optional[str]:
+    """A ``width`` × ``height`` screenshot of ``page`` into ``png``, its empty bottom trimmed; ``None`` when
+    Chromium wrote nothing."""
+    subprocess.run([chromium, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
+                    f"--user-data-dir={os.path.join(tmp, 'profile')}", "--host-resolver-rules=MAP * ~NOTFOUND",
+                    "--virtual-time-budget=3000", f"--window-size={width},{height}",
+                    f"--screenshot={png}", "file://" + os.path.abspath(page)],
+                   capture_output=True, timeout=timeout, check=False)
+    if not os.path.isfile(png):
+        return None
+    _trim(png)
+    return png

@@ -51,9 +51,9 @@ from ssbench.passes.implicit.analytic import analytic_sphere
 from ssbench.passes.implicit.common import INVALIDATED, bisect, camera_rays
 from ssbench.passes.implicit.fixed import FixedStepParams, fixed_step, march_lattice
 from ssbench.passes.implicit.gbuffer import to_gbuffer
-from ssbench.passes.implicit.progressive import (ProgressiveParams, ProgressiveState, progressive,
-                                                 progressive_secondary, reflection_bundle, run_progressive,
-                                                 silhouette_mask)
+from ssbench.passes.implicit.progressive import ProgressiveParams, ProgressiveState, progressive
+from ssbench.passes.implicit.progressive_notes import (progressive_secondary, reflection_bundle, run_progressive,
+                                                       silhouette_mask)
 from ssbench.reference import implicit as certified
 from _setup import size
 

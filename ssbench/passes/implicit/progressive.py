@@ -26,35 +26,28 @@ the slab in f ≥ 0, the march finds nothing, the estimate is invalidated, found
 invalidated again: the pixel flickers. (A probe that falls inside a *farther* object still brackets; the root
 is then re-found by the lattice only with probability ``w/h``.)
 
-The notes (補足): :func:`progressive_secondary` runs the same core on arbitrary ray bundles with their own
-``t'`` buffer (二次レイ); :func:`txaa_jitter` and :func:`silhouette_mask` measure the TXAA case (sub-pixel
-jitter makes silhouette pixels leave and re-enter the object, so their estimates are invalidated often — and,
-measured, interior pixels too while ε is smaller than the depth change of a half-pixel shift on a sloped
-surface: 38 % per frame on a unit ball at ε = 1e-3, 4 % at 1e-2, 0 at 1e-1, see lesson 08 step 8);
-supersampling is :func:`ssbench.passes.implicit.gbuffer.supersample`.
+The article's notes (補足) — secondary rays with their own ``t'`` buffer, TXAA jitter, the frame loop — are in
+:mod:`ssbench.passes.implicit.progressive_notes`; supersampling is :func:`ssbench.passes.implicit.gbuffer.supersample`.
 """
 from __future__ import annotations
 
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Iterator, Optional, Union
+from typing import Optional
 
 import torch
-import torch.nn.functional as F
 from torch import nn
 
-from ..common import length
-from .common import (HIT, INVALIDATED, MISS, CameraRays, ImplicitResult, as_rays, bisect,
-                              camera_rays, check_surface, finish, flat, unflat)
+from .common import HIT, INVALIDATED, MISS, ImplicitResult, as_rays, bisect, check_surface, finish, flat, unflat
 from .fixed import check_int, march_lattice
 from ..registry import Method, SpeedPanel
 
 #: the caster carries ``t'`` between frames (``result.state`` → ``state=``): evaluations run its frames in order
 STATEFUL = True
 
-__all__ = ["METHOD", "STATEFUL", "ProgressiveParams", "ProgressiveState", "progressive", "progressive_secondary",
-           "reflection_bundle", "run_progressive", "txaa_jitter", "silhouette_mask", "Progressive"]
+__all__ = ["METHOD", "STATEFUL", "ProgressiveParams", "ProgressiveState", "progressive", "run_frame",
+           "frame_generator", "Progressive"]
 
 
 @dataclass(frozen=True)
@@ -105,12 +98,6 @@ class ProgressiveState:
         return cls(t_far.clone(), 0, torch.zeros_like(t_far, dtype=torch.bool))
 
 
-def txaa_jitter(generator: torch.Generator, batch: int = 1, dtype: torch.dtype = torch.float64) -> torch.Tensor:
-    """:math:`(B, 2, 1, 1)` TXAA sub-pixel offset, ``U[−0.5, 0.5)`` pixels, the same for all pixels of a frame
-    (補足: アンチエイリアシング); pass it as ``jitter`` to :func:`progressive`."""
-    return torch.rand(batch, 2, 1, 1, generator=generator, dtype=torch.float64).to(dtype) - 0.5
-
-
 def frame_generator(params: ProgressiveParams, frame: int) -> torch.Generator:
     g = torch.Generator(device="cpu")
     g.manual_seed(params.seed * 1_000_003 + frame)
@@ -147,7 +134,13 @@ def _core(surface, o, d, t_far, t_prime, found_prev, R, params: ProgressiveParam
     return found, 0.5 * (lo + hi), evaluations, steps, term, invalid, torch.stack([lo, hi], 1)
 
 
-def _run(surface, o, d, t_far, shape, state, params, generator, active) -> ImplicitResult:
+def run_frame(surface, o: torch.Tensor, d: torch.Tensor, t_far: torch.Tensor, shape: tuple,
+              state: Optional[ProgressiveState], params: ProgressiveParams, generator: Optional[torch.Generator],
+              active: torch.Tensor) -> ImplicitResult:
+    """One frame (steps 2.1–2.5) on flat rays: origins ``o`` and unit directions ``d`` :math:`(n, 3)`, far
+    distances ``t_far`` :math:`(n,)`, ``shape = (B, H, W)`` with ``n = B·H·W``, ``active`` :math:`(n,)` bool (rays
+    cast; the others are MISS with 0 evaluations). :func:`progressive` and
+    :func:`ssbench.passes.implicit.progressive_notes.progressive_secondary` build the rays and call this."""
     check_surface(surface)
     if not isinstance(params, ProgressiveParams):
         raise TypeError(f"params: expected ProgressiveParams, got {type(params).__name__}")
@@ -185,7 +178,8 @@ def progressive(surface, camera, params: ProgressiveParams = ProgressiveParams()
         params: :class:`ProgressiveParams`.
         state: the previous frame's ``result.state`` (None: step 1, ``t' := d_f``).
         generator: draws ``R`` :math:`(B, 1, H, W)` (one ``torch.rand``, float64).
-        jitter: :math:`(B, 2, 1, 1)` sub-pixel camera offset, e.g. :func:`txaa_jitter` (with a Camera).
+        jitter: :math:`(B, 2, 1, 1)` sub-pixel camera offset, e.g.
+            :func:`~ssbench.passes.implicit.progressive_notes.txaa_jitter` (with a Camera).
         dtype, device: of the rays built from a Camera (default: the state's dtype, else float32).
 
     Returns:
@@ -210,99 +204,8 @@ def progressive(surface, camera, params: ProgressiveParams = ProgressiveParams()
     rays = as_rays(camera, jitter, dtype, device, state.t_prime.shape[0] if state is not None else 1)
     B, _, H, W = rays.direction.shape
     o, d = flat(rays.origin), flat(rays.direction)
-    return _run(surface, o, d, flat(rays.t_far).squeeze(1), (B, H, W), state, params, generator,
+    return run_frame(surface, o, d, flat(rays.t_far).squeeze(1), (B, H, W), state, params, generator,
                 torch.ones(o.shape[0], dtype=torch.bool, device=o.device))
-
-
-def progressive_secondary(surface, origins: torch.Tensor, directions: torch.Tensor,
-                          t_max: Union[float, torch.Tensor], params: ProgressiveParams = ProgressiveParams(), *,
-                          state: Optional[ProgressiveState] = None, generator: Optional[torch.Generator] = None,
-                          active: Optional[torch.Tensor] = None) -> ImplicitResult:
-    r"""The progressive method on an arbitrary ray bundle with its own ``t'`` buffer (補足: 二次レイ).
-
-    Args:
-        origins: :math:`(B, 3, H, W)` world ray origins (offset them off the surface they leave).
-        directions: :math:`(B, 3, H, W)` world directions (normalised here; ``t`` is in world units).
-        t_max: the ray's ``d_f``: a number or :math:`(B, 1, H, W)`.
-        state: the bundle's own previous ``result.state`` (None: ``t' := t_max``).
-        active: :math:`(B, 1, H, W)` bool, pixels that cast a ray (e.g. the primary hits); others are MISS
-            with 0 evaluations.
-
-    Returns:
-        :class:`~.common.ImplicitResult` with the bundle's next ``state``, as :func:`progressive`.
-    """
-    for name, x in (("origins", origins), ("directions", directions)):
-        if not isinstance(x, torch.Tensor) or x.dim() != 4 or x.shape[1] != 3:
-            raise ValueError(f"{name}: expected shape (B, 3, H, W), got {getattr(x, 'shape', type(x))}")
-    B, _, H, W = directions.shape
-    o, d = flat(origins), flat(directions)
-    nd = length(d)
-    d = torch.where(nd > 0, d / torch.where(nd > 0, nd, torch.ones_like(nd)), torch.zeros_like(d))
-    tm = torch.as_tensor(t_max, dtype=o.dtype, device=o.device)
-    t_far = flat(tm.expand(B, 1, H, W)).squeeze(1) if tm.dim() else torch.full_like(o[:, 0], float(tm))
-    if not bool(torch.isfinite(t_far).all()) or bool((t_far <= 0).any()):
-        raise ValueError("t_max: must be finite and > 0")
-    act = torch.ones(B * H * W, dtype=torch.bool, device=o.device) if active is None else flat(active).squeeze(1)
-    act = act & (nd.squeeze(1) > 0)
-    return _run(surface, o, d, t_far, (B, H, W), state, params, generator, act)
-
-
-def reflection_bundle(rays: CameraRays, result: ImplicitResult, offset: float = 1e-3):
-    """Mirror rays of the primary hits: ``(origins, directions, active)`` with origins moved ``offset`` along
-    the normal (turned toward the eye) off the surface; ``active`` = hits with a non-zero normal."""
-    d, n = rays.direction, result.normal
-    n = torch.where((n * d).sum(1, keepdim=True) > 0, -n, n)
-    r = d - 2.0 * (n * d).sum(1, keepdim=True) * n
-    origins = rays.origin + result.t * d + offset * n
-    return origins, r, result.hit & (n.abs().sum(1, keepdim=True) > 0)
-
-
-def silhouette_mask(result: ImplicitResult, radius: int = 1) -> torch.Tensor:
-    """:math:`(B, 1, H, W)` bool: pixels whose ``(2r+1)²`` neighbourhood holds another label (miss or another
-    object index), i.e. both sides of every silhouette. Use it on converged frames: punch-through holes of a
-    half-converged thin shell are label changes too and are marked as silhouettes."""
-    check_int(radius, "radius", 1)
-    lab = torch.where(result.hit, result.object_index, -1).to(torch.float64)
-    k = 2 * radius + 1
-    pad = F.pad(lab, (radius,) * 4, mode="replicate")
-    return F.max_pool2d(pad, k, 1) != -F.max_pool2d(-pad, k, 1)
-
-
-def run_progressive(scene_or_callables, frames, params: ProgressiveParams = ProgressiveParams(), seed: int = 0,
-                    jitter_mode: Optional[str] = None, progress: bool = True, *,
-                    dtype: torch.dtype = torch.float32, device=None
-                    ) -> Iterator[tuple[int, ImplicitResult, ProgressiveState]]:
-    """Animate the progressive method: yields ``(frame, result, state)`` per frame (tqdm bar if ``progress``).
-
-    Args:
-        scene_or_callables: an ``ImplicitScene`` (``surface(frame)``, ``camera_at(frame)``) or a pair of
-            callables ``(surface_at, camera_at)``.
-        frames: a count (frames ``0..frames−1``) or an iterable of frame indices.
-        seed: seeds ``R`` (one generator) and the TXAA jitter (a second one), so runs with and without jitter
-            draw the same ``R``.
-        jitter_mode: None or ``"txaa"`` (:func:`txaa_jitter` every frame).
-
-    ``result.debug`` also holds ``"camera"`` and ``"rays"`` of the frame (for :func:`to_gbuffer`).
-    """
-    from tqdm.auto import tqdm
-    if jitter_mode not in (None, "txaa"):
-        raise ValueError(f"jitter_mode: expected None or 'txaa', got {jitter_mode!r}")
-    check_int(seed, "seed", 0)
-    if hasattr(scene_or_callables, "surface") and hasattr(scene_or_callables, "camera_at"):
-        surface_at, camera_at = scene_or_callables.surface, scene_or_callables.camera_at
-    else:
-        surface_at, camera_at = scene_or_callables
-    seq = list(range(frames)) if isinstance(frames, int) else list(frames)
-    g_r, g_j = torch.Generator().manual_seed(seed), torch.Generator().manual_seed(seed + 1)
-    state = None
-    for k in tqdm(seq, disable=not progress, desc="progressive", unit="frame"):
-        cam = camera_at(k)
-        jit = txaa_jitter(g_j, 1, dtype) if jitter_mode == "txaa" else None
-        rays = camera_rays(cam, jitter=jit, dtype=dtype, device=device)
-        res = progressive(surface_at(k), rays, params, state=state, generator=g_r)
-        state = res.state
-        res.debug.update(camera=cam, rays=rays)
-        yield k, res, state
 
 
 class Progressive(nn.Module):

@@ -10,9 +10,9 @@ from ssbench.camera import Camera
 from ssbench.passes.implicit.analytic import sphere_roots
 from ssbench.passes.implicit.common import HIT, INVALIDATED, MISS, FunctionSurface, camera_rays
 from ssbench.passes.implicit.fixed import FixedStepParams, fixed_step
-from ssbench.passes.implicit.progressive import (Progressive, ProgressiveParams, ProgressiveState, progressive,
-                                                 progressive_secondary, reflection_bundle, run_progressive,
-                                                 silhouette_mask, txaa_jitter)
+from ssbench.passes.implicit.progressive import Progressive, ProgressiveParams, ProgressiveState, progressive
+from ssbench.passes.implicit.progressive_notes import (progressive_secondary, reflection_bundle, run_progressive,
+                                                       silhouette_mask, txaa_jitter)
 
 N, R0, W = 32, 1.0, 0.01                 # the thin shell: wall 2w = 0.02 ≪ h = far/N = 0.25
 

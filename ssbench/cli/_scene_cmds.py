@@ -101,7 +101,7 @@ def cmd_report(args) -> int:
         from ..report.compare import cmd_compare
         return cmd_compare(args, args.report_parser)
     if args.from_run:
-        from ..report.build import render_run
+        from ..report.render import render_run
         from ..report.compare import resolve_run
         building = [d for d, v in vars(args).items() if d not in ("command", "out", "from_run", "report_parser",
                                                                    "screenshots", "compile")   # compile: global

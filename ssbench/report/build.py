@@ -16,9 +16,13 @@ import time
 from typing import Iterable, Optional, Sequence
 
 from ..gbuffer import CHANNELS, GBuffer
-from ..io import umask_mode, replace_dir
+from ..io import replace_dir
 from ..runinfo import environment, git_state  # noqa: F401  (re-exported: the report's metadata)
 from . import summary
+from .render import write_pages, write_text
+
+__all__ = ["build_report", "render_scene", "refresh_latest", "environment", "git_state", "PREVIEW_ROW",
+           "ALL_CHANNELS"]
 
 #: scenes of the SSR section when the report names none (mirrors ``ssr_section.SSR_SCENES``)
 _SSR_SCENES = ("reflective_floor", "fence")
@@ -54,7 +58,6 @@ def render_scene(scene, width: Optional[int] = None, height: Optional[int] = Non
     return g, timings
 
 
-# ------------------------------------------------------------------------------------------ metadata
 # ------------------------------------------------------------------------------------------ output
 def _new_run_dir(out_root: str) -> tuple[str, str]:
     stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
@@ -69,23 +72,12 @@ def _new_run_dir(out_root: str) -> tuple[str, str]:
     raise RuntimeError(f"out_root: could not create a fresh run directory in {out_root!r}")
 
 
-def _write_text(path: str, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=".tmp-", dir=os.path.dirname(path))
-    with os.fdopen(fd, "w", encoding="utf-8") as f:
-        f.write(text)
-    os.chmod(tmp, umask_mode())
-    os.replace(tmp, path)
-
-
 def refresh_latest(run_dir: str, out_root: str) -> str:
     """Make ``<out_root>/latest`` a full copy of ``run_dir``, swapped in by rename (never half-written)."""
     latest = os.path.join(out_root, "latest")
     tmp = tempfile.mkdtemp(prefix=".latest-new-", dir=out_root)
     shutil.copytree(run_dir, tmp, dirs_exist_ok=True)
     return replace_dir(tmp, latest)
-
-
-_fmt = summary.fmt
 
 
 def _ao_section(run_dir, scenes, width, height, enabled, radius, rays, seed, use_cache, progress) -> dict:
@@ -156,31 +148,6 @@ def _tuning_section(run_dir, scenes, width, height, enabled, seed, use_cache, pr
     """The tuning section's metadata (see :mod:`.tuning_section`); a note instead whenever it cannot run."""
     return _optional_section("tuning", "Tuning", enabled, scenes, lambda m: m.build_tuning_section(
         run_dir, width=width, height=height, seed=seed, use_cache=use_cache, progress=progress))
-
-
-def _render_index(tpl_env, meta: dict) -> str:
-    """``index.html``; a section whose template is missing or fails to render becomes a note instead."""
-    for key, title in summary.SECTIONS:
-        sec = meta[key]
-        if not sec.get("available"):
-            continue
-        try:
-            tpl_env.get_template(f"{key}_section.html.j2").render(**{key: sec}, meta=meta, fmt=_fmt)
-        except Exception as e:                               # e.g. a template still being written
-            note = f"{title} section could not be shown: {type(e).__name__}: {e}"
-            meta[key] = {**sec, "available": False, "note": note}
-            meta["glance"] = summary.glance(meta)
-    return tpl_env.get_template("index.html.j2").render(meta=meta, fmt=_fmt, sections=summary.SECTIONS)
-
-
-def _explorer_pages(run_dir: str, tpl_env, meta: dict) -> None:
-    """The speed section's sweep explorers (:mod:`.explorer`); never raises (a failure is a note)."""
-    try:
-        from .explorer import write_pages
-        write_pages(run_dir, meta.get("speed") or {}, tpl_env, meta)
-    except Exception as e:                                   # noqa: BLE001 - the report must not crash
-        meta.setdefault("speed", {}).setdefault("notes", []).append(
-            f"sweep explorers not written: {type(e).__name__}: {e}")
 
 
 def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = None, width: int = 320,
@@ -265,18 +232,13 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
                                         if os.path.isdir(os.path.join(run_dir, "sweeps")) else ()))
     meta["metadata_rows"] = summary.metadata_rows(meta)
     meta["glance"] = summary.glance(meta)
-    tpl_env = _templates()
     raw = summary.rows_jsonl(meta)
     meta["rows_files"] = {key: f"rows/{key}.jsonl" for key in raw}
-    _explorer_pages(run_dir, tpl_env, meta)                  # first: the index links only pages that exist
-    html = _render_index(tpl_env, meta)
     for key, text in raw.items():                            # raw rows first: index.html links to them
         os.makedirs(os.path.join(run_dir, "rows"), exist_ok=True)
-        _write_text(os.path.join(run_dir, "rows", f"{key}.jsonl"), text)
-    _write_text(os.path.join(run_dir, "index.html"), html)
-    _write_text(os.path.join(run_dir, "summary.md"), summary.summary_md(meta)
-                + "".join(meta[k]["summary_md"] for k, _ in summary.SECTIONS))
-    _write_text(os.path.join(run_dir, "meta.json"), json.dumps(meta, indent=2, default=str) + "\n")
+        write_text(os.path.join(run_dir, "rows", f"{key}.jsonl"), text)
+    write_pages(run_dir, meta)
+    write_text(os.path.join(run_dir, "meta.json"), json.dumps(meta, indent=2, default=str) + "\n")
     refresh_latest(run_dir, out_root)
     return os.path.join(run_dir, "index.html")
 
@@ -287,37 +249,3 @@ def _folder_mb(path: str) -> float:
     return total / 1e6
 
 
-def _templates():
-    import jinja2
-    return jinja2.Environment(loader=jinja2.FileSystemLoader(os.path.join(os.path.dirname(__file__), "templates")),
-                              autoescape=True, undefined=jinja2.StrictUndefined, trim_blocks=True,
-                              lstrip_blocks=True)
-
-
-def render_run(run_dir: str) -> str:
-    """Re-render ``index.html`` and ``summary.md`` of a finished run from its ``meta.json``, computing nothing
-    (no rendering, no ground truth, no pass): for a changed template or summary. Rows, images and ``meta.json``
-    are left as they are. A section the run does not hold (an older run) shows as a note. Returns the path of
-    ``index.html``."""
-    import importlib
-    with open(os.path.join(run_dir, "meta.json"), encoding="utf-8") as f:
-        meta = json.load(f)
-    for key, title in summary.SECTIONS:
-        sec = meta.get(key)
-        if not isinstance(sec, dict):
-            meta[key] = {"available": False, "note": f"{title} section not in this run.", "notes": [],
-                         "summary_md": ""}
-        elif sec.get("available"):
-            try:                                             # today's summary of the stored section
-                sec["summary_md"] = importlib.import_module(f"{__package__}.{key}_section").summary_md(sec)
-            except Exception:                                # keep the one written with the run
-                pass
-    meta["glance"] = summary.glance(meta)
-    meta.setdefault("rows_files", {})
-    tpl_env = _templates()
-    _explorer_pages(run_dir, tpl_env, meta)                  # first: the index links only pages that exist
-    html = _render_index(tpl_env, meta)
-    _write_text(os.path.join(run_dir, "index.html"), html)
-    _write_text(os.path.join(run_dir, "summary.md"), summary.summary_md(meta)
-                + "".join(meta[k].get("summary_md", "") for k, _ in summary.SECTIONS))
-    return os.path.join(run_dir, "index.html")

@@ -208,11 +208,11 @@ def _stub_ao(monkeypatch, fail_scene=None):
 def _render_section(ao: dict) -> str:
     import jinja2
 
-    from ssbench.report import build
+    from ssbench.report import build, render
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(os.path.join(os.path.dirname(build.__file__),
                                                                          "templates")),
                              autoescape=True, undefined=jinja2.StrictUndefined)
-    return env.get_template("ao_section.html.j2").render(ao=ao, fmt=build._fmt)
+    return env.get_template("ao_section.html.j2").render(ao=ao, fmt=render.fmt)
 
 
 def test_ao_section_with_stubs(tmp_path, monkeypatch):
@@ -366,11 +366,11 @@ def _stub_ssr(monkeypatch, fail_scene=None, visits=True):
 def _render_ssr_section(ssr: dict) -> str:
     import jinja2
 
-    from ssbench.report import build
+    from ssbench.report import build, render
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(os.path.join(os.path.dirname(build.__file__),
                                                                          "templates")),
                              autoescape=True, undefined=jinja2.StrictUndefined)
-    return env.get_template("ssr_section.html.j2").render(ssr=ssr, fmt=build._fmt)
+    return env.get_template("ssr_section.html.j2").render(ssr=ssr, fmt=render.fmt)
 
 
 def test_ssr_section_with_stubs(tmp_path, monkeypatch):
@@ -487,7 +487,7 @@ def test_a_run_re_renders_from_its_meta_without_computing(report, monkeypatch):
     from pathlib import Path
     from ssbench import reference
     from ssbench.cli import main
-    from ssbench.report.build import render_run
+    from ssbench.report.render import render_run
     out, index = report
     run = Path(index).parent
     html, md = (run / "index.html").read_text(), (run / "summary.md").read_text()

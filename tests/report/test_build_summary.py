@@ -10,7 +10,7 @@ import types
 import jinja2
 import pytest
 
-from ssbench.report import build, summary
+from ssbench.report import build, render, summary
 
 TEMPLATES = os.path.join(os.path.dirname(build.__file__), "templates")
 ENV = {"ssbench": "0.1", "python": "3.11", "torch": "2", "mitsuba": "3", "drjit": "1", "kornia": "0.9",
@@ -141,7 +141,7 @@ def _env(tmp_path, with_speed_template=False):
 
 
 def test_index_renders_without_speed_and_tuning_templates(tmp_path):
-    html = build._render_index(_env(tmp_path), _meta(ao=_off("AO")))
+    html = render.render_index(_env(tmp_path), _meta(ao=_off("AO")))
     for key, _ in summary.SECTIONS:
         assert f'href="#sec-{key}"' in html and f'id="sec-{key}"' in html        # the table of contents works
     for target in re.findall(r'href="#([^"]+)"', html):
@@ -152,12 +152,12 @@ def test_index_renders_without_speed_and_tuning_templates(tmp_path):
 def test_index_turns_a_missing_or_broken_section_template_into_a_note(tmp_path):
     meta = _meta(speed={"available": True, "note": "", "notes": [], "answer": 42},
                  tuning={"available": True, "note": "", "notes": []})
-    html = build._render_index(_env(tmp_path, with_speed_template=True), meta)
+    html = render.render_index(_env(tmp_path, with_speed_template=True), meta)
     assert "<p>42</p>" in html                                                  # the speed template was used
     assert meta["tuning"]["available"] is False and "TemplateNotFound" in meta["tuning"]["note"]
     assert "Tuning section could not be shown" in html
     meta = _meta(speed={"available": True, "note": "", "notes": []})            # no "answer": StrictUndefined
-    html = build._render_index(_env(tmp_path / "2", with_speed_template=True), meta)
+    html = render.render_index(_env(tmp_path / "2", with_speed_template=True), meta)
     assert "Speed section could not be shown: UndefinedError" in html
     assert "summary failed" not in html
 

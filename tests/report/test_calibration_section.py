@@ -5,7 +5,7 @@ import jinja2
 import pytest
 
 from ssbench.analysis.calibration import Response
-from ssbench.report import build
+from ssbench.report import render
 from ssbench.report import calibration_section as C
 
 
@@ -39,7 +39,7 @@ def test_section_with_stub_experiments(tmp_path, monkeypatch):
     assert rows[0]["x"] == [4, 16, 64] and rows[0]["monotone"] is True
     env = jinja2.Environment(loader=jinja2.PackageLoader("ssbench.report", "templates"), autoescape=True,
                              undefined=jinja2.StrictUndefined)
-    html = env.get_template("calibration_section.html.j2").render(calibration=sec, fmt=build._fmt)
+    html = env.get_template("calibration_section.html.j2").render(calibration=sec, fmt=render.fmt)
     assert "How each metric was calibrated" in html and "wrong way" in html and "no Mitsuba here" in html
     assert re.findall(r'<img[^>]*src="([^"]+)"', html) == ["img/calibration/banding.png",
                                                           "img/calibration/flicker.png"]

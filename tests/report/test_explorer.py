@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from ssbench.report import build
+from ssbench.report import render
 from ssbench.report import speed_section as S
 from ssbench.report.explorer import DEFAULT, explorer_data, knobs, write_pages
 
@@ -60,7 +60,7 @@ def section(tmp_path_factory):
     finally:
         mp.undo()
     meta = {"run": "test", "speed": out}
-    assert write_pages(str(run_dir), out, build._templates(), meta) == ["explore_ao.html"]
+    assert write_pages(str(run_dir), out, render.templates(), meta) == ["explore_ao.html"]
     return run_dir, out
 
 

@@ -6,6 +6,7 @@ import re
 import pytest
 
 from ssbench.report import build
+from ssbench.report import render
 from ssbench.report.implicit_section import COMPARE_SCENES, build_implicit_section, summary_md
 
 
@@ -14,7 +15,7 @@ def _render(imp: dict) -> str:
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(os.path.join(os.path.dirname(build.__file__),
                                                                          "templates")),
                              autoescape=True, undefined=jinja2.StrictUndefined)
-    return env.get_template("implicit_section.html.j2").render(implicit=imp, fmt=build._fmt)
+    return env.get_template("implicit_section.html.j2").render(implicit=imp, fmt=render.fmt)
 
 
 @pytest.fixture(scope="module")

@@ -8,6 +8,7 @@ import re
 import pytest
 
 from ssbench.report import build
+from ssbench.report import render
 from ssbench.report import speed_section as S
 
 TINY = {
@@ -28,7 +29,7 @@ def _render(speed: dict) -> str:
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(os.path.join(os.path.dirname(build.__file__),
                                                                          "templates")),
                              autoescape=True, undefined=jinja2.StrictUndefined, trim_blocks=True, lstrip_blocks=True)
-    return env.get_template("speed_section.html.j2").render(speed=speed, fmt=build._fmt)
+    return env.get_template("speed_section.html.j2").render(speed=speed, fmt=render.fmt)
 
 
 @pytest.mark.parametrize("effect", list(S.SPECS))

@@ -6,6 +6,7 @@ import sys
 import pytest
 
 from ssbench.report import build
+from ssbench.report import render
 from ssbench.report.tuning_section import HELD_OUT, METHODS, TRAIN, build_tuning_section, summary_md
 
 TINY = dict(width=32, height=24, rays=8, points=3, rounds=1, steps=1, use_cache=True, progress=False)
@@ -16,7 +17,7 @@ def _render(tuning: dict) -> str:
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(os.path.join(os.path.dirname(build.__file__),
                                                                          "templates")),
                              autoescape=True, undefined=jinja2.StrictUndefined)
-    return env.get_template("tuning_section.html.j2").render(tuning=tuning, fmt=build._fmt)
+    return env.get_template("tuning_section.html.j2").render(tuning=tuning, fmt=render.fmt)
 
 
 @pytest.mark.slow

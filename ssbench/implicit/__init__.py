@@ -1,7 +1,8 @@
 """Implicit surfaces f(p) = 0 (progressive-tracing article): a safe expression language, evaluators, surfaces and scenes.
 
 - ``ast.py``: the scalar expression tree every evaluator walks.
-- ``parser.py``: whitelist parser (never ``eval``) from text to the tree; vectors and helpers are lowered.
+- ``parser.py``: whitelist parser (never ``eval``) from text to the tree;
+  ``lowering.py``: what its functions mean (vectors and helpers lowered to scalar trees, constants folded).
 - ``torch_eval.py``, ``interval.py``, ``drjit_eval.py``: the three evaluators of one tree.
 - ``expression.py``: :class:`Expression`, the parsed text with its parameters and the three evaluators.
 - ``surface.py``, ``scene.py``, ``schema.py``, ``catalog.py``: objects with bounds / material / Lipschitz

@@ -38,13 +38,15 @@ import math
 import re
 from typing import Mapping, Optional
 
-from .ast import MAX_INT_POWER, VARIABLES, Binary, Node, Num, Param, PowI, Unary, Var, children
+from .ast import VARIABLES, Node, Num, Param, Var
 from .lexer import ExpressionError, tokenize
+from .lowering import MAX_NODES, MAX_REAL_POWER, Lowering
+
+__all__ = ["parse_node", "ExpressionError", "FUNCTIONS", "CONSTANTS", "MAX_TEXT", "MAX_DEPTH", "MAX_NODES",
+           "MAX_REAL_POWER"]
 
 MAX_TEXT = 20_000
 MAX_DEPTH = 100
-MAX_NODES = 100_000
-MAX_REAL_POWER = 64.0
 CONSTANTS = {"pi": math.pi}
 #: name → (fewest, most) arguments; ``None``: any number
 FUNCTIONS = {"abs": (1, 1), "sqrt": (1, 1), "exp": (1, 1), "log": (1, 1), "sin": (1, 1), "cos": (1, 1),
@@ -52,12 +54,6 @@ FUNCTIONS = {"abs": (1, 1), "sqrt": (1, 1), "exp": (1, 1), "log": (1, 1), "sin":
              "dot": (2, 2), "clamp": (3, 3), "smin": (3, 3), "vec3": (3, 3), "union": (2, None),
              "intersect": (2, None), "subtract": (2, 2)}
 _ARITH = {"+": "add", "-": "sub", "*": "mul", "/": "div"}
-_ELEMENTWISE = ("abs", "sqrt", "exp", "log", "sin", "cos", "square")
-_FOLD = {"neg": lambda a: -a, "abs": abs, "sqrt": math.sqrt, "exp": math.exp, "log": math.log, "sin": math.sin,
-         "cos": math.cos, "square": lambda a: a * a, "add": lambda a, b: a + b, "sub": lambda a, b: a - b,
-         "mul": lambda a, b: a * b, "div": lambda a, b: a / b, "min": min, "max": max, "pow": math.pow}
-
-
 class _Ctx:
     """State shared by the main text and the definitions it pulls in."""
 
@@ -67,15 +63,10 @@ class _Ctx:
         self.cache, self.active, self.sizes, self.depth = {}, [], {}, 0
 
 
-def _fold(op, *vals):
-    try:
-        r = _FOLD[op](*vals) if isinstance(op, str) else op(*vals)
-    except (ArithmeticError, ValueError):
-        return None
-    return float(r) if isinstance(r, (int, float)) and math.isfinite(r) else None
+class _Parser(Lowering):
+    """The grammar over :func:`~ssbench.implicit.lexer.tokenize`'s tokens; the values it builds go through
+    :class:`~ssbench.implicit.lowering.Lowering` (typed, folded, counted)."""
 
-
-class _Parser:
     def __init__(self, text, where, ctx):
         self.text, self.where, self.ctx, self.i = text, where, ctx, 0
         if not isinstance(text, str):
@@ -224,99 +215,6 @@ class _Parser:
             want = f"{lo}" if lo == hi else f"at least {lo}"
             self.err(t.col, f"{f}: expected {want} argument{'s' if hi != 1 else ''}, got {len(args)}")
         return self.apply(f, args, t.col)
-
-    # -- typed lowering ----------------------------------------------------------------------------------
-    def scalar(self, v, f, col, k=None):
-        if isinstance(v, tuple):
-            self.err(col, f"{f}: expected a scalar, got a vector" + (f" (argument {k})" if k else ""))
-        return v
-
-    def vector(self, v, f, col, k=None):
-        if not isinstance(v, tuple):
-            self.err(col, f"{f}: expected a vector, got a scalar" + (f" (argument {k})" if k else ""))
-        return v
-
-    def apply(self, f, a, col):
-        if f in _ELEMENTWISE:
-            return self.lift1(f, a[0], col)
-        if f in ("min", "max", "union", "intersect"):
-            op = "min" if f in ("min", "union") else "max"
-            if f in ("union", "intersect"):
-                a = [self.scalar(v, f, col, k + 1) for k, v in enumerate(a)]
-            v = a[0]
-            for b in a[1:]:
-                v = self.lift2(op, v, b, col)
-            return v
-        if f == "clamp":
-            return self.lift2("min", self.lift2("max", a[0], a[1], col), a[2], col)
-        if f == "pow":
-            return self.power(a[0], a[1], col, "pow")
-        if f == "vec3":
-            return tuple(self.scalar(v, f, col, k + 1) for k, v in enumerate(a))
-        if f == "length":
-            v = self.vector(a[0], f, col)
-            return self.un("sqrt", self.sum3([self.un("square", c, col) for c in v], col), col)
-        if f == "dot":
-            u, v = self.vector(a[0], f, col, 1), self.vector(a[1], f, col, 2)
-            return self.sum3([self.bin("mul", s, t, col) for s, t in zip(u, v)], col)
-        s = [self.scalar(v, f, col, k + 1) for k, v in enumerate(a)]
-        if f == "subtract":
-            return self.bin("max", s[0], self.un("neg", s[1], col), col)
-        x, y, k = s        # smin
-        if isinstance(k, Num) and not k.value > 0:
-            self.err(col, f"smin: k must be > 0, got {k.value:g}")
-        h = self.bin("div", self.bin("max", self.bin("sub", k, self.un("abs", self.bin("sub", x, y, col), col), col),
-                                     self.mk(Num(0.0), col), col), k, col)
-        corr = self.bin("mul", self.bin("mul", self.un("square", h, col), k, col), self.mk(Num(0.25), col), col)
-        return self.bin("sub", self.bin("min", x, y, col), corr, col)
-
-    def sum3(self, terms, col):
-        return self.bin("add", self.bin("add", terms[0], terms[1], col), terms[2], col)
-
-    def power(self, base, e, col, sym):
-        if isinstance(base, tuple) or isinstance(e, tuple):
-            self.err(col, f"{sym}: expected scalars, got a vector")
-        if isinstance(e, Num):
-            v = e.value
-            if v == int(v):
-                n = int(v)
-                if abs(n) > MAX_INT_POWER:
-                    self.err(col, f"exponent too large: {v:.17g} (integer powers are limited to ±{MAX_INT_POWER})")
-                if isinstance(base, Num) and (r := _fold(lambda a: a ** n, base.value)) is not None:
-                    return self.mk(Num(r), col)
-                return self.un("square", base, col) if n == 2 else self.mk(PowI(base, n), col)
-            if abs(v) > MAX_REAL_POWER:
-                self.err(col, f"exponent too large: {v:g} (real powers are limited to ±{MAX_REAL_POWER:g})")
-        return self.bin("pow", base, e, col)
-
-    def lift1(self, op, a, col):
-        return tuple(self.un(op, c, col) for c in a) if isinstance(a, tuple) else self.un(op, a, col)
-
-    def lift2(self, op, a, b, col):
-        if isinstance(a, tuple) or isinstance(b, tuple):
-            a3 = a if isinstance(a, tuple) else (a, a, a)
-            b3 = b if isinstance(b, tuple) else (b, b, b)
-            return tuple(self.bin(op, u, v, col) for u, v in zip(a3, b3))
-        return self.bin(op, a, b, col)
-
-    def un(self, op, a, col):
-        if isinstance(a, Num) and (r := _fold(op, a.value)) is not None:
-            return self.mk(Num(r), col)
-        return self.mk(Unary(op, a), col)
-
-    def bin(self, op, a, b, col):
-        if isinstance(a, Num) and isinstance(b, Num) and (r := _fold(op, a.value, b.value)) is not None:
-            return self.mk(Num(r), col)
-        return self.mk(Binary(op, a, b), col)
-
-    def mk(self, node, col):
-        sizes = self.ctx.sizes      # id -> (node, tree size); holding the node keeps its id unique
-        size = 1 + sum(sizes.get(id(c), (None, 1))[1] for c in children(node))
-        if size > MAX_NODES:
-            self.err(col, f"expression too large (more than {MAX_NODES} nodes once vectors and definitions "
-                          "are expanded)")
-        sizes[id(node)] = (node, size)
-        return node
 
 
 def _check_names(params, defs, where):

@@ -41,11 +41,11 @@ import torch
 from torch import nn
 
 from ...gbuffer import GBuffer
-from ..common import make_generator, uv_to_texel
+from ..common import make_generator
 from ..gbuffer_checks import check_gbuffer, half_in_float32
-from .common import (BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult,
-                         clip_ray_length, reflection_rays)
+from .common import HIT, NO_RAY, SSRResult, clip_ray_length, reflection_rays
 from .fade import FadeParams, check_positive
+from .linear_march import DepthTest, MarchLog, march, refine
 from ..registry import Method, SpeedPanel
 
 REQUIRES = ("view_z", "normal", "mask", "color")
@@ -199,89 +199,29 @@ def ssr_linear(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(), *,
     ok = mask & (view_z <= -cam.near) & torch.isfinite(rayOrg).all(1, keepdim=True) \
         & torch.isfinite(deltaStep).all(1, keepdim=True)
     ray = ok.reshape(-1).nonzero().squeeze(1)                                     # (n,) flat pixel ids
-    n = ray.numel()                                                               # rays marched
     O, dS, Q = _flat(rayOrg)[ray], _flat(deltaStep)[ray], _flat(Q)[ray]           # (n, 3)
     clipped = (rayLength < params.max_ray_distance).reshape(-1)[ray]
     base = (ray // HW) * HW                                                       # batch offset of each ray
-    zs, bk, ms = sceneZ.reshape(-1), (back.reshape(-1) if back is not None else None), mask.reshape(-1)
+    test = DepthTest(cam, H, W, sceneZ.reshape(-1), back.reshape(-1) if back is not None else None,
+                     mask.reshape(-1), T)
     counting = debug or trace_pixel is not None                                   # visits: a debug buffer only
-    visits = torch.zeros(B * HW if counting else 0, dtype=torch.int64, device=dev)
-    trace_ids = {}
+    log = MarchLog(counting, torch.zeros(B * HW if counting else 0, dtype=torch.int64, device=dev))
     if trace_pixel is not None:
         pid = torch.arange(B, device=dev) * HW + trace_pixel[1] * W + trace_pixel[0]
-        trace_ids = {int(b): int(k) for b, k in zip(*torch.nonzero(ray[None] == pid[:, None], as_tuple=True))}
-    trace = {b: [] for b in trace_ids}                                            # b -> [(Q, hit, refine)]
+        log.trace_ids = {int(b): int(k) for b, k in zip(*torch.nonzero(ray[None] == pid[:, None], as_tuple=True))}
+        log.trace = {b: [] for b in log.trace_ids}                                # b -> [(Q, hit, refine)]
 
-    def project(q, base_q):                       # clip = P·(Q, 1); hitPixel = clip.xy / clip.w · 0.5 + 0.5
-        uv = cam.ndc_to_uv(cam.view_to_ndc(q, dim=-1)[:, :2])                       # (m, 2) uv, v up
-        col, row = uv_to_texel(uv, H, W, dim=1)                                     # NEAREST, CLAMP_TO_EDGE
-        return uv, base_q + row * W + col
-
-    def intersects(z, t):                          # rayIntersectsDepth (§1.2), dist = z − sceneZMax
-        dist = z - zs.index_select(0, t)           # a cleared background texel is never hit (three.js
-        m = ms.index_select(0, t)                  # SSRShader: if (-vZ >= cameraFar) continue)
-        if bk is None:
-            return (dist < 0) & (dist > -T) & m
-        return (dist < 0) & (z > bk.index_select(0, t) - T) & m   # back-face interval [back − T, front)
-
-    def record(ids, q, hit, refine):
-        for b, k in trace_ids.items():
-            trace[b] += [(q[s], bool(hit[s]), refine) for s in (ids == k).nonzero().squeeze(1).tolist()]
-
-    # ---- the march (§1.2): only live rays are updated ----
-    term, steps = torch.full((n,), NO_RAY, dtype=torch.int8, device=dev), torch.zeros(n, dtype=torch.int32, device=dev)
-    hit_i, hitQ = torch.full((n,), -1, device=dev), torch.zeros(n, 3, dtype=dtype, device=dev)   # hit step, sample
-    ids, Qa, dSa, basea = torch.arange(n, device=dev), Q, dS, base      # live rays, compacted as they stop
-    n_run = min(N_it, params.max_iterations)
-    for i in range(n_run):
-        if ids.numel() == 0:
-            break
-        Qa = Qa + dSa                                                             # Q += deltaStep
-        uv, t = project(Qa, basea)
-        on = ((uv >= 0) & (uv <= 1)).all(1)
-        hit = on & intersects(Qa[:, 2], t)
-        if trace_ids:
-            record(ids, Qa, hit, False)
-        if counting:                              # an O(B·H·W) pass per step: only when asked for
-            visits += torch.bincount(t[on], minlength=B * HW)
-        gone = (hit | ~on).nonzero().squeeze(1)                                   # rays that stop here
-        if gone.numel():
-            g_hit = hit.index_select(0, gone)
-            g_ids = ids.index_select(0, gone)
-            steps[g_ids] = i + 1                                                  # samples taken, this one too
-            term[g_ids] = torch.where(g_hit, HIT, OFF_SCREEN).to(torch.int8)
-            h_ray = gone[g_hit]
-            hit_i[ids[h_ray]], hitQ[ids[h_ray]] = i, Qa[h_ray]
-            keep = (on & ~hit).nonzero().squeeze(1)
-            ids, Qa, dSa, basea = (x.index_select(0, keep) for x in (ids, Qa, dSa, basea))
-    steps[ids] = n_run                                                            # live to the loop's end
-    end = torch.where(clipped[ids], BEHIND_CAMERA, MAX_DISTANCE)                  # reached the end point
-    term[ids] = (end if n_run == N_it else torch.full_like(end, OUT_OF_STEPS)).to(torch.int8)  # or the loop bound
-
-    # ---- binary search refinement (§1.3): bisect the last step, keep the last probe that hit ----
+    # ---- the march (§1.2), then the binary search refinement (§1.3) of the hits ----
+    out = march(test, log, Q, dS, base, clipped, N_it, params.max_iterations)
+    term, steps = out.term, out.steps
     h = (term == HIT).nonzero().squeeze(1)
-    best, n_bs = hitQ[h], min(params.binary_search_iterations, MAX_BINARY_SEARCH_ITERATIONS)
+    best, n_bs = out.hit_q[h], min(params.binary_search_iterations, MAX_BINARY_SEARCH_ITERATIONS)
     if n_bs > 0 and h.numel() > 0:
-        first = (hit_i[h] == 0).unsqueeze(1)
-        Qb = torch.where(first, O[h], best - dS[h])                               # Q −= deltaStep (≥ rayOrg)
-        step = torch.where(first, best - O[h], dS[h])
-        originalStride = 0.5
-        stride = torch.full((h.numel(), 1), originalStride, dtype=dtype, device=dev)        # (m, 1)
-        for _ in range(n_bs):
-            Qb = Qb + step * stride
-            uv, t = project(Qb, base[h])
-            hb = intersects(Qb[:, 2], t)
-            if trace_ids:
-                record(h, Qb, hb, True)
-            if counting:
-                visits += torch.bincount(t, minlength=B * HW)
-            best = torch.where(hb.unsqueeze(1), Qb, best)
-            originalStride *= 0.5
-            stride = torch.where(hb, -originalStride, originalStride).unsqueeze(1).to(dtype)
+        best = refine(test, log, h, O[h], dS[h], base[h], best, out.hit_step[h], n_bs)
         steps[h] += n_bs
 
     # ---- colour at the hit texel and fades (§1.4, §1.5) ----
-    uv, t = project(best, base[h])
+    uv, t = test.project(best, base[h])
     hit_pixel = cam.uv_to_pixel(uv, dim=-1)                                       # (m, 2)
     raw = _flat(gbuffer.color)[t]                                                 # (m, 3)
     centre = _flat(cam.pixel_centers(dtype, dev)[None])[ray[h] % HW]              # vUv of each ray's pixel
@@ -296,10 +236,10 @@ def ssr_linear(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(), *,
     termination = scatter(term, ray, NO_RAY, 1, torch.int8)
     dbg = {}
     if debug or trace_pixel is not None:
-        dbg = {"visits": visits.to(torch.int32).reshape(B, 1, H, W), "ray_length": rayLength, "jitter": xi}
+        dbg = {"visits": log.visits.to(torch.int32).reshape(B, 1, H, W), "ray_length": rayLength, "jitter": xi}
     if trace_pixel is not None:
         dbg["trace"] = {b: {"view": torch.stack([s[0] for s in v]), "hit": torch.tensor([s[1] for s in v]),
-                            "refine": torch.tensor([s[2] for s in v])} for b, v in trace.items() if v}
+                            "refine": torch.tensor([s[2] for s in v])} for b, v in log.trace.items() if v}
         for d in dbg["trace"].values():
             d["pixel"] = cam.view_to_pixel(d["view"], dim=-1)
     return SSRResult(color=scatter(raw * fade, rh, 0.0, 3, dtype), hit=termination == HIT,

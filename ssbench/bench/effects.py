@@ -2,13 +2,13 @@
 
 An :class:`Effect` names, as ``"module:attribute"`` strings imported on first use (so a Dask worker needs only
 the names), the effect's method registry, its resolver, its evaluation function and its *bench* function
-(the pass alone, its output and its sample count, for :mod:`ssbench.bench.timing`), plus the settings a sweep
+(the pass alone, its output and its sample count, for :mod:`ssbench.bench.timing`), plus what ``images: true`` draws (:mod:`ssbench.bench.pictures`) and the settings a sweep
 file may give at top level (``rays``, ``spp``, ...) with their defaults. Adding an effect is one entry of
 :data:`EFFECTS`; e.g. the implicit-surface effect::
 
     "implicit": Effect("implicit", methods="ssbench.passes:IMPLICIT_METHODS",
-                       resolve="ssbench.bench.effects:implicit_resolve", evaluate="ssbench.evaluate:run_implicit",
-                       bench="ssbench.bench.effects:implicit_bench", settings={...})
+                       resolve="ssbench.bench.bench_inputs:implicit_resolve", evaluate="ssbench.evaluate:run_implicit",
+                       bench="ssbench.bench.bench_inputs:implicit_bench", settings={...})
 
 The evaluation function is called as ``evaluate(scene, method, params, width=, height=, seed=, repeats=,
 **settings)`` and returns an object with ``.row`` (a flat dict); the bench function gets that object and
@@ -19,11 +19,11 @@ from __future__ import annotations
 import dataclasses
 import importlib
 import math
-from typing import Any, Callable, Mapping, Optional, Union
-
-import torch
+from typing import Any, Mapping, Optional, Union
 
 from ..reference.ao import WEIGHTINGS as AO_WEIGHTINGS
+from .bench_inputs import (BenchInputs, ao_bench, ao_samples, implicit_bench, implicit_resolve, implicit_run,
+                           ssr_bench)
 
 __all__ = ["Setting", "Effect", "BenchInputs", "EFFECTS", "COMMON_SETTINGS", "get_effect", "ao_samples",
            "ao_bench", "ssr_bench", "implicit_resolve", "implicit_run", "implicit_bench"]
@@ -95,25 +95,6 @@ COMMON_SETTINGS: dict[str, Setting] = {
 
 
 @dataclasses.dataclass(frozen=True)
-class BenchInputs:
-    """What :func:`ssbench.bench.timing.time_pass` needs: the pass alone and what to check and gather.
-
-    Attributes:
-        call: one run of the pass on prepared inputs (no scoring, no ground truth).
-        output: :math:`(B, C, H, W)` the pass output already computed by the evaluation (checked for NaN/Inf).
-        valid: :math:`(B, 1, H, W)` bool, the pixels whose output must be finite.
-        samples: texel reads per pixel of the pass (the gather floor reads as many).
-        texture: :math:`(B, C, H, W)` the texture the gather floor reads (the depth buffer).
-    """
-
-    call: Callable[[], Any]
-    output: torch.Tensor
-    valid: torch.Tensor
-    samples: int
-    texture: torch.Tensor
-
-
-@dataclasses.dataclass(frozen=True)
 class Effect:
     """One effect a sweep can run (see the module docstring); references are ``"module:attr"`` or objects."""
 
@@ -162,121 +143,13 @@ class Effect:
         return _load(self.bench)(evaluation, method, params, seed)
 
 
-# ------------------------------------------------------------------------------------------ AO
-def ao_samples(method: str, params, module=None) -> int:
-    """Depth texels an AO pass reads per pixel in its main loop (small constant extras ignored).
-
-    The method's module declares it as ``samples_per_pixel(params)`` (``module``: the pass module; ``None``
-    looks the method up). A module without one falls back on its parameter names: ``num_directions ×
-    num_steps``, else ``kernel_size``.
-
-    Example:
-        >>> from ssbench.passes.ao.hbao import HBAOParams
-        >>> ao_samples("hbao", HBAOParams(num_directions=4, num_steps=3))
-        12
-    """
-    if module is None:
-        from ..passes import AO_METHODS, ao_method
-        module = importlib.import_module(ao_method(method)[0].__module__) if method in AO_METHODS else None
-    hook = getattr(module, "samples_per_pixel", None)
-    if callable(hook):
-        return int(hook(params))
-    names = {f.name for f in dataclasses.fields(params)}
-    if {"num_directions", "num_steps"} <= names:
-        return params.num_directions * params.num_steps
-    if "kernel_size" in names:
-        return params.kernel_size
-    raise ValueError(f"method: no sample count known for AO method {method!r}; define "
-                     f"samples_per_pixel(params) in its module")
-
-
-def ao_bench(evaluation, method: str, params: Mapping, seed: int) -> BenchInputs:
-    """:class:`BenchInputs` of an AO evaluation (:class:`ssbench.evaluate.AOEvaluation`)."""
-    from ..evaluate import resolve_params
-    from ..passes import ao_method
-    fn, params_cls, requires = ao_method(method)
-    p = resolve_params(params_cls, params, method)
-    g = evaluation.gbuffer.select(tuple(dict.fromkeys(requires)))
-
-    def call():
-        return fn(g, p, generator=torch.Generator().manual_seed(seed))
-
-    return BenchInputs(call, evaluation.result.ao.detach().cpu(), evaluation.gbuffer.mask.cpu(),
-                       ao_samples(method, p, importlib.import_module(fn.__module__)), evaluation.gbuffer.view_z)
-
-
-# ------------------------------------------------------------------------------------------ SSR
-def ssr_bench(evaluation, method: str, params: Mapping, seed: int) -> BenchInputs:
-    """:class:`BenchInputs` of an SSR evaluation; the sample count is the mean ``steps`` of its hit buffer
-    over all pixels (total depth reads / pixels, at least 1)."""
-    from ..evaluate import pass_channels, resolve_params
-    from ..evaluate._ssr import accepted_kwargs
-    from ..passes import ssr_method
-    fn, params_cls, _ = ssr_method(method)
-    p = resolve_params(params_cls, params, method)
-    g = evaluation.gbuffer.select(pass_channels(importlib.import_module(fn.__module__), p))
-
-    def call():
-        return fn(g, p, **accepted_kwargs(fn, generator=torch.Generator().manual_seed(seed)))
-
-    steps = evaluation.result.steps.float()
-    return BenchInputs(call, evaluation.result.color.detach().cpu(), evaluation.gbuffer.mask.cpu(),
-                       max(1, round(float(steps.mean()))), evaluation.gbuffer.view_z)
-
-
-# ------------------------------------------------------------------------------------------ implicit
-def implicit_resolve(name: str) -> tuple:
-    """``(function, ParamsClass, ())`` of an implicit ray caster (it needs a surface and camera, no G-buffer)."""
-    from ..passes import implicit_method
-    return (*implicit_method(name), ())
-
-
-def implicit_run(scene, method: str, params: Mapping, *, width: int, height: int, seed: int, repeats: int = 1,
-                 frames: int = 1, truth_frames: str = "all"):
-    """:func:`ssbench.evaluate.run_implicit` for a sweep: ``frames`` frames scored against the certified truth.
-
-    ``repeats`` is accepted for the common settings but unused: the row already carries the median
-    ``seconds_per_frame`` over its frames.
-    """
-    from ..evaluate import run_implicit
-    return run_implicit(scene, method, dict(params), frames=frames, width=width, height=height, seed=seed,
-                        truth_frames=truth_frames)
-
-
-def implicit_bench(evaluation, method: str, params: Mapping, seed: int) -> BenchInputs:
-    """:class:`BenchInputs` of an implicit evaluation (:class:`ssbench.evaluate.ImplicitEvaluation`).
-
-    The timed call is one frame from scratch (the progressive method from an empty state, i.e. its first
-    frame); the sample count is the mean f evaluations per pixel of the last frame; the floor gathers from the
-    hit-distance image (0 where no hit).
-    """
-    import dataclasses as dc
-
-    from ..evaluate import resolve_params
-    from ..passes import declared, implicit_method
-    fn, params_cls = implicit_method(method)
-    p = resolve_params(params_cls, params, method)
-    if "seed" in {f.name for f in dc.fields(p)} and "seed" not in params:
-        p = dc.replace(p, seed=seed)
-    surf, cam = evaluation.scene.surface(0), evaluation.cameras[0]
-    jittered = getattr(p, "jitter", False) and not declared(fn, "STATEFUL", False)
-
-    def call():                           # the progressive method from an empty state: its first frame
-        return fn(surf, cam, p, generator=torch.Generator().manual_seed(seed) if jittered else None)
-
-    res = evaluation.result
-    depth = torch.where(res.hit, res.t, torch.zeros_like(res.t)).float()
-    return BenchInputs(call, depth, torch.ones_like(res.hit), max(1, round(float(res.evaluations.double().mean()))),
-                       depth)
-
-
 _NULL = type(None)
 
 #: effect name -> :class:`Effect`; the sweep file's ``effect:`` picks one
 EFFECTS: dict[str, Effect] = {
     "ao": Effect(
         "ao", methods="ssbench.passes:AO_METHODS", resolve="ssbench.passes:ao_method",
-        evaluate="ssbench.evaluate:run_ao", bench="ssbench.bench.effects:ao_bench",
+        evaluate="ssbench.evaluate:run_ao", bench="ssbench.bench.bench_inputs:ao_bench",
         pictures="ssbench.bench.pictures:AO_PICTURES",
         settings={"rays": Setting((int,), 256, lo=2, help="ground-truth rays per pixel"),
                   "blur": Setting((str, _NULL), None, choices=("box", "cross_bilateral", "joint_bilateral")),
@@ -286,7 +159,7 @@ EFFECTS: dict[str, Effect] = {
         help="ambient occlusion vs ray-traced AO (ssbench.evaluate.ao)"),
     "ssr": Effect(
         "ssr", methods="ssbench.passes:SSR_METHODS", resolve="ssbench.passes:ssr_method",
-        evaluate="ssbench.evaluate:run_ssr", bench="ssbench.bench.effects:ssr_bench",
+        evaluate="ssbench.evaluate:run_ssr", bench="ssbench.bench.bench_inputs:ssr_bench",
         pictures="ssbench.bench.pictures:SSR_PICTURES",
         settings={"spp": Setting((int,), 16, lo=1, help="colour samples per pixel"),
                   "k_px": Setting((float,), 1.5, lo=0.0, help="hit tolerance in pixels"),
@@ -294,8 +167,8 @@ EFFECTS: dict[str, Effect] = {
                   "flip": Setting((bool,), True, help="compute FLIP")},
         help="screen-space reflections vs exact mirror reflections (ssbench.evaluate.ssr)"),
     "implicit": Effect(
-        "implicit", methods="ssbench.passes:IMPLICIT_METHODS", resolve="ssbench.bench.effects:implicit_resolve",
-        evaluate="ssbench.bench.effects:implicit_run", bench="ssbench.bench.effects:implicit_bench",
+        "implicit", methods="ssbench.passes:IMPLICIT_METHODS", resolve="ssbench.bench.bench_inputs:implicit_resolve",
+        evaluate="ssbench.bench.bench_inputs:implicit_run", bench="ssbench.bench.bench_inputs:implicit_bench",
         pictures="ssbench.bench.pictures:IMPLICIT_PICTURES",
         settings={"frames": Setting((int,), 1, lo=1, help="frames cast per configuration (progressive state "
                                                           "carries across them)"),

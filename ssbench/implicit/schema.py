@@ -35,7 +35,8 @@ from .bounds import BoundsError
 from .expression import parse
 from .parser import ExpressionError
 from .scene import Animation, ImplicitScene, Segment
-from .surface import ImplicitObject, ImplicitSurface
+from .surface import ImplicitObject
+from .union import ImplicitSurface
 
 _TOP_KEYS = {"name", "description", "camera", "materials", "params", "define", "implicit", "lights", "animation"}
 _OBJECT_KEYS = {"id", "f", "bounds", "lipschitz", "material", "translate", "rotate", "scale"}

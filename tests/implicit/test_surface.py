@@ -5,7 +5,8 @@ import pytest
 import torch
 
 from ssbench.implicit.expression import parse
-from ssbench.implicit.surface import ImplicitObject, ImplicitSurface
+from ssbench.implicit.surface import ImplicitObject
+from ssbench.implicit.union import ImplicitSurface
 from ssbench.scenes.model import Material
 from ssbench.scenes.transforms import rotate4
 

@@ -6,7 +6,8 @@
 - ``torch_eval.py``, ``interval.py``, ``drjit_eval.py``: the three evaluators of one tree.
 - ``expression.py``: :class:`Expression`, the parsed text with its parameters and the three evaluators.
 - ``surface.py``, ``union.py``, ``scene.py``, ``schema.py``, ``catalog.py``: objects with bounds / material /
-  Lipschitz bound, their union (the surface the casters read), scenes with lights, camera and animation, scene files, and the built-in hard cases.
+  Lipschitz bound, their union (the surface the casters read), scenes with lights, camera and animation,
+  scene files, and the built-in hard cases.
 """
 from __future__ import annotations
 

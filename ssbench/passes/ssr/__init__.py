@@ -4,7 +4,7 @@
 Each method module ends with its :class:`~ssbench.passes.registry.Method` declaration; ``ssbench.passes``
 re-exports every declared method's function, parameters and ``nn.Module`` (``from ssbench.passes import ssr_dda,
 DDASSR, DDASSRParams``), found by :func:`~ssbench.passes.registry.discover`. Helper modules (``common``, ``fade``,
-``resolve``, ``visits``, ``dda_refine``) declare nothing.
+``resolve``, ``visits``, ``dda_march``) declare nothing.
 """
 from ..registry import discover
 

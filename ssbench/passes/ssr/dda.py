@@ -63,11 +63,10 @@ from ...camera import Camera
 from ...gbuffer import GBuffer
 from ..common import check_count, make_generator
 from ..gbuffer_checks import check_gbuffer, half_in_float32
-from .common import (BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS, SSRResult, clip_ray_length,
-                     reflection_rays)
+from .common import SSRResult, clip_ray_length, reflection_rays
 from .dda_assemble import assemble
-from .dda_refine import count_visits, fetch_cell, refine_hits, ray_view_z
-from .dda_state import DDARays, MarchOutput, march_in_chunks
+from .dda_march import dda_march, ray_view_z
+from .dda_state import DDARays, march_in_chunks
 from .fade import FadeParams
 from ..registry import Method, SpeedPanel
 
@@ -207,53 +206,6 @@ def dda_rays(gbuffer: GBuffer, params: DDASSRParams, jitter: torch.Tensor, sel: 
                 prevZ=ray_view_z(Q0[:, 2] + 0.5 * dQ[:, 2], k0 + 0.5 * dk, zlo, zhi),   # footprint edge of sample 1
                 clipped=o[:, 2] + d[:, 2] * params.max_ray_distance > -cam.near)
     return s, sel, P0, P1
-
-
-def dda_march(s: DDARays, tex, params: DDASSRParams, H: int, W: int, visits: Optional[torch.Tensor]) -> MarchOutput:
-    """The DDA loop; per-ray outputs by ``s.i``. Finished rays freeze (``alive``), dropped when 1/8 of ``s``."""
-    N = s.count
-    out = MarchOutput.empty(N, s.k.dtype, s.k.device, OUT_OF_STEPS)
-    s.alive, dead = torch.ones(N, dtype=torch.bool, device=s.k.device), 0
-    for _ in range(params.max_steps):
-        if s.count == dead:
-            break
-        s.Px, s.Py, s.Qz, s.k = s.Px + s.dPx, s.Py + s.dPy, s.Qz + s.dQz, s.k + s.dk
-        s.n = s.n + 1.0
-        u = s.Px * s.stepDir
-        beyond = s.alive & (u > s.stop)                                          # centre past P1 / the edge
-        f = ((s.stop - u) / s.stride + 0.5).clamp(0.0, 1.0)                      # footprint share before stop
-        partial = beyond & (f > 0)                                               # last, shortened footprint
-        past = beyond & ~partial                                                 # nothing left to test: ended
-        back = torch.where(partial, 0.5 * (1.0 - f), 0.0)                        # centre of [P − ½dP, stop]
-        s.Px, s.Py, s.Qz, s.k = s.Px - s.dPx * back, s.Py - s.dPy * back, s.Qz - s.dQz * back, s.k - s.dk * back
-        s.n = s.n - back
-        half = torch.where(partial, 0.5 * f, 0.5)
-        on, t, sceneZMax, m = fetch_cell(s.permute, s.b, s.Px, s.Py, tex, H, W)
-        off, live = s.alive & ~past & ~on, s.alive & ~past & on                  # live: this sample is fetched
-        rayZMin = s.prevZ
-        rayZMax = ray_view_z(s.dQz * half + s.Qz, s.dk * half + s.k, s.zlo, s.zhi)   # footprint end
-        s.prevZ = rayZMax
-        rayZMin, rayZMax = torch.minimum(rayZMin, rayZMax), torch.maximum(rayZMin, rayZMax)   # swap
-        hit = live & m & (rayZMax >= sceneZMax - params.z_thickness) & (rayZMin <= sceneZMax)
-        count_visits(out, visits, s.i, t, live)
-        hi = hit.nonzero().squeeze(1)
-        if hi.numel():
-            h = s.select(hi)
-            refine_hits(h, tex, params, H, W, out, visits)
-            out.P[h.i] = torch.where(h.permute[:, None], torch.stack([h.Py, h.Px], 1), torch.stack([h.Px, h.Py], 1))
-            out.Q[h.i] = torch.stack([h.Q0x + h.dQx * h.n, h.Q0y + h.dQy * h.n, h.Qz], 1)
-            out.k[h.i] = h.k
-        ended = torch.where(s.clipped, BEHIND_CAMERA, MAX_DISTANCE)                 # past P1
-        term = torch.where(u > s.end, ended, OFF_SCREEN)                            # the full step's centre
-        term = torch.where(off, OFF_SCREEN, torch.where(hit, HIT, term))
-        done = past | off | hit | partial
-        di = done.nonzero().squeeze(1)
-        if di.numel():
-            out.term[s.i[di]] = term[di].to(torch.int8)
-            s.alive, dead = s.alive & ~done, dead + di.numel()
-            if 8 * dead >= s.count:                                                 # compact
-                s, dead = s.select(s.alive.nonzero().squeeze(1)), 0
-    return out
 
 
 @half_in_float32

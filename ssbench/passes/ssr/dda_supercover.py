@@ -39,8 +39,8 @@ from ...gbuffer import GBuffer
 from ..common import check_count
 from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS, SSRResult
 from ..gbuffer_checks import half_in_float32
-from .dda import (DEFAULTS_SOURCE, EQUAL_SETTINGS, REQUIRES, DDASSRParams, check_inputs, count_visits,
-                  dda_rays, ray_pixels, ray_view_z)
+from .dda import DEFAULTS_SOURCE, EQUAL_SETTINGS, REQUIRES, DDASSRParams, check_inputs, dda_rays, ray_pixels
+from .dda_march import count_visits, ray_view_z
 from .dda_assemble import assemble
 from .dda_state import DDARays, MarchOutput, march_in_chunks
 from .fade import FadeParams

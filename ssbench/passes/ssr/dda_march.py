@@ -1,14 +1,15 @@
-"""Texel access and hit refinement of the DDA (:mod:`.dda`, SSR article §2.2): ``texelFetch`` in the permuted
-frame, the perspective-correct z ``Q.z / k``, fetch counting for the visit maps, and the two refinements of a
-strided hit (the article's binary search, G3D's 1-pixel re-march). Split out of :mod:`.dda` for length;
-the supercover DDA (:mod:`.dda_supercover`) shares ``ray_view_z`` and ``count_visits``.
+"""The DDA's march (:mod:`.dda`, SSR article §2.2) on its per-ray state (:mod:`.dda_state`): the step loop
+(:func:`dda_march`), ``texelFetch`` in the permuted frame, the perspective-correct z ``Q.z / k``, fetch counting
+for the visit maps, and the two refinements of a strided hit (the article's binary search, G3D's 1-pixel
+re-march). The supercover DDA (:mod:`.dda_supercover`) shares ``ray_view_z`` and ``count_visits``.
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Optional
 
 import torch
 
+from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS
 from .dda_state import DDARays, MarchOutput
 
 if TYPE_CHECKING:                                        # (ssr_dda imports this module)
@@ -79,3 +80,50 @@ def refine_hits(h: DDARays, tex, params: "DDASSRParams", H: int, W: int, out: Ma
         count_visits(out, visits, h.i, t, active)
     for key in keys:
         setattr(h, key, best[key])
+
+
+def dda_march(s: DDARays, tex, params: "DDASSRParams", H: int, W: int, visits: Optional[torch.Tensor]) -> MarchOutput:
+    """The DDA loop; per-ray outputs by ``s.i``. Finished rays freeze (``alive``), dropped when 1/8 of ``s``."""
+    N = s.count
+    out = MarchOutput.empty(N, s.k.dtype, s.k.device, OUT_OF_STEPS)
+    s.alive, dead = torch.ones(N, dtype=torch.bool, device=s.k.device), 0
+    for _ in range(params.max_steps):
+        if s.count == dead:
+            break
+        s.Px, s.Py, s.Qz, s.k = s.Px + s.dPx, s.Py + s.dPy, s.Qz + s.dQz, s.k + s.dk
+        s.n = s.n + 1.0
+        u = s.Px * s.stepDir
+        beyond = s.alive & (u > s.stop)                                          # centre past P1 / the edge
+        f = ((s.stop - u) / s.stride + 0.5).clamp(0.0, 1.0)                      # footprint share before stop
+        partial = beyond & (f > 0)                                               # last, shortened footprint
+        past = beyond & ~partial                                                 # nothing left to test: ended
+        back = torch.where(partial, 0.5 * (1.0 - f), 0.0)                        # centre of [P − ½dP, stop]
+        s.Px, s.Py, s.Qz, s.k = s.Px - s.dPx * back, s.Py - s.dPy * back, s.Qz - s.dQz * back, s.k - s.dk * back
+        s.n = s.n - back
+        half = torch.where(partial, 0.5 * f, 0.5)
+        on, t, sceneZMax, m = fetch_cell(s.permute, s.b, s.Px, s.Py, tex, H, W)
+        off, live = s.alive & ~past & ~on, s.alive & ~past & on                  # live: this sample is fetched
+        rayZMin = s.prevZ
+        rayZMax = ray_view_z(s.dQz * half + s.Qz, s.dk * half + s.k, s.zlo, s.zhi)   # footprint end
+        s.prevZ = rayZMax
+        rayZMin, rayZMax = torch.minimum(rayZMin, rayZMax), torch.maximum(rayZMin, rayZMax)   # swap
+        hit = live & m & (rayZMax >= sceneZMax - params.z_thickness) & (rayZMin <= sceneZMax)
+        count_visits(out, visits, s.i, t, live)
+        hi = hit.nonzero().squeeze(1)
+        if hi.numel():
+            h = s.select(hi)
+            refine_hits(h, tex, params, H, W, out, visits)
+            out.P[h.i] = torch.where(h.permute[:, None], torch.stack([h.Py, h.Px], 1), torch.stack([h.Px, h.Py], 1))
+            out.Q[h.i] = torch.stack([h.Q0x + h.dQx * h.n, h.Q0y + h.dQy * h.n, h.Qz], 1)
+            out.k[h.i] = h.k
+        ended = torch.where(s.clipped, BEHIND_CAMERA, MAX_DISTANCE)                 # past P1
+        term = torch.where(u > s.end, ended, OFF_SCREEN)                            # the full step's centre
+        term = torch.where(off, OFF_SCREEN, torch.where(hit, HIT, term))
+        done = past | off | hit | partial
+        di = done.nonzero().squeeze(1)
+        if di.numel():
+            out.term[s.i[di]] = term[di].to(torch.int8)
+            s.alive, dead = s.alive & ~done, dead + di.numel()
+            if 8 * dead >= s.count:                                                 # compact
+                s, dead = s.select(s.alive.nonzero().squeeze(1)), 0
+    return out

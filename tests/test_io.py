@@ -122,10 +122,18 @@ def test_write_rgb_png_round_trips_and_rejects_other_arrays(tmp_path):
     assert write_rgb_png(path, rgb) == path
     back = (mimage.imread(path)[..., :3] * 255 + 0.5).astype(np.uint8)
     assert np.array_equal(back, rgb)                                  # lossless, whatever the zlib level
+    few = rgb // 64 * 64                                              # 64 colours: stored as a palette
+    for name, img, mode in (("few.png", few, "P"), ("grey.png", np.repeat(rgb[..., :1], 3, -1), "P"),
+                            ("one.png", np.zeros_like(rgb), "P"), ("x.png", rgb, "P"),
+                            ("many.png", np.random.default_rng(1).integers(0, 256, (20, 20, 3), dtype=np.uint8), "RGB")):
+        write_rgb_png(str(tmp_path / name), img)
+        from PIL import Image
+        with Image.open(tmp_path / name) as im:
+            assert im.mode == mode and np.array_equal(np.asarray(im.convert("RGB")), img), name
     for bad in (rgb.astype(np.float32), rgb[..., :2], rgb[..., 0]):
         with pytest.raises(ValueError, match="^rgb:"):
             write_rgb_png(str(tmp_path / "bad.png"), bad)
-    assert sorted(os.listdir(tmp_path)) == ["x.png"]                  # nothing half-written
+    assert sorted(os.listdir(tmp_path)) == ["few.png", "grey.png", "many.png", "one.png", "x.png"]   # no leftovers
 
 
 def _swapper(root: str, tag: str, n: int) -> None:

@@ -215,7 +215,8 @@ def write_rgb_png(path, rgb: np.ndarray) -> str:
 
     An image of at most 256 distinct colours (grey maps, false colour through a 256-entry colour map, class maps)
     is stored as an exact palette PNG (one byte per pixel: the report's maps shrink ~2-3x, decoding gives the
-    same RGB); others as RGB. zlib level 1: 2-3x faster than the default 6, for files ~10-50 % larger.
+    same RGB); others as RGB. zlib level 6 (the default): on the 640×360 report's 277 images 1.2 s in all and
+    14.7 MB, against 0.6 s and 15.4 MB at level 1 (and 3.7 s, 14.5 MB at 9).
     """
     from PIL import Image
     rgb = np.ascontiguousarray(rgb)
@@ -229,7 +230,7 @@ def write_rgb_png(path, rgb: np.ndarray) -> str:
                        .tolist())
     else:
         img = Image.fromarray(rgb)
-    return write_atomic(path, ".png", lambda tmp: img.save(tmp, format="png", compress_level=1))
+    return write_atomic(path, ".png", lambda tmp: img.save(tmp, format="png", compress_level=6))
 
 
 def save_figure(fig, path, dpi: int = 100) -> str:

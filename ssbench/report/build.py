@@ -115,7 +115,7 @@ def _implicit_section(run_dir, scenes, width, height, enabled, seed, use_cache) 
     """The implicit section's metadata (see :mod:`.implicit_section`); a note instead whenever it cannot run.
 
     ``enabled=None`` runs it for a full report only (``scenes`` None): a mesh-scene subset names no implicit
-    scene. Its size is at most 96×72 (the report's, when smaller)."""
+    scene. Its size is at most 160×120 (the report's, when smaller)."""
     return _optional_section("implicit", "Implicit surfaces", enabled, scenes, lambda m: m.build_implicit_section(
         run_dir, min(width, 96), min(height, 72), seed=seed, use_cache=use_cache))
 
@@ -150,8 +150,8 @@ def _tuning_section(run_dir, scenes, width, height, enabled, seed, use_cache, pr
         run_dir, width=width, height=height, seed=seed, use_cache=use_cache, progress=progress))
 
 
-def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = None, width: int = 320,
-                 height: int = 240, spp: int = 64, seed: int = 0, *, use_cache: bool = True,
+def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = None, width: int = 640,
+                 height: int = 360, spp: int = 64, seed: int = 0, *, use_cache: bool = True,
                  progress: Optional[bool] = None, ao: bool = True, ao_radius: float = 0.5,
                  ao_rays: int = 128, ssr: bool = True, ssr_spp: int = 16, implicit: Optional[bool] = None,
                  speed: Optional[bool] = None, tuning: Optional[bool] = None, calibration: Optional[bool] = None,

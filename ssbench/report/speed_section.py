@@ -35,7 +35,7 @@ from .speed_sweeps import as_sweeps, run_sweeps, write_rows, load_embedded
 __all__ = ["build_speed_section", "summary_md", "figures", "default_sweeps", "SPECS", "SIZE", "EFFECT_TITLES"]
 
 #: the sweeps' largest image size (the report's, when smaller)
-SIZE = (96, 72)
+SIZE = (160, 120)
 SWEEP_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "sweeps")
 EFFECT_TITLES = {"ao": "Ambient occlusion", "ssr": "Screen-space reflections", "implicit": "Implicit surfaces"}
 _SSR_WRONG = ("frac_missed", "frac_false_hit", "frac_misplaced_hit", "frac_punch_through", "frac_unfixable_hit")

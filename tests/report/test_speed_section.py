@@ -129,7 +129,7 @@ def test_section_writes_raw_rows_images_and_tables(section):
     for src in srcs:
         assert src.startswith("img/speed/") and (run_dir / src).is_file(), src
     assert [g["method"] for g in out["glance"]] == ["ssao", "gtao", "dda", "fixed", "progressive"]   # registry keys
-    assert all(" at 96×72, best configuration: " in g["headline"] and float(g["seconds"]) > 0 for g in out["glance"])
+    assert all(" at 160×120, best configuration: " in g["headline"] and float(g["seconds"]) > 0 for g in out["glance"])
     worded = [g["headline"] for g in out["glance"] if " · as good as " in g["headline"]]
     assert worded and all(any(w in h for w in ("rays/px", "spp", "steps")) for h in worded), worded
     md = S.summary_md(out)

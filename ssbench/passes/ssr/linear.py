@@ -41,11 +41,11 @@ import torch
 from torch import nn
 
 from ...gbuffer import GBuffer
-from ..common import make_generator
 from ..gbuffer_checks import check_gbuffer, half_in_float32
-from .common import HIT, NO_RAY, SSRResult, clip_ray_length, reflection_rays
+from .common import HIT, NO_RAY, SSRResult
 from .fade import FadeParams, check_positive
-from .linear_march import DepthTest, MarchLog, march, refine
+from .linear_march import MarchLog, march, refine
+from .linear_rays import flat, linear_rays
 from ..registry import Method, SpeedPanel
 
 REQUIRES = ("view_z", "normal", "mask", "color")
@@ -112,23 +112,12 @@ def required_channels(params: LinearSSRParams) -> tuple[str, ...]:
     return req + (("position",) if params.position_from == "position" else ())
 
 
-def jitter_noise(params: LinearSSRParams, generator: Optional[torch.Generator], shape) -> Optional[torch.Tensor]:
-    """:math:`(B, 1, H, W)` float64 ``ξ ~ U[0, 1)`` (one ``torch.rand``; the teaching twin draws it too), or None."""
-    if params.jitter == 0:
-        return None
-    return torch.rand(shape, generator=make_generator(params.seed, generator), dtype=torch.float64)
-
-
 def check_inputs(gbuffer: GBuffer, params: LinearSSRParams) -> None:
     """Type checks of ``params`` and the shared G-buffer contract (:func:`~ssbench.passes.gbuffer_checks.check_gbuffer`)."""
     if not isinstance(params, LinearSSRParams):
         raise TypeError(f"params: expected LinearSSRParams, got {type(params).__name__}")
     check_gbuffer(gbuffer, required_channels(params), finite=("color", "back_z", "position"),
                   meta_ok=False)
-
-
-def _flat(t: torch.Tensor) -> torch.Tensor:                                      # (B, C, H, W) -> (B·H·W, C)
-    return t.permute(0, 2, 3, 1).reshape(-1, t.shape[1])
 
 
 @half_in_float32
@@ -168,42 +157,13 @@ def ssr_linear(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(), *,
         (torch.Size([1, 3, 6, 8]), False)
     """
     check_inputs(gbuffer, params)
-    cam, view_z, mask = gbuffer.camera, gbuffer.view_z, gbuffer.mask
+    cam, view_z = gbuffer.camera, gbuffer.view_z
     B, _, H, W = view_z.shape
     dtype, dev, HW = view_z.dtype, view_z.device, H * W
-    T, N_it = float(params.thickness), params.iterations
+    N_it = params.iterations
 
-    # ---- rayOrg, sceneZ texture and the reflection vector (§1.1) ----
-    uv0 = cam.uv_grid(dtype, dev).unsqueeze(0).expand(B, -1, -1, -1)              # (B, 2, H, W) vUv
-    if params.position_from == "depth":
-        depth = cam.view_z_to_depth(view_z)                                       # DepthSampler
-        rayOrg, sceneZ = cam.view_position_from_depth(uv0, depth), cam.depth_to_view_z(depth)
-    elif params.position_from == "view_z":
-        rayOrg, sceneZ = cam.uv_to_view(uv0, view_z), view_z
-    else:
-        rayOrg, sceneZ = gbuffer.position, view_z
-    rayDir = reflection_rays(rayOrg, gbuffer.normal)                              # (B, 3, H, W)
-    back = torch.where(mask, gbuffer.back_z, view_z) if params.use_back_face_depth else None
-
-    # ---- near-plane clip, equal steps, jitter (§1.2) ----
-    rayLength = clip_ray_length(rayOrg[:, 2:3], rayDir[:, 2:3], params.max_ray_distance, cam.near)
-    rayEnd = rayOrg + rayDir * rayLength
-    deltaStep = (rayEnd - rayOrg) / N_it
-    xi = jitter_noise(params, generator, (B, 1, H, W))
-    Q = rayOrg if xi is None else rayOrg - deltaStep * (params.jitter * xi.to(dtype=dtype, device=dev))
-
-    # ---- flatten the marched rays: per-ray state tensors of length n ----
-    # a pixel starts a ray where it holds geometry whose origin and direction are finite numbers (the origin
-    # read back from a depth buffer whose precision is exhausted, e.g. near/far = 1e-30/1e30, is ±inf)
-    # (and, as in the DDA marchers, not from geometry nearer than the near plane: no depth buffer holds it)
-    ok = mask & (view_z <= -cam.near) & torch.isfinite(rayOrg).all(1, keepdim=True) \
-        & torch.isfinite(deltaStep).all(1, keepdim=True)
-    ray = ok.reshape(-1).nonzero().squeeze(1)                                     # (n,) flat pixel ids
-    O, dS, Q = _flat(rayOrg)[ray], _flat(deltaStep)[ray], _flat(Q)[ray]           # (n, 3)
-    clipped = (rayLength < params.max_ray_distance).reshape(-1)[ray]
-    base = (ray // HW) * HW                                                       # batch offset of each ray
-    test = DepthTest(cam, H, W, sceneZ.reshape(-1), back.reshape(-1) if back is not None else None,
-                     mask.reshape(-1), T)
+    rays = linear_rays(gbuffer, params, generator)
+    ray, O, dS, Q, base, test = rays.ray, rays.origin, rays.delta, rays.start, rays.base, rays.test
     counting = debug or trace_pixel is not None                                   # visits: a debug buffer only
     log = MarchLog(counting, torch.zeros(B * HW if counting else 0, dtype=torch.int64, device=dev))
     if trace_pixel is not None:
@@ -212,7 +172,7 @@ def ssr_linear(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(), *,
         log.trace = {b: [] for b in log.trace_ids}                                # b -> [(Q, hit, refine)]
 
     # ---- the march (§1.2), then the binary search refinement (§1.3) of the hits ----
-    out = march(test, log, Q, dS, base, clipped, N_it, params.max_iterations)
+    out = march(test, log, Q, dS, base, rays.clipped, N_it, params.max_iterations)
     term, steps = out.term, out.steps
     h = (term == HIT).nonzero().squeeze(1)
     best, n_bs = out.hit_q[h], min(params.binary_search_iterations, MAX_BINARY_SEARCH_ITERATIONS)
@@ -223,8 +183,8 @@ def ssr_linear(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(), *,
     # ---- colour at the hit texel and fades (§1.4, §1.5) ----
     uv, t = test.project(best, base[h])
     hit_pixel = cam.uv_to_pixel(uv, dim=-1)                                       # (m, 2)
-    raw = _flat(gbuffer.color)[t]                                                 # (m, 3)
-    centre = _flat(cam.pixel_centers(dtype, dev)[None])[ray[h] % HW]              # vUv of each ray's pixel
+    raw = flat(gbuffer.color)[t]                                                 # (m, 3)
+    centre = flat(cam.pixel_centers(dtype, dev)[None])[ray[h] % HW]              # vUv of each ray's pixel
     fade = params.fade(hit_pixel, centre, W, H, (O[h] - best).norm(dim=1, keepdim=True))
 
     def scatter(values, rows, fill, C, dt):       # per-ray values -> (B, C, H, W)
@@ -236,7 +196,8 @@ def ssr_linear(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(), *,
     termination = scatter(term, ray, NO_RAY, 1, torch.int8)
     dbg = {}
     if debug or trace_pixel is not None:
-        dbg = {"visits": log.visits.to(torch.int32).reshape(B, 1, H, W), "ray_length": rayLength, "jitter": xi}
+        dbg = {"visits": log.visits.to(torch.int32).reshape(B, 1, H, W), "ray_length": rays.ray_length,
+               "jitter": rays.jitter}
     if trace_pixel is not None:
         dbg["trace"] = {b: {"view": torch.stack([s[0] for s in v]), "hit": torch.tensor([s[1] for s in v]),
                             "refine": torch.tensor([s[2] for s in v])} for b, v in log.trace.items() if v}

@@ -18,7 +18,8 @@ import torch
 
 from ...gbuffer import GBuffer
 from ..ssr.common import BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult
-from ..ssr.linear import MAX_BINARY_SEARCH_ITERATIONS, LinearSSRParams, check_inputs, jitter_noise
+from ..ssr.linear import MAX_BINARY_SEARCH_ITERATIONS, LinearSSRParams, check_inputs
+from ..ssr.linear_rays import jitter_noise
 
 
 def ssr_linear_basic(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(),

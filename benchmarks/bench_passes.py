@@ -126,16 +126,21 @@ def one(effect: str, method: str, path: str, compiled: bool, min_run_time: float
 
 
 def _anchor_ratio(effect: str, method: str, g, call, threads: int, rounds: int) -> float:
-    """Pass time / the Dr.Jit anchor's (``ssbench.bench.anchors``; hemisphere SSAO only), median of per-round
-    ratios of alternating blocks; ``nan`` for other passes or without an LLVM backend."""
+    """Pass time / the Dr.Jit anchor's (``ssbench.bench.anchors``: hemisphere SSAO and the linear SSR march at
+    their bench parameters), median of per-round ratios of alternating blocks; ``nan`` for other passes or
+    without an LLVM backend."""
     import statistics
 
-    from ssbench.bench.anchors import ssao_anchor
+    from ssbench.bench.anchors import linear_ssr_anchor, ssao_anchor
     from ssbench.bench.timing import timeit_calls
-    if (effect, method) != ("ao", "ssao"):
+    if (effect, method) == ("ao", "ssao"):
+        from ssbench.passes.ao.ssao import HemisphereSSAOParams
+        anchor = ssao_anchor(g, HemisphereSSAOParams(kernel_radius=0.5))
+    elif (effect, method) == ("ssr", "linear"):
+        from ssbench.passes.ssr.linear import LinearSSRParams
+        anchor = linear_ssr_anchor(g, LinearSSRParams())
+    else:
         return float("nan")
-    from ssbench.passes.ao.ssao import HemisphereSSAOParams
-    anchor = ssao_anchor(g, HemisphereSSAOParams(kernel_radius=0.5))
     if anchor is None:
         return float("nan")
     ratios = [timeit_calls(call, 3) / timeit_calls(anchor, 3) for _ in range(max(3, rounds))]

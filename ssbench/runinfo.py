@@ -50,3 +50,24 @@ def git_state(repo: str = _REPO) -> dict:
         return {"commit": "unknown", "dirty": None}
     status = git("status", "--porcelain", "--untracked-files=no")
     return {"commit": sha.strip(), "dirty": None if status is None else bool(status.strip())}
+
+
+def timing_threads(requested: Optional[int] = None) -> int:
+    """Torch threads for timing a pass: ``requested``, else 1 on a machine of at most two cores (there a second
+    thread shares a core with the OS and the Dr.Jit pool, and measured 7–11× slower under load), else torch's
+    current count.
+
+    Example:
+        >>> timing_threads(3)
+        3
+        >>> timing_threads() >= 1
+        True
+    """
+    if requested is not None:
+        if isinstance(requested, bool) or not isinstance(requested, int) or requested < 1:
+            raise ValueError(f"threads: expected a positive integer, got {requested!r}")
+        return requested
+    if (os.cpu_count() or 1) <= 2:
+        return 1
+    import torch
+    return torch.get_num_threads()

@@ -241,6 +241,22 @@ def test_ao_json(stub_ao, capsys):
     assert row["params"]["radius"] == 2.0 and row["radius_param"] == "radius" and row["weighting"] == "cosine"
 
 
+def test_timed_commands_run_on_the_threads_asked_for_and_restore_them(stub_ao, capsys, monkeypatch):
+    import torch
+    before = torch.get_num_threads()
+    assert main(["--threads", "3", "ao", "crease", "--method", "stub", "--repeats", "1", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["threads"] == 3 and torch.get_num_threads() == before
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)                    # a 2-core machine: 1 thread by default
+    torch.set_num_threads(2)
+    try:
+        assert main(["ao", "crease", "--method", "stub", "--repeats", "1", "--json"]) == 0
+        assert json.loads(capsys.readouterr().out)["threads"] == 1 and torch.get_num_threads() == 2
+    finally:
+        torch.set_num_threads(before)
+    assert main(["--threads", "0", "ao", "crease", "--method", "stub"]) == 2
+    assert "ssbench: error: argument --threads" in capsys.readouterr().err
+
+
 def test_ao_blur(stub_ao, capsys):
     assert main(["ao", "crease", "--method", "stub", "--repeats", "1", "--blur", "cross_bilateral"]) == 0
     out = capsys.readouterr().out

@@ -28,6 +28,9 @@ def _parser() -> Parser:
                    help="run the AO passes' band kernels through torch.compile (sets SSBENCH_COMPILE=1 for this "
                         "command and its subprocesses; compile time is kept out of the timings and reported as "
                         "compile_s)")
+    p.add_argument("--threads", type=positive("threads"), default=None,
+                   help="torch threads of the ao, ssr and implicit commands, whose rows carry their times "
+                        "(default: 1 on a machine of at most 2 cores, else torch's own count)")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
     sub.required = True
     q = sub.add_parser("info", help="versions, threads and the chosen Mitsuba variant / libLLVM")
@@ -176,17 +179,36 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         warnings.formatwarning = previous
 
 
+#: commands whose rows carry the pass's own time: they run on ``--threads`` torch threads
+_TIMED = ("ao", "ssr", "implicit")
+
+
+def _timed(args) -> int:
+    """Run the command; a timed one on ``--threads`` (:func:`ssbench.runinfo.timing_threads`), restored after."""
+    if args.command not in _TIMED:
+        return _COMMANDS[args.command](args)
+    import torch
+
+    from ..runinfo import timing_threads
+    before = torch.get_num_threads()
+    torch.set_num_threads(timing_threads(args.threads))
+    try:
+        return _COMMANDS[args.command](args)
+    finally:
+        torch.set_num_threads(before)
+
+
 def _dispatch(argv: Optional[Sequence[str]]) -> int:
     args = None
     try:
         args = _parser().parse_args(argv)
         if not args.compile:
-            return _COMMANDS[args.command](args)
+            return _timed(args)
         from ..passes.compiled import ENV
         before = os.environ.get(ENV)
         os.environ[ENV] = "1"                                # inherited by sweep and timing subprocesses
         try:
-            return _COMMANDS[args.command](args)
+            return _timed(args)
         finally:
             if before is None:
                 os.environ.pop(ENV, None)

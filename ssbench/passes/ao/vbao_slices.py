@@ -1,0 +1,133 @@
+"""Visibility-bitmask AO on a band of image rows: per slice, the projected normal (as GTAO), then every sample's
+occluded arc between its front face and its back face (the front pushed ``thickness`` away from the camera)
+marked in a bitfield of sectors, and the slice's visibility from the bits left clear (Therrien, Levesque and
+Gilet 2023, "Screen Space Indirect Lighting with Visibility Bitmask", §3, and the authors' HLSL notes).
+:func:`ssbench.passes.ao.vbao.vbao` runs it band by band.
+"""
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import torch
+
+from ..common import fetch
+from .gtao_parts import cross3, dot3, unit3
+
+if TYPE_CHECKING:
+    from .vbao import VBAOParams
+
+__all__ = ["vbao_rows", "popcount", "sector_bits", "cosine_arc", "R1"]
+
+R1 = 0.6180339887498948482     #: golden-ratio step noise (as GTAO)
+
+
+def popcount(x: torch.Tensor) -> torch.Tensor:
+    """Set bits of each int64 ``x`` below bit 32 (SWAR, no lookup).
+
+    Example:
+        >>> popcount(torch.tensor([0, 1, 0b1011, 2 ** 32 - 1])).tolist()
+        [0, 1, 3, 32]
+    """
+    x = x - ((x >> 1) & 0x55555555)
+    x = (x & 0x33333333) + ((x >> 2) & 0x33333333)
+    x = (x + (x >> 4)) & 0x0F0F0F0F
+    return ((x * 0x01010101) & 0xFFFFFFFF) >> 24
+
+
+def sector_bits(lo: torch.Tensor, hi: torch.Tensor, sectors: int) -> torch.Tensor:
+    """``UpdateSectors``: the bits of the sectors an arc ``[lo, hi] ⊂ [0, 1]`` of the slice touches — from
+    ``floor(lo·N)``, ``ceil((hi − lo)·N)`` of them (a sample needs only touch a sector to occlude it), within
+    the ``N`` sectors.
+
+    Example:
+        >>> bin(int(sector_bits(torch.tensor(0.25), torch.tensor(0.5), 8)))
+        '0b1100'
+    """
+    start = torch.floor(lo * sectors).long().clamp(0, sectors)
+    count = torch.ceil((hi - lo) * sectors).long().clamp(0, sectors)
+    return (((1 << count) - 1) << start) & ((1 << sectors) - 1)
+
+
+def cosine_arc(theta: torch.Tensor, n: torch.Tensor) -> torch.Tensor:
+    """``F(θ) = ∫₀^θ cos(t − n)·|sin t| dt``: GTAO's slice integral as a function of one bound, so a sector
+    ``[θa, θb]`` carries ``F(θb) − F(θa)`` of the cosine-weighted slice (``a(h)`` of
+    :func:`~ssbench.passes.ao.gtao_parts.slice_visibility`, signed by the side of the view vector)."""
+    return torch.sign(theta) * (torch.cos(n) + 2.0 * theta * torch.sin(n) - torch.cos(2.0 * theta - n)) / 4.0
+
+
+def vbao_rows(cam, z: torch.Tensor, row: torch.Tensor, normal: torch.Tensor, mask: torch.Tensor,
+              noise: torch.Tensor, params: "VBAOParams", debug: bool) -> tuple:
+    """``(vis, debug)`` of a band of rows: ``vis`` :math:`(B, 1, h, W)` the slice mean of the visibility; with
+    ``debug`` the per-slice ``(bits, slice visibility)`` :math:`(B, S, h, W)`.
+
+    ``z`` :math:`(B, 1, H, W)` is the sanitised depth texture of the whole image; ``row`` :math:`(h,)` the
+    band's rows; ``normal``, ``mask``, ``noise`` the band's :math:`(B, ·, h, W)` slices."""
+    # ---- the pixel: position, view vector V, screen radius (3-vectors are (x, y, z) tuples of (B, 1, h, W)) ----
+    B, _, H, W = z.shape
+    dtype, dev, S, K, NS = z.dtype, z.device, params.slices, params.steps, params.sector_count
+    row = row.view(1, 1, -1, 1)
+    zc = torch.index_select(z, 2, row.view(-1).long())
+    col = torch.arange(W, dtype=dtype, device=dev).view(1, 1, 1, W)
+    ray_x = lambda c: (2.0 * (c + 0.5) / W - 1.0) * cam.aspect / cam.focal          # view x at z = -1
+    ray_y = lambda r: (1.0 - 2.0 * (r + 0.5) / H) / cam.focal
+    P = (ray_x(col) * -zc, ray_y(row) * -zc, zc)
+    v = unit3(tuple(-c for c in P))                                                  # V: toward the camera
+    N = tuple(torch.where(mask, normal[:, i:i + 1], v[i]) for i in range(3))
+    r_px = params.radius * cam.focal * H / (2.0 * -zc)                               # radius in pixels
+    min_s = params.min_offset_pixels / r_px
+    tiny = torch.finfo(dtype).tiny
+    j = torch.arange(K, dtype=dtype, device=dev).view(1, K, 1, 1)
+    side = torch.cat([torch.ones(K, dtype=dtype, device=dev), -torch.ones(K, dtype=dtype, device=dev)]).view(1, -1, 1, 1)
+    vis = torch.zeros_like(zc)
+    dbg_bits, dbg_vis = [], []
+
+    for k in range(S):
+        # ---- the slice: direction, projected normal and its angle n from V (as GTAO) ----
+        phi = (k + noise[:, :1]) / S * math.pi
+        cos_phi, sin_phi = torch.cos(phi), torch.sin(phi)
+        dv = cos_phi * v[0] + sin_phi * v[1]
+        o = (cos_phi - dv * v[0], sin_phi - dv * v[1], -dv * v[2])                  # the slice tangent
+        axis = unit3(cross3(o, v))
+        na = dot3(N, axis)
+        proj_n = tuple(N[i] - axis[i] * na for i in range(3))
+        proj_len = dot3(proj_n, proj_n).sqrt()
+        cos_n = (dot3(proj_n, v) / proj_len.clamp_min(tiny)).clamp(0.0, 1.0)
+        n = torch.sign(dot3(o, proj_n)) * torch.acos(cos_n)
+        # ---- the samples: K per side at pixel-centre-rounded offsets (off screen: ignored) ----
+        step_noise = torch.frac(noise[:, 1:] + (k + j * K) * R1)
+        s = ((j + step_noise) / K) ** params.sample_distribution_power + min_s
+        off_x, off_y = torch.round(s * cos_phi * r_px), torch.round(-s * sin_phi * r_px)  # screen y down
+        cx, cy = col + torch.cat([off_x, -off_x], 1), row + torch.cat([off_y, -off_y], 1)  # (B, 2K, h, W)
+        on = (cx >= 0) & (cx < W) & (cy >= 0) & (cy < H)
+        cx, cy = torch.where(on, cx, col), torch.where(on, cy, row)
+        zs = fetch(z, cx.clamp(0, W - 1).long(), cy.clamp(0, H - 1).long())[:, 0]
+        front = (ray_x(cx) * -zs - P[0], ray_y(cy) * -zs - P[1], zs - P[2])           # frontDir
+        back = tuple(front[i] - v[i] * params.thickness for i in range(3))          # backDir: `thickness` behind
+        dist = dot3(front, front).sqrt()
+        t_front = side * torch.acos((dot3(front, v) / dist.clamp_min(tiny)).clamp(-1.0, 1.0))
+        t_back = side * torch.acos((dot3(back, v) / dot3(back, back).sqrt().clamp_min(tiny)).clamp(-1.0, 1.0))
+        # ---- angles → positions in the normal-centred half circle [0, 1], then the sectors they cover ----
+        x_front = ((t_front - n + math.pi / 2) / math.pi).clamp(0.0, 1.0)
+        x_back = ((t_back - n + math.pi / 2) / math.pi).clamp(0.0, 1.0)
+        bits = sector_bits(torch.minimum(x_front, x_back), torch.maximum(x_front, x_back), NS)
+        bits = torch.where(on & (dist > tiny), bits, torch.zeros_like(bits))
+        occluded = bits[:, :1]
+        for i in range(1, 2 * K):
+            occluded = occluded | bits[:, i:i + 1]
+        # ---- the slice's visibility from the clear sectors ----
+        if params.weighting == "uniform":                                           # the paper: 1 − count/N
+            local = 1.0 - popcount(occluded).to(dtype) / NS
+        else:                                                                       # each sector's cosine share
+            local = torch.zeros_like(vis)
+            lo_arc = cosine_arc(n - math.pi / 2, n)
+            for i in range(NS):
+                hi_arc = cosine_arc(n - math.pi / 2 + math.pi * (i + 1) / NS, n)
+                local = local + torch.where((occluded >> i) & 1 == 1, 0.0, hi_arc - lo_arc)
+                lo_arc = hi_arc
+            local = proj_len * local
+        vis = vis + local
+        if debug:
+            dbg_bits.append(occluded)
+            dbg_vis.append(local)
+    return vis / S, ((torch.cat(dbg_bits, 1), torch.cat(dbg_vis, 1)) if debug else None)

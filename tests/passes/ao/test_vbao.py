@@ -1,0 +1,86 @@
+"""Visibility-bitmask AO: the sector bits, the cosine sector shares against GTAO's slice integral, thickness as the
+only knob that hides the sky (monotone; infinite thickness is a horizon), the teaching twin equal to the pass,
+and the flat-surface bias of the paper's ``ceil`` (measured, pinned)."""
+import math
+
+import pytest
+import torch
+
+from ssbench.passes.ao.gtao_parts import slice_visibility
+from ssbench.passes.ao.vbao import VBAO, VBAOParams, vbao
+from ssbench.passes.ao.vbao_slices import cosine_arc, popcount, sector_bits
+
+from .test_gtao import crease, open_plane, quad_with_background
+
+
+def test_sector_bits_touch_every_sector_an_arc_reaches():
+    lo, hi = torch.tensor([0.0, 0.15, 0.0, 0.5, 0.99]), torch.tensor([0.0, 0.30, 1.0, 0.5, 1.0])
+    got = sector_bits(lo, hi, 10).tolist()
+    assert got == [0, 0b110, 2 ** 10 - 1, 0, 0b1000000000]       # [0.15, 0.3]: ceil(1.5) = 2 sectors from 1
+    assert popcount(torch.tensor(got)).tolist() == [0, 2, 10, 0, 1]
+    assert int(sector_bits(torch.tensor(0.0), torch.tensor(1.0), 32)) == 2 ** 32 - 1
+
+
+def test_cosine_sector_shares_add_up_to_gtaos_slice_integral():
+    n = torch.linspace(-1.4, 1.4, 15, dtype=torch.float64)
+    for sectors in (1, 7, 32):
+        edges = [cosine_arc(n - math.pi / 2 + math.pi * i / sectors, n) for i in range(sectors + 1)]
+        shares = torch.stack([b - a for a, b in zip(edges, edges[1:])])
+        assert bool((shares >= -1e-15).all())                                      # every sector a share >= 0
+        whole = slice_visibility(n - math.pi / 2, n + math.pi / 2, n)
+        assert torch.allclose(shares.sum(0), whole, atol=1e-14)
+
+
+def test_a_wall_facing_the_camera_is_unoccluded_and_background_is_one():
+    g = quad_with_background()
+    r = vbao(g, VBAOParams(radius=1.0))
+    assert bool((r.ao[~g.mask] == 1).all()) and bool(torch.isfinite(r.ao).all())
+
+
+def test_thicker_samples_hide_more_and_infinite_thickness_is_a_horizon():
+    g = crease(w=24, h=18)[0]
+    aos = [vbao(g, VBAOParams(radius=1.0, thickness=t, noise="none")).ao for t in (0.01, 0.1, 1.0, 1e6)]
+    for thin, thick in zip(aos, aos[1:]):
+        assert bool((thick <= thin).all())                                          # pixel by pixel
+    assert float(aos[0][g.mask].mean()) > float(aos[-1][g.mask].mean()) + 0.02     # and it matters on a crease
+    bits = vbao(g, VBAOParams(radius=1.0, thickness=1e6, noise="none"), debug=True).debug["bits"]
+    N = 32                                  # every slice: one run from sector 0 and one into sector N-1, no hole
+    low = popcount((bits ^ (bits + 1)) >> 1)                                      # trailing ones
+    high = popcount(bits) - low
+    run_high = ((1 << high) - 1) << (N - high)
+    assert bool(((((1 << low) - 1) | run_high) == bits).all())
+
+
+def test_teaching_twin_equals_vectorised():
+    from ssbench.passes.teaching.vbao_basic import vbao_basic
+    g = crease(w=16, h=12)[0]
+    for kw in ({}, {"weighting": "cosine"}, {"noise": "hash", "thickness": 0.05},
+               {"slices": 2, "steps": 3, "sector_count": 8, "sample_distribution_power": 2.0}):
+        for gb in (g, quad_with_background()):
+            p = VBAOParams(radius=1.0, **kw)
+            a = vbao(gb, p, generator=torch.Generator().manual_seed(3)).ao
+            b = vbao_basic(gb, p, generator=torch.Generator().manual_seed(3)).ao
+            assert float((a - b).abs().max()) < 1e-12, (kw, float((a - b).abs().max()))
+    assert float(vbao(g, VBAOParams(radius=1.0)).ao[g.mask].min()) < 0.8         # the crease: not trivial
+
+
+def test_the_papers_ceil_darkens_an_open_plane_a_little():
+    """Samples on the pixel's own plane sit at its tangent; float round-off puts some a hair inside the half
+    circle and ``ceil`` then marks a whole sector (the paper's and Blender's rounding). Pinned so a change shows."""
+    g = open_plane()
+    uni = vbao(g, VBAOParams()).ao[g.mask]
+    cos = vbao(g, VBAOParams(weighting="cosine")).ao[g.mask]
+    assert 0.9 < float(uni.mean()) < 0.97 and 0.98 < float(cos.mean()) <= 1.0
+    assert float(uni.min()) >= 1 - 4 / 32                                         # at most a sector per side
+
+
+def test_module_dtype_and_bad_params():
+    g = crease(w=12, h=9, dtype=torch.float32)[0]
+    r = VBAO(thickness=0.1)(g)
+    assert r.ao.dtype == torch.float32 and r.ao.shape == (1, 1, 9, 12)
+    for bad in ({"sector_count": 33}, {"thickness": 0.0}, {"weighting": "obscurance"}, {"slices": 0},
+                {"noise": "perlin"}, {"sample_distribution_power": 0.0}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            VBAOParams(**bad)
+    with pytest.raises(TypeError, match="params"):
+        vbao(g, object())

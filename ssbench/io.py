@@ -239,6 +239,25 @@ def save_figure(fig, path, dpi: int = 100) -> str:
                                                           pil_kwargs={"compress_level": 1}))
 
 
+def shrink_rgb(rgb: np.ndarray, factor: int, nearest: bool = False) -> np.ndarray:
+    """``(H, W, 3)`` uint8 reduced ``factor``× in each axis: the mean of each ``factor``² block (rounded), or its
+    top-left pixel when ``nearest`` (categorical maps: ids, masks); the last partial rows and columns dropped.
+
+    Example:
+        >>> shrink_rgb(np.arange(48, dtype=np.uint8).reshape(4, 4, 3), 2)[0, 0].tolist()
+        [8, 9, 10]
+    """
+    if isinstance(factor, bool) or not isinstance(factor, int) or factor < 1:
+        raise ValueError(f"factor: expected a positive integer, got {factor!r}")
+    if factor == 1:
+        return rgb
+    h, w = rgb.shape[0] // factor * factor, rgb.shape[1] // factor * factor
+    if nearest:
+        return np.ascontiguousarray(rgb[:h:factor, :w:factor])
+    blocks = rgb[:h, :w].reshape(h // factor, factor, w // factor, factor, 3).astype(np.float64)
+    return (blocks.mean(axis=(1, 3)) + 0.5).astype(np.uint8)
+
+
 def preview_png(path, name: str, tensor, mask=None, camera=None, exposure: float = 1.0) -> str:
     """Write the 8-bit PNG preview of channel ``name`` to ``path`` (atomically); returns ``path``."""
     return write_rgb_png(path, preview_rgb(name, tensor, mask=mask, camera=camera, exposure=exposure))

@@ -174,3 +174,16 @@ def test_latest_is_present_in_every_poll_of_two_concurrent_swappers(tmp_path):
     kept = [n for n in os.listdir(root) if n.startswith(".latest@")]
     assert os.readlink(os.path.join(root, "latest")) in kept and len(kept) == 2          # current + previous
     assert sorted(n for n in os.listdir(root) if n not in kept and n != ".latest.lock") == ["latest"]
+
+
+def test_shrink_rgb_averages_blocks_and_keeps_categories():
+    from ssbench.io import shrink_rgb
+    rgb = np.zeros((5, 7, 3), np.uint8)
+    rgb[:2, :2] = 255
+    assert shrink_rgb(rgb, 2).shape == (2, 3, 3) and shrink_rgb(rgb, 2)[0, 0].tolist() == [255] * 3
+    rgb[0, 0] = (10, 20, 30)                                          # a mixed block: mean, or its corner
+    assert shrink_rgb(rgb, 2)[0, 0].tolist() == [194, 196, 199]
+    assert shrink_rgb(rgb, 2, nearest=True)[0, 0].tolist() == [10, 20, 30]
+    assert shrink_rgb(rgb, 1) is rgb
+    with pytest.raises(ValueError, match="factor"):
+        shrink_rgb(rgb, 0)

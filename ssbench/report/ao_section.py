@@ -78,13 +78,14 @@ def highpass_rgb(ao: torch.Tensor, mask: torch.Tensor, vmax: float = 0.1) -> np.
 
 
 def spectrum_rgb(ao: torch.Tensor, mask: torch.Tensor, tile: int = 4) -> np.ndarray:
-    """Centred log power spectrum (magma) behind *tile energy*; tile harmonics ringed in cyan."""
+    """Centred log power spectrum (magma over the top 8 decades, in ¼-decade bands: a diagnostic, and the bands
+    halve its PNG) behind *tile energy*; tile harmonics ringed in cyan."""
     import matplotlib
     from ..metrics import power_spectrum
     power, harm = power_spectrum(ao.float(), mask, tile)
     lp = np.log10(np.fft.fftshift(power.numpy()) + 1e-12)
     top = lp.max()
-    rgb = matplotlib.colormaps["magma"](np.clip((lp - (top - 8)) / 8, 0, 1))[..., :3]
+    rgb = matplotlib.colormaps["magma"](np.floor(np.clip((lp - (top - 8)) / 8, 0, 1) * 32) / 32)[..., :3]
     h = np.fft.fftshift(harm.numpy())
     ring = np.zeros_like(h)
     for dy in (-1, 0, 1):

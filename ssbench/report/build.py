@@ -29,6 +29,10 @@ _SSR_SCENES = ("reflective_floor", "fence")
 #: G-buffer previews shown under each scene's colour image, in this order
 PREVIEW_ROW = ("view_z", "normal", "position", "albedo", "roughness", "metallic", "shape_id", "mask", "back_z")
 ALL_CHANNELS = tuple(CHANNELS)
+#: widest preview kept, by where the page shows it (colour: the scene's 400-px hero; the row: ~130-px thumbnails);
+#: wider renders are shrunk by a whole factor (block mean; ids and mask nearest). Page weight, not information:
+#: every section renders at the full size.
+PREVIEW_WIDTH = {"color": 400, "row": 240}
 
 
 # ------------------------------------------------------------------------------------------ rendering
@@ -202,8 +206,10 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
         images = {}
         for ch in ("color",) + PREVIEW_ROW:
             rel = f"img/{name}/{ch}.png"
-            io.preview_png(os.path.join(run_dir, *rel.split("/")), ch, getattr(g, ch), mask=g.mask,
-                           camera=g.camera)
+            rgb = io.preview_rgb(ch, getattr(g, ch), mask=g.mask, camera=g.camera)
+            shown = PREVIEW_WIDTH["color" if ch == "color" else "row"]           # as wide as the page shows it
+            rgb = io.shrink_rgb(rgb, max(1, -(-g.width // shown)), nearest=ch in ("shape_id", "mask"))
+            io.write_rgb_png(os.path.join(run_dir, *rel.split("/")), rgb)
             images[ch] = rel
         timings["preview_s"] = time.perf_counter() - t0
         rows.append({"name": name, "description": descriptions.get(name, sc.description), "images": images,

@@ -1,20 +1,14 @@
 """The one camera module: every conversion between world, view, clip, NDC, UV, pixel and depth lives here.
 
-The conventions are described on ``ssbench/CONVENTIONS.md``; this module enforces them. In short:
+It enforces ``ssbench/CONVENTIONS.md``: view space is OpenGL / three.js (eye at the origin looking down −z, +x
+right, +y up, ``view_z < 0`` in front); projection is ``gluPerspective(fovy, W / H, near, far)`` to NDC [−1, 1]³;
+UV is ``ndc·0.5 + 0.5`` with ``v`` *up*, as in the articles' shaders; pixels ``(px, py)`` have ``py`` *down* and
+the centre of (column i, row j) at ``(i + ½, j + ½)``; depth is a GL buffer ``d ∈ [0, 1]``, view z, or linear
+``(z + n)/(n − f)`` (SSAO article §2.2, three.js ``packing.glsl``). Mitsuba puts camera-local +x to the image
+*left* and defaults to a horizontal fov; that mapping (:meth:`Camera.mitsuba_sensor`) is written here only.
 
-* **View space** is OpenGL / three.js: camera at the origin, looking down −z, +x right, +y up. Points in
-  front of the camera have ``view_z < 0``.
-* **Projection** is ``gluPerspective(fovy, aspect = W / H, near, far)``; NDC is in [−1, 1]³.
-* **UV** is ``ndc * 0.5 + 0.5`` with ``v`` pointing *up*, as in the articles' shaders.
-* **Pixels**: continuous coordinates ``(px, py)`` with ``py`` pointing *down*; row 0 is the top of the
-  image; the centre of pixel (column i, row j) is ``(i + 0.5, j + 0.5)``.
-* **Depth encodings**: GL depth buffer ``d ∈ [0, 1]``, view z, and linear ("orthographic") depth
-  ``(z + n) / (n − f) ∈ [0, 1]`` (SSAO article §2.2, three.js ``packing.glsl``).
-* **Mitsuba** places camera-local +x to the image *left* and its sensor defaults to a horizontal fov; the
-  mapping to Mitsuba (:meth:`Camera.mitsuba_sensor`) is written here and nowhere else.
-
-Vector functions take a ``dim`` argument naming the component axis: ``-3`` (the default) fits ``(B, 3, H, W)``
-and ``(3, H, W)`` images; pass ``dim=-1`` for ``(N, 3)`` point lists.
+Vector functions take ``dim``, the axis of the components: ``-3`` (default) for ``(B, 3, H, W)`` and ``(3, H, W)``
+images, ``-1`` for ``(N, 3)`` point lists.
 """
 from __future__ import annotations
 
@@ -24,40 +18,7 @@ from typing import Sequence
 
 import torch
 
-Vec3 = tuple[float, float, float]
-
-
-def _vec3(value: Sequence[float], name: str) -> Vec3:
-    try:
-        out = tuple(float(v) for v in value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: expected three numbers, got {value!r}") from None
-    if len(out) != 3 or not all(math.isfinite(v) for v in out):
-        raise ValueError(f"{name}: expected three finite numbers, got {value!r}")
-    return out  # type: ignore[return-value]
-
-
-def _sub(a: Vec3, b: Vec3) -> Vec3:
-    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
-
-
-def _cross(a: Vec3, b: Vec3) -> Vec3:
-    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
-
-
-def _norm(a: Vec3) -> float:
-    return math.sqrt(a[0] ** 2 + a[1] ** 2 + a[2] ** 2)
-
-
-def _normalize(a: Vec3) -> Vec3:
-    n = _norm(a)
-    return (a[0] / n, a[1] / n, a[2] / n)
-
-
-def _split(x: torch.Tensor, dim: int, n: int, name: str) -> list[torch.Tensor]:
-    if x.shape[dim] != n:
-        raise ValueError(f"{name}: dimension {dim} must have {n} components, got shape {tuple(x.shape)}")
-    return list(x.unbind(dim))
+from .vec3 import Vec3, cross, norm, normalize, split_components, sub, vec3
 
 
 @dataclass(frozen=True)
@@ -89,7 +50,7 @@ class Camera:
     def from_look_at(cls, eye: Sequence[float], target: Sequence[float], up: Sequence[float],
                      fovy_deg: float, width: int, height: int, near: float, far: float) -> "Camera":
         """Camera at ``eye`` looking at ``target``; ``fovy_deg`` is the *vertical* field of view."""
-        return cls(_vec3(eye, "eye"), _vec3(target, "target"), _vec3(up, "up"), float(fovy_deg),
+        return cls(vec3(eye, "eye"), vec3(target, "target"), vec3(up, "up"), float(fovy_deg),
                    width, height, float(near), float(far))
 
     def __post_init__(self) -> None:
@@ -103,10 +64,10 @@ class Camera:
             raise ValueError(f"near: must be a finite number > 0, got {self.near}")
         if not (math.isfinite(self.far) and self.far > self.near):
             raise ValueError(f"far: must be finite and greater than near={self.near}, got {self.far}")
-        fwd = _sub(self.target, self.eye)
-        if _norm(fwd) < 1e-12:
+        fwd = sub(self.target, self.eye)
+        if norm(fwd) < 1e-12:
             raise ValueError(f"target: must differ from eye {self.eye}")
-        if _norm(self.up) < 1e-12 or _norm(_cross(_normalize(fwd), _normalize(self.up))) < 1e-6:
+        if norm(self.up) < 1e-12 or norm(cross(normalize(fwd), normalize(self.up))) < 1e-6:
             raise ValueError(f"up: must be non-zero and not parallel to the view direction, got {self.up}")
 
     def with_resolution(self, width: int, height: int) -> "Camera":
@@ -131,7 +92,7 @@ class Camera:
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
                 raise ValueError(f"{name}: must be a finite number of pixels, got {v!r}")
         right, up, _ = self.basis
-        dist = _norm(_sub(self.target, self.eye))
+        dist = norm(sub(self.target, self.eye))
         px = 2.0 * math.tan(math.radians(self.fovy_deg) / 2.0) * dist / self.height      # one pixel at the target
         shift = tuple(px * (dx * r - dy * u) for r, u in zip(right, up))
         return replace(self, target=tuple(t + s for t, s in zip(self.target, shift)))
@@ -155,9 +116,9 @@ class Camera:
     @property
     def basis(self) -> tuple[Vec3, Vec3, Vec3]:
         """World-space unit vectors (right, up, back) of the view frame: view +x, +y, +z."""
-        back = _normalize(_sub(self.eye, self.target))
-        right = _normalize(_cross(self.up, back))
-        return right, _cross(back, right), back
+        back = normalize(sub(self.eye, self.target))
+        right = normalize(cross(self.up, back))
+        return right, cross(back, right), back
 
     # ------------------------------------------------------------------ matrices
     def view_matrix(self, dtype: torch.dtype = torch.float64, device=None) -> torch.Tensor:
@@ -198,7 +159,7 @@ class Camera:
 
     # ------------------------------------------------------------------ world <-> view
     def _apply(self, m: torch.Tensor, x: torch.Tensor, dim: int, translate: bool, name: str) -> torch.Tensor:
-        c = _split(x, dim, 3, name)
+        c = split_components(x, dim, 3, name)
         m = m.to(dtype=x.dtype, device=x.device)
         out = []
         for i in range(3):
@@ -225,7 +186,7 @@ class Camera:
     # ------------------------------------------------------------------ view <-> NDC <-> UV <-> pixel
     def view_to_ndc(self, p: torch.Tensor, dim: int = -3) -> torch.Tensor:
         """View points → NDC ``(x, y, z)`` in [−1, 1]³ inside the frustum (divide by ``w = −z``)."""
-        x, y, z = _split(p, dim, 3, "p")
+        x, y, z = split_components(p, dim, 3, "p")
         n, f, F = self.near, self.far, self.focal
         w = -z
         return torch.stack([F / self.aspect * x / w, F * y / w,
@@ -233,7 +194,7 @@ class Camera:
 
     def ndc_to_view(self, ndc: torch.Tensor, dim: int = -3) -> torch.Tensor:
         """NDC ``(x, y, z)`` → view points (inverse of :meth:`view_to_ndc`)."""
-        x, y, zn = _split(ndc, dim, 3, "ndc")
+        x, y, zn = split_components(ndc, dim, 3, "ndc")
         z = self.depth_to_view_z(zn * 0.5 + 0.5)
         return torch.stack([x * -z * self.aspect / self.focal, y * -z / self.focal, z], dim)
 
@@ -249,13 +210,13 @@ class Camera:
 
     def uv_to_pixel(self, uv: torch.Tensor, dim: int = -3) -> torch.Tensor:
         """UV (v up) → continuous pixel coordinates ``(px, py)`` (py down, row 0 at the top)."""
-        u, v = _split(uv, dim, 2, "uv")
+        u, v = split_components(uv, dim, 2, "uv")
         # NOTE: the row axis flips here: UV's v grows upward, image rows grow downward.
         return torch.stack([u * self.width, (1.0 - v) * self.height], dim)
 
     def pixel_to_uv(self, px: torch.Tensor, dim: int = -3) -> torch.Tensor:
         """Continuous pixel coordinates → UV (inverse of :meth:`uv_to_pixel`)."""
-        x, y = _split(px, dim, 2, "px")
+        x, y = split_components(px, dim, 2, "px")
         return torch.stack([x / self.width, 1.0 - y / self.height], dim)
 
     def view_to_pixel(self, p: torch.Tensor, dim: int = -3) -> torch.Tensor:
@@ -314,7 +275,7 @@ class Camera:
     def uv_to_view(self, uv: torch.Tensor, view_z: torch.Tensor, dim: int = -3) -> torch.Tensor:
         """HBAO ``uvToView``: ``xy = (A · uv + B) · z`` (SSAO article §3.3). ``view_z`` has size 1 on ``dim``."""
         a0, a1, b0, b1 = self.uv_to_view_params()
-        u, v = _split(uv, dim, 2, "uv")
+        u, v = split_components(uv, dim, 2, "uv")
         z = view_z.squeeze(dim) if view_z.dim() == uv.dim() else view_z
         u, v, z = torch.broadcast_tensors(u, v, z)             # e.g. a (1, 2, H, W) grid with (B, 1, H, W) z
         return torch.stack([(a0 * u + b0) * z, (a1 * v + b1) * z, z], dim)
@@ -324,7 +285,7 @@ class Camera:
 
         ``clipW = P[3][2]·z + P[3][3]`` (three.js column-major ``[2][3]``), ``clip = (2·(uv, d) − 1, 1)·clipW``.
         """
-        u, v = _split(uv, dim, 2, "uv")
+        u, v = split_components(uv, dim, 2, "uv")
         d = depth.squeeze(dim) if depth.dim() == uv.dim() else depth
         view_z = self.depth_to_view_z(d)
         clip_w = -view_z                                       # P[3] = (0, 0, −1, 0)

@@ -20,7 +20,7 @@ from typing import Any, Optional
 
 from ..camera import Camera
 from ..scenes.model import Light, Material
-from .surface import Vec3
+from ..vec3 import Vec3
 from .union import ImplicitSurface
 
 _ZERO: Vec3 = (0.0, 0.0, 0.0)

@@ -20,18 +20,11 @@ from typing import Any, Optional, Sequence
 import torch
 
 from ..scenes.model import Material
+from ..vec3 import Vec3, vec3
 from .bounds import check_bounds
 from ..scenes.transforms import rotate4
 
-Vec3 = tuple[float, float, float]
 Box = tuple[Vec3, Vec3]
-
-
-def _vec3(v: Sequence[float], name: str) -> Vec3:
-    out = tuple(float(x) for x in v)
-    if len(out) != 3 or not all(math.isfinite(x) for x in out):
-        raise ValueError(f"{name}: expected three finite numbers, got {v!r}")
-    return out  # type: ignore[return-value]
 
 
 def expression_key(expr: Any) -> str:
@@ -91,12 +84,12 @@ class ImplicitObject:
     def __post_init__(self) -> None:
         if not isinstance(self.bounds, (tuple, list)) or len(self.bounds) != 2:
             raise ValueError(f"bounds: expected ((x0, y0, z0), (x1, y1, z1)), got {self.bounds!r}")
-        lo, hi = (_vec3(b, "bounds") for b in self.bounds)
+        lo, hi = (vec3(b, "bounds") for b in self.bounds)
         if not all(a < b for a, b in zip(lo, hi)):
             raise ValueError(f"bounds: every lower corner component must be < the upper one, got {lo}, {hi}")
         object.__setattr__(self, "bounds", (lo, hi))
-        object.__setattr__(self, "translate", _vec3(self.translate, "translate"))
-        object.__setattr__(self, "rotate", _vec3(self.rotate, "rotate"))
+        object.__setattr__(self, "translate", vec3(self.translate, "translate"))
+        object.__setattr__(self, "rotate", vec3(self.rotate, "rotate"))
         s = float(self.scale)
         if not (math.isfinite(s) and s > 0):
             raise ValueError(f"scale: must be a finite number > 0 (uniform scale), got {self.scale!r}")
@@ -200,5 +193,5 @@ class ImplicitObject:
 
     def translated(self, offset: Sequence[float]) -> "ImplicitObject":
         """The same object moved by ``offset`` (world units)."""
-        o = _vec3(offset, "offset")
+        o = vec3(offset, "offset")
         return replace(self, translate=tuple(a + b for a, b in zip(self.translate, o)))

@@ -1,4 +1,5 @@
-"""Pieces of the GTAO pass (:mod:`ssbench.passes.ao.gtao`): the slice integral, the noise buffers and 3-vector helpers.
+"""Pieces of the GTAO pass (:mod:`ssbench.passes.ao.gtao`): the slice integral, the noise buffers, the slice frame
+and 3-vector helpers.
 
 ``slice_visibility`` is the analytic cosine-weighted arc of a slice (Jimenez et al. 2016); ``noise_buffer`` draws
 the per-pixel slice and step noise: XeGTAO's Hilbert index × R2 sequence, a hash, a constant or a 4×4 tile.
@@ -78,3 +79,19 @@ def cross3(a: tuple, b: tuple) -> tuple:
 def unit3(a: tuple) -> tuple:
     inv = 1.0 / dot3(a, a).sqrt().clamp_min(torch.finfo(a[0].dtype).tiny)
     return tuple(c * inv for c in a)
+
+
+def slice_frame(cos_phi: torch.Tensor, sin_phi: torch.Tensor, v: tuple, N: tuple) -> tuple:
+    """The slice through the view vector ``v`` along the screen direction ``(cos φ, sin φ)``: ``(o, |proj n|, n)``
+    — its tangent ``o`` (XeGTAO's ``orthoDirectionVec``), the length of the normal ``N`` projected into the slice
+    and that projection's signed angle ``n`` from ``v`` (Jimenez et al. 2016, Algorithm 1, lines 5–15). Shared
+    by GTAO and the visibility-bitmask AO."""
+    tiny = torch.finfo(cos_phi.dtype).tiny
+    dv = cos_phi * v[0] + sin_phi * v[1]
+    o = (cos_phi - dv * v[0], sin_phi - dv * v[1], -dv * v[2])                  # orthoDirectionVec
+    axis = unit3(cross3(o, v))
+    na = dot3(N, axis)
+    proj_n = tuple(N[i] - axis[i] * na for i in range(3))
+    proj_len = dot3(proj_n, proj_n).sqrt()
+    cos_n = (dot3(proj_n, v) / proj_len.clamp_min(tiny)).clamp(0.0, 1.0)
+    return o, proj_len, torch.sign(dot3(o, proj_n)) * torch.acos(cos_n)

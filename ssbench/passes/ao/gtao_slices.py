@@ -12,7 +12,7 @@ import torch
 
 from ..common import fetch
 from ..compiled import kernel
-from .gtao_parts import cross3, dot3, slice_visibility, unit3
+from .gtao_parts import dot3, slice_frame, slice_visibility, unit3
 
 if TYPE_CHECKING:
     from .gtao import GTAOParams
@@ -58,14 +58,7 @@ def gtao_rows(cam, z: torch.Tensor, row: torch.Tensor, normal: torch.Tensor, mas
         # ---- Slice: direction, projected normal (Algorithm 1, lines 5-15) ----
         phi = (k + noise[:, :1]) / S * math.pi                                       # (B, 1, h, W)
         cos_phi, sin_phi = torch.cos(phi), torch.sin(phi)
-        dv = cos_phi * v[0] + sin_phi * v[1]
-        o = (cos_phi - dv * v[0], sin_phi - dv * v[1], -dv * v[2])                  # orthoDirectionVec
-        axis = unit3(cross3(o, v))
-        na = dot3(N, axis)
-        proj_n = tuple(N[i] - axis[i] * na for i in range(3))
-        proj_len = dot3(proj_n, proj_n).sqrt()
-        cos_n = (dot3(proj_n, v) / proj_len.clamp_min(tiny)).clamp(0.0, 1.0)
-        n = torch.sign(dot3(o, proj_n)) * torch.acos(cos_n)
+        o, proj_len, n = slice_frame(cos_phi, sin_phi, v, N)
         low0, low1 = torch.cos(n + math.pi / 2), torch.cos(n - math.pi / 2)        # lowHorizonCos0/1
         # ---- Horizon search: K steps x 2 sides at once, samples on dim 1 (lines 17-26) ----
         step_noise = torch.frac(noise[:, 1:] + (k + j * K) * R1)                   # (B, K, h, W)

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 import torch
 
 from ..common import fetch
-from .gtao_parts import cross3, dot3, unit3
+from .gtao_parts import dot3, slice_frame, unit3
 
 if TYPE_CHECKING:
     from .vbao import VBAOParams
@@ -86,14 +86,7 @@ def vbao_rows(cam, z: torch.Tensor, row: torch.Tensor, normal: torch.Tensor, mas
         # ---- the slice: direction, projected normal and its angle n from V (as GTAO) ----
         phi = (k + noise[:, :1]) / S * math.pi
         cos_phi, sin_phi = torch.cos(phi), torch.sin(phi)
-        dv = cos_phi * v[0] + sin_phi * v[1]
-        o = (cos_phi - dv * v[0], sin_phi - dv * v[1], -dv * v[2])                  # the slice tangent
-        axis = unit3(cross3(o, v))
-        na = dot3(N, axis)
-        proj_n = tuple(N[i] - axis[i] * na for i in range(3))
-        proj_len = dot3(proj_n, proj_n).sqrt()
-        cos_n = (dot3(proj_n, v) / proj_len.clamp_min(tiny)).clamp(0.0, 1.0)
-        n = torch.sign(dot3(o, proj_n)) * torch.acos(cos_n)
+        _, proj_len, n = slice_frame(cos_phi, sin_phi, v, N)
         # ---- the samples: K per side at pixel-centre-rounded offsets (off screen: ignored) ----
         step_noise = torch.frac(noise[:, 1:] + (k + j * K) * R1)
         s = ((j + step_noise) / K) ** params.sample_distribution_power + min_s

@@ -3,6 +3,7 @@
 * :mod:`ssbench.metrics.image` — MAE, RMSE, signed bias, PSNR and mean SSIM (kornia), ꟻLIP (flip-evaluator);
 * :mod:`ssbench.metrics.ao` — AO artifact metrics: halo, flat bias, tile energy, noise, over-darkening;
 * :mod:`ssbench.metrics.ao_banding` — banding: the low-frequency (structured) part of the error, tile-independent;
+* :mod:`ssbench.metrics.ao_bent` — bent-normal angle error against the ray-traced bent normal;
 * :mod:`ssbench.metrics.temporal` — flicker: the per-pixel temporal standard deviation over frames;
 * :mod:`ssbench.metrics.implicit` — implicit-surface hit classes (missed / false hit, punch-through), depth error.
 """

@@ -57,7 +57,8 @@ class AOReference:
     seconds: float = 0.0
 
 
-def _check(gbuffer: GBuffer, radius: float, rays: int, weighting: str, seed: int) -> None:
+def check_arguments(gbuffer: GBuffer, radius: float, rays: int, weighting: str, seed: int) -> None:
+    """The AO-style ground truths' argument checks (each error names its argument)."""
     if not isinstance(gbuffer, GBuffer):
         raise TypeError(f"gbuffer: expected a GBuffer, got {type(gbuffer).__name__}")
     if isinstance(radius, bool) or not isinstance(radius, (int, float)) or not radius > 0:
@@ -144,6 +145,35 @@ def _v2w(mi, cam):
                            [m[2][0], m[2][1], m[2][2], 0.0], [0.0, 0.0, 0.0, 1.0]])
 
 
+@dataclass(frozen=True)
+class PrimaryHits:
+    """The pixel-centre rays of a camera traced once (Dr.Jit arrays of length H·W): ``ray``, the surface
+    interaction ``si``, ``hit``, the view-space normal ``n_view`` turned toward the camera, and ``v2w`` (view →
+    world rotation) that takes view-space sample directions to tracing space."""
+
+    ray: object
+    si: object
+    hit: object
+    n_view: object
+    v2w: object
+
+
+def primary_hits(mi, dr, mscene, cam) -> PrimaryHits:
+    """Trace ``cam``'s pixel centres in the loaded Mitsuba scene: the origins and frames every AO-style ground
+    truth (:func:`ambient_occlusion`, :func:`ssbench.reference.bent_normal.bent_normals`) samples from."""
+    W, H = cam.width, cam.height
+    idx = dr.arange(mi.UInt32, W * H)
+    pos = mi.Point2f((mi.Float(idx % W) + 0.5) / W, (mi.Float(idx // W) + 0.5) / H)
+    ray, _ = mscene.sensors()[0].sample_ray(0.0, 0.0, pos, mi.Point2f(0.5, 0.5))
+    si = mscene.ray_intersect(ray)
+    v2w = _v2w(mi, cam)
+    w2v = v2w.inverse()
+    n_view = dr.normalize(w2v @ mi.Vector3f(si.sh_frame.n))
+    d_view = w2v @ mi.Vector3f(ray.d)
+    n_view = dr.select(dr.dot(n_view, d_view) > 0, -n_view, n_view)            # face the camera
+    return PrimaryHits(ray, si, si.is_valid(), n_view, v2w)
+
+
 def ambient_occlusion(scene, gbuffer: GBuffer, radius: float, rays: int = 256, weighting: str = "cosine",
                       seed: int = 0, *, use_cache: bool = True) -> AOReference:
     """Ray-traced AO of every G-buffer pixel against the full scene.
@@ -159,7 +189,7 @@ def ambient_occlusion(scene, gbuffer: GBuffer, radius: float, rays: int = 256, w
     Returns:
         :class:`AOReference` with ``ao`` and ``stderr`` of shape :math:`(1, 1, H, W)`.
     """
-    _check(gbuffer, radius, rays, weighting, seed)
+    check_arguments(gbuffer, radius, rays, weighting, seed)
     sc, cam = load_scene(scene), gbuffer.camera
     key = cache.make_key("ao", _KERNEL_VERSION, sc.content_hash(), cam, float(radius), rays, weighting, seed)
     hit_c = cache.load(key) if use_cache else None
@@ -174,17 +204,10 @@ def ambient_occlusion(scene, gbuffer: GBuffer, radius: float, rays: int = 256, w
     import drjit as dr
     mscene = convert.load(sc, cam)
     W, H = cam.width, cam.height
-    idx = dr.arange(mi.UInt32, W * H)
-    pos = mi.Point2f((mi.Float(idx % W) + 0.5) / W, (mi.Float(idx // W) + 0.5) / H)
-    ray, _ = mscene.sensors()[0].sample_ray(0.0, 0.0, pos, mi.Point2f(0.5, 0.5))
-    si = mscene.ray_intersect(ray)
-    hit = si.is_valid()
-    v2w = _v2w(mi, cam)
-    w2v = v2w.inverse()
-    n_view = dr.normalize(w2v @ mi.Vector3f(si.sh_frame.n))
-    d_view = w2v @ mi.Vector3f(ray.d)
-    n_view = dr.select(dr.dot(n_view, d_view) > 0, -n_view, n_view)            # face the camera
-    mean, err = _estimate(mi, dr, mscene, si, ray.o, n_view, v2w, hit, float(radius), rays, weighting, seed, W * H)
+    ph = primary_hits(mi, dr, mscene, cam)
+    si, hit = ph.si, ph.hit
+    mean, err = _estimate(mi, dr, mscene, si, ph.ray.o, ph.n_view, ph.v2w, hit, float(radius), rays, weighting, seed,
+                          W * H)
     ao, se = _to_torch(mi, dr, mean, err, hit, H, W)
     secs = time.perf_counter() - t0
     if use_cache:
@@ -213,7 +236,7 @@ def screen_space_oracle(gbuffer: GBuffer, radius: float, rays: int = 256, weight
     Uses the G-buffer's own ``position``, ``normal`` and ``mask`` (view space), the same per-pixel
     directions as :func:`ambient_occlusion` for the same ``seed``, and the same origin offset.
     """
-    _check(gbuffer, radius, rays, weighting, seed)
+    check_arguments(gbuffer, radius, rays, weighting, seed)
     gbuffer.require("position", "normal", "mask")
     h = hashlib.sha256()
     for t in (gbuffer.position, gbuffer.normal, gbuffer.mask):

@@ -6,7 +6,10 @@ default) the kernel runs as written (eager). With it on, the kernel runs through
 around it — parameter checks, noise and kernel draws, the band loop, early exits — stays eager, so a compiled
 pass is the same pass. Compiled: Crytek and hemisphere SSAO (bit for bit equal to eager, tested) and GTAO (the one exception to
 "equal": its AO differs from eager by up to 4.5e-6 in float32, measured at 1920×1080, because inductor's
-vectorised cos/acos differ from ATen's by an ulp and ``acos`` near ±1 magnifies that; float64 agrees to 1e-14). Not compiled: HBAO (its
+vectorised cos/acos differ from ATen's by an ulp and ``acos`` near ±1 magnifies that; float64 agrees to 1e-14) and
+the visibility-bitmask AO (the same ulp now and then moves a sample across a sector edge: one bit of one slice,
+1/(sectors·slices) = 1/128 at the defaults, in 0.03 % of the pixels of stairs at 640×360; 4.3× faster than eager
+there, 9.2× with cosine weighting). Not compiled: HBAO (its
 march's early exit breaks the graph every step; unrolled without it, the compiled march ran slower than eager),
 and the SSR marchers, which compact their live rays every step (data-dependent shapes).
 

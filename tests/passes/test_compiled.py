@@ -1,5 +1,6 @@
-"""The compiled switch: each AO pass's per-band kernel through ``torch.compile`` gives the eager bits, the switch's
-precedence (context manager over ``SSBENCH_COMPILE``) holds, and first calls are counted as compile time."""
+"""The compiled switch: each AO pass's per-band kernel through ``torch.compile`` gives the eager bits (GTAO and VBAO:
+stated exceptions), the switch's precedence (context manager over ``SSBENCH_COMPILE``) holds, and first calls are
+counted as compile time."""
 import dataclasses
 
 import pytest
@@ -47,7 +48,7 @@ def test_a_kernel_runs_eager_when_off_and_compiled_once_per_signature_when_on():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("method", ["crytek", "ssao", "gtao"])
+@pytest.mark.parametrize("method", ["crytek", "ssao", "gtao", "vbao"])
 def test_compiled_ao_passes_equal_eager(method):
     from ssbench.passes import ao_method
     from tests.passes.ssr_scenes import room
@@ -61,7 +62,11 @@ def test_compiled_ao_passes_equal_eager(method):
         comp = fn(g, p, generator=torch.Generator().manual_seed(1), debug=True)
     assert C.compile_seconds() > before                                 # its kernel did go through torch.compile
     assert 0 < float(eager.ao.mean()) < 1
-    if method != "gtao":
+    if method == "vbao":    # the same ulp in acos moves a sample across a sector edge now and then: one bit of one
+        d = (eager.ao - comp.ao).abs()                                  # slice, 1/(N·S), in few pixels
+        assert float(d.max()) <= 1.0 / (p.sector_count * p.slices) + 1e-6 and float((d > 0).float().mean()) < 0.02
+        assert float((eager.debug["bits"] == comp.debug["bits"]).float().mean()) > 0.98    # the same sectors
+    elif method != "gtao":
         assert torch.equal(eager.ao, comp.ao)
         for k, v in eager.debug.items():
             assert not isinstance(v, torch.Tensor) or torch.equal(v, comp.debug[k]), k

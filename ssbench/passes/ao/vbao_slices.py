@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 import torch
 
 from ..common import fetch
+from ..compiled import kernel
 from .gtao_parts import dot3, slice_frame, unit3
 
 if TYPE_CHECKING:
@@ -56,6 +57,7 @@ def cosine_arc(theta: torch.Tensor, n: torch.Tensor) -> torch.Tensor:
     return torch.sign(theta) * (torch.cos(n) + 2.0 * theta * torch.sin(n) - torch.cos(2.0 * theta - n)) / 4.0
 
 
+@kernel
 def vbao_rows(cam, z: torch.Tensor, row: torch.Tensor, normal: torch.Tensor, mask: torch.Tensor,
               noise: torch.Tensor, params: "VBAOParams", debug: bool) -> tuple:
     """``(vis, debug)`` of a band of rows: ``vis`` :math:`(B, 1, h, W)` the slice mean of the visibility; with

@@ -463,6 +463,50 @@ check("evaluate.ao reports the same information loss", math.isclose(row_["info_l
 check("and the same estimator error", math.isclose(row_["estimator_rmse"], estimator, rel_tol=1e-5))
 
 # %% [markdown]
+# ## 9. Beyond the horizon: visibility bitmasks (Therrien et al. 2023)
+#
+# Step 8's oracle is darker than the truth because a depth buffer turns every silhouette into a wall reaching
+# back forever, and a *horizon* method (HBAO, GTAO) inherits that: one high sample hides the whole sky behind
+# it. **Visibility-bitmask AO** gives every sample a constant `thickness` instead. Per slice, the half circle
+# around the projected normal is cut into 32 sectors; a sample occludes only the sectors between its front face
+# and a back face `thickness` farther from the camera (`UpdateSectors`), and the slice's visibility is the share
+# of sectors left clear. Light passes behind thin things; with an infinite thickness it is a horizon method
+# again. `ssbench/passes/ao/vbao.py` is the pass; `ssbench/passes/teaching/vbao_basic.py` the same loop one
+# pixel at a time, one function per step (slice frame, sample pixel, front/back angles, update sectors,
+# slice visibility), tested equal to it.
+
+# %%
+from ssbench.passes.ao.vbao import VBAOParams, vbao
+
+thick = {t: vbao(g, VBAOParams(radius=R, thickness=t, weighting="cosine")).ao for t in (0.05, 0.25, 1.0, 1e3)}
+for t, ao in thick.items():
+    print(f"VBAO thickness {t:>6}: RMSE vs cosine truth {rmse(ao, cosine):.3f}, mean AO {float(ao[mask].mean()):.3f}")
+print(f"GTAO (for scale):          RMSE vs cosine truth {rmse(passes['gtao'], cosine):.3f}")
+show([thick[0.05], thick[1e3], thick[0.05] - thick[1e3]],
+     ["VBAO, thickness 0.05", "VBAO, thickness 1000 (a horizon)", "thin − thick (light behind things)"],
+     "Step 9 — thickness decides what a sample hides", vmin=0.0, vmax=1.0)
+ts = sorted(thick)
+darker = [float((thick[b] <= thick[a] + 1e-6)[mask].float().mean()) for a, b in zip(ts, ts[1:])]
+print("share of pixels no brighter after each thickness step:", [f"{x:.1%}" for x in darker])
+check("a thicker sample hides more: on average, and at 9 pixels in 10",
+      all(float(thick[b][mask].mean()) < float(thick[a][mask].mean()) for a, b in zip(ts, ts[1:]))
+      and min(darker) > 0.9)
+check("an infinitely thick sample over-occludes like a height field",
+      float(thick[1e3][mask].mean()) < float(cosine[mask].mean()) - 0.05)
+uniform_count = vbao(g, VBAOParams(radius=R, thickness=0.25)).ao
+check("the paper's uniform count is darker than its cosine-weighted variant",
+      float(uniform_count[mask].mean()) < float(thick[0.25][mask].mean()))
+
+# %% [markdown]
+# The paper counts sectors uniformly (`1 − countbits/32`); `weighting="cosine"` weights each clear sector by its
+# share of GTAO's cosine integral, so it targets the same truth as GTAO. Two things to notice: the thickness is a
+# scene-scale guess (too thin: things float; too thick: halos come back), and the paper's `ceil` marks a sector a
+# sample merely touches, so samples on the pixel's own plane darken open floors a little (pinned in
+# `tests/passes/ao/test_vbao.py`). `UpdateSectors` also marks `ceil(width·32)` sectors from the first one rather
+# than every sector up to the arc's end, so a longer arc can drop its last sector: thickness is monotone on
+# average, not pixel by pixel (above: about one pixel in twenty gets brighter at a step). `benchmarks/sweeps/vbao_fence.yaml` sweeps thickness against GTAO on the fence.
+
+# %% [markdown]
 # ## Checks
 
 # %%
@@ -476,5 +520,6 @@ assert checks and all(checks.values())
 # * `ssbench/passes/ao/hbao.py` and its per-pixel twin `ssbench/passes/teaching/hbao_basic.py` (the shader of §3.3
 #   line by line, tested equal to the pass); `ssbench/passes/ao/gtao.py`, `ao/gtao_denoise.py`, `blur.py`.
 # * `ssbench/reference/ao.py` — the three flavours and `screen_space_oracle`; `ssbench/evaluate/_ao.py`.
+# * `ssbench/passes/ao/vbao.py` and `ssbench/passes/teaching/vbao_basic.py` — visibility bitmasks (Step 9).
 # * `ssbench ao cornell_box --method hbao --param radius=0.5` and the AO section of `make report`.
 # * Next: **lesson 4**, screen-space reflections.

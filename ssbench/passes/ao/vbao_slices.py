@@ -37,9 +37,10 @@ def popcount(x: torch.Tensor) -> torch.Tensor:
 
 
 def sector_bits(lo: torch.Tensor, hi: torch.Tensor, sectors: int) -> torch.Tensor:
-    """``UpdateSectors``: the bits of the sectors an arc ``[lo, hi] ⊂ [0, 1]`` of the slice touches — from
-    ``floor(lo·N)``, ``ceil((hi − lo)·N)`` of them (a sample needs only touch a sector to occlude it), within
-    the ``N`` sectors.
+    """``UpdateSectors``: the bits of the sectors an arc ``[lo, hi] ⊂ [0, 1]`` of the slice covers — from
+    ``floor(lo·N)``, ``ceil((hi − lo)·N)`` of them (the paper's and Blender's formula: a sample needs only touch a
+    sector's width to occlude one), within the ``N`` sectors. The count follows the arc's width, not its end, so
+    an arc straddling a sector edge can leave its last touched sector clear.
 
     Example:
         >>> bin(int(sector_bits(torch.tensor(0.25), torch.tensor(0.5), 8)))

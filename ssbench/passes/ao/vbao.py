@@ -40,7 +40,7 @@ from ...gbuffer import GBuffer
 from ..common import AOResult, check_count, check_radius, make_generator, row_bands
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from .gtao import NOISE_KINDS, NoiseSpec
-from .gtao_parts import noise_buffer
+from .gtao_parts import noise_buffer, unit3
 from .vbao_slices import vbao_rows
 from ..registry import Method, SpeedPanel
 
@@ -113,7 +113,7 @@ def check_inputs(gbuffer: GBuffer, params: VBAOParams) -> None:
 
 @half_in_float32
 def vbao(gbuffer: GBuffer, params: VBAOParams = VBAOParams(), *, generator: Optional[torch.Generator] = None,
-         debug: bool = False) -> AOResult:
+         debug: bool = False, bent_normals: bool = False) -> AOResult:
     """Visibility-bitmask AO of a G-buffer, vectorised over pixels (loops over slices, samples and sectors).
 
     .. math::
@@ -127,6 +127,8 @@ def vbao(gbuffer: GBuffer, params: VBAOParams = VBAOParams(), *, generator: Opti
         generator: draws ``"hash"`` noise (default: a CPU generator seeded with ``params.seed``).
         debug: also return ``bits`` :math:`(B, S, H, W)` int64 (each slice's occluded sectors) and
             ``slice_visibility`` :math:`(B, S, H, W)`.
+        bent_normals: also return unit view-space bent normals (0 on background): the clear sectors' centre
+            directions weighted by their cosine shares and ``|proj n|``, as GTAO's Algorithm 2 weights its arc.
 
     Returns:
         :class:`AOResult` with ``ao`` :math:`(B, 1, H, W)` in [0, 1], 1 on background.
@@ -146,13 +148,17 @@ def vbao(gbuffer: GBuffer, params: VBAOParams = VBAOParams(), *, generator: Opti
     noise = noise_buffer(params, B, H, W, generator).to(dtype=dtype, device=dev)   # (B, 2, H, W)
     z = torch.where(mask, gbuffer.view_z, torch.full_like(gbuffer.view_z, -cam.far))  # the depth texture
     rows = torch.arange(H, dtype=dtype, device=dev)
-    parts = [vbao_rows(cam, z, rows[rs], gbuffer.normal[:, :, rs], mask[:, :, rs], noise[:, :, rs], params, debug)
-             for rs in row_bands(H, W, 2 * params.steps * 2, z.element_size(), batch=B)]  # bounded working set
+    parts = [vbao_rows(cam, z, rows[rs], gbuffer.normal[:, :, rs], mask[:, :, rs], noise[:, :, rs], params, debug,
+                       bent_normals) for rs in row_bands(H, W, 4 * params.steps, z.element_size(), batch=B)]
     vis = torch.cat([p[0] for p in parts], 2).clamp(0.0, 1.0)
     ao = torch.where(mask, vis, torch.ones_like(vis))
     extra = {"bits": torch.cat([p[1][0] for p in parts], 2),
              "slice_visibility": torch.cat([p[1][1] for p in parts], 2)} if debug else {}
-    return AOResult(ao=ao, debug=extra)
+    bent = None
+    if bent_normals:
+        b = unit3(tuple(torch.cat([p[2][j] for p in parts], 2) for j in range(3)))
+        bent = torch.where(mask, torch.cat(b, 1), torch.zeros_like(gbuffer.normal))
+    return AOResult(ao=ao, bent_normal=bent, debug=extra)
 
 
 class VBAO(nn.Module):
@@ -167,8 +173,9 @@ class VBAO(nn.Module):
         super().__init__()
         self.params = replace(params, **overrides) if overrides else params
 
-    def forward(self, gbuffer: GBuffer, generator: Optional[torch.Generator] = None, debug: bool = False) -> AOResult:
-        return vbao(gbuffer, self.params, generator=generator, debug=debug)
+    def forward(self, gbuffer: GBuffer, generator: Optional[torch.Generator] = None, debug: bool = False,
+                bent_normals: bool = False) -> AOResult:
+        return vbao(gbuffer, self.params, generator=generator, debug=debug, bent_normals=bent_normals)
 
 
 def samples_per_pixel(params) -> int:

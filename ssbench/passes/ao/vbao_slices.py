@@ -60,9 +60,11 @@ def cosine_arc(theta: torch.Tensor, n: torch.Tensor) -> torch.Tensor:
 
 @kernel
 def vbao_rows(cam, z: torch.Tensor, row: torch.Tensor, normal: torch.Tensor, mask: torch.Tensor,
-              noise: torch.Tensor, params: "VBAOParams", debug: bool) -> tuple:
-    """``(vis, debug)`` of a band of rows: ``vis`` :math:`(B, 1, h, W)` the slice mean of the visibility; with
-    ``debug`` the per-slice ``(bits, slice visibility)`` :math:`(B, S, h, W)`.
+              noise: torch.Tensor, params: "VBAOParams", debug: bool, bent_normals: bool = False) -> tuple:
+    """``(vis, debug, bent)`` of a band of rows: ``vis`` :math:`(B, 1, h, W)` the slice mean of the visibility;
+    with ``debug`` the per-slice ``(bits, slice visibility)`` :math:`(B, S, h, W)`; with ``bent_normals`` the
+    unnormalised bent normal ``(x, y, z)``: every clear sector's centre direction in its slice, weighted by its
+    cosine share and ``|proj n|`` (as GTAO's Algorithm 2 weights its visible arc), summed over slices.
 
     ``z`` :math:`(B, 1, H, W)` is the sanitised depth texture of the whole image; ``row`` :math:`(h,)` the
     band's rows; ``normal``, ``mask``, ``noise`` the band's :math:`(B, ·, h, W)` slices."""
@@ -84,12 +86,13 @@ def vbao_rows(cam, z: torch.Tensor, row: torch.Tensor, normal: torch.Tensor, mas
     side = torch.cat([torch.ones(K, dtype=dtype, device=dev), -torch.ones(K, dtype=dtype, device=dev)]).view(1, -1, 1, 1)
     vis = torch.zeros_like(zc)
     dbg_bits, dbg_vis = [], []
+    bent = [torch.zeros_like(zc) for _ in range(3)] if bent_normals else None
 
     for k in range(S):
         # ---- the slice: direction, projected normal and its angle n from V (as GTAO) ----
         phi = (k + noise[:, :1]) / S * math.pi
         cos_phi, sin_phi = torch.cos(phi), torch.sin(phi)
-        _, proj_len, n = slice_frame(cos_phi, sin_phi, v, N)
+        o, proj_len, n = slice_frame(cos_phi, sin_phi, v, N)
         # ---- the samples: K per side at pixel-centre-rounded offsets (off screen: ignored) ----
         step_noise = torch.frac(noise[:, 1:] + (k + j * K) * R1)
         s = ((j + step_noise) / K) ** params.sample_distribution_power + min_s
@@ -123,7 +126,17 @@ def vbao_rows(cam, z: torch.Tensor, row: torch.Tensor, normal: torch.Tensor, mas
                 lo_arc = hi_arc
             local = proj_len * local
         vis = vis + local
+        if bent is not None:                          # clear sectors' centre directions, cosine-share weighted
+            o_hat = unit3(o)
+            lo_arc = cosine_arc(n - math.pi / 2, n)
+            for i in range(NS):
+                theta = n - math.pi / 2 + math.pi * (i + 0.5) / NS
+                hi_arc = cosine_arc(n - math.pi / 2 + math.pi * (i + 1) / NS, n)
+                w = torch.where((occluded >> i) & 1 == 1, 0.0, (hi_arc - lo_arc) * proj_len)
+                s_t, c_t = torch.sin(theta), torch.cos(theta)
+                bent = [bent[j] + w * (s_t * o_hat[j] + c_t * v[j]) for j in range(3)]
+                lo_arc = hi_arc
         if debug:
             dbg_bits.append(occluded)
             dbg_vis.append(local)
-    return vis / S, ((torch.cat(dbg_bits, 1), torch.cat(dbg_vis, 1)) if debug else None)
+    return vis / S, ((torch.cat(dbg_bits, 1), torch.cat(dbg_vis, 1)) if debug else None), bent

@@ -85,3 +85,23 @@ def test_module_dtype_and_bad_params():
             VBAOParams(**bad)
     with pytest.raises(TypeError, match="params"):
         vbao(g, object())
+
+
+def test_bent_normals_lean_away_from_occluders_and_follow_the_normal_in_the_open():
+    g, world = crease(w=32, h=24)
+    r = vbao(g, VBAOParams(radius=1.0, thickness=1.0, weighting="cosine", noise="none"), bent_normals=True)
+    assert torch.equal(r.ao, vbao(g, VBAOParams(radius=1.0, thickness=1.0, weighting="cosine", noise="none")).ao)
+    m = g.mask[0, 0]
+    assert torch.allclose(r.bent_normal.norm(dim=1)[0][m], torch.ones(()).double(), atol=1e-9)
+    assert torch.all(r.bent_normal[:, :, ~m] == 0)
+    bent_w = g.camera.view_to_world_dir(r.bent_normal[0])                 # (3, H, W) world
+    floor = m & (world[1].abs() < 1e-6)
+    near = floor & (world[2] < -0.6)                                       # within 0.4 of the wall (z = -1)
+    far = floor & (world[2] > 0.5)
+    assert near.sum() > 10 and far.sum() > 10
+    assert float(bent_w[2][near].mean()) > 0.1                              # tilted away from the wall (+z)
+    assert float(bent_w[2][near].mean()) > float(bent_w[2][far].mean()) + 0.05
+    o = open_plane()
+    ro = vbao(o, VBAOParams(weighting="cosine"), bent_normals=True)
+    ang = torch.rad2deg(torch.acos((ro.bent_normal * o.normal).sum(1).clamp(-1, 1)))[o.mask[:, 0]]
+    assert float(ang.mean()) < 5.0                                          # the open plane: its own normal

@@ -174,6 +174,19 @@ def primary_hits(mi, dr, mscene, cam) -> PrimaryHits:
     return PrimaryHits(ray, si, si.is_valid(), n_view, v2w)
 
 
+def trace_primaries(sc, cam, who: str) -> tuple:
+    """``(mi, dr, mscene, PrimaryHits)``: the loaded Mitsuba scene of ``sc`` and ``cam``'s pixel centres traced in
+    it, the common start of the AO-style ground truths; ``RuntimeError`` naming ``who`` without a vectorised
+    Mitsuba variant."""
+    if not backend.is_jit():
+        raise RuntimeError(f"{who} needs a vectorised Mitsuba variant (llvm_ad_rgb or cuda_ad_rgb); "
+                           "install libllvm19: apt-get install -y libllvm19")
+    mi = backend.mitsuba()
+    import drjit as dr
+    mscene = convert.load(sc, cam)
+    return mi, dr, mscene, primary_hits(mi, dr, mscene, cam)
+
+
 def ambient_occlusion(scene, gbuffer: GBuffer, radius: float, rays: int = 256, weighting: str = "cosine",
                       seed: int = 0, *, use_cache: bool = True) -> AOReference:
     """Ray-traced AO of every G-buffer pixel against the full scene.
@@ -196,15 +209,9 @@ def ambient_occlusion(scene, gbuffer: GBuffer, radius: float, rays: int = 256, w
     if hit_c is not None:
         return AOReference(torch.from_numpy(hit_c["ao"]), torch.from_numpy(hit_c["stderr"]), weighting,
                            float(radius), rays, float(hit_c["seconds"]))
-    if not backend.is_jit():
-        raise RuntimeError("ambient_occlusion needs a vectorised Mitsuba variant (llvm_ad_rgb or cuda_ad_rgb); "
-                           "install libllvm19: apt-get install -y libllvm19")
     t0 = time.perf_counter()
-    mi = backend.mitsuba()
-    import drjit as dr
-    mscene = convert.load(sc, cam)
+    mi, dr, mscene, ph = trace_primaries(sc, cam, "ambient_occlusion")
     W, H = cam.width, cam.height
-    ph = primary_hits(mi, dr, mscene, cam)
     si, hit = ph.si, ph.hit
     mean, err = _estimate(mi, dr, mscene, si, ph.ray.o, ph.n_view, ph.v2w, hit, float(radius), rays, weighting, seed,
                           W * H)

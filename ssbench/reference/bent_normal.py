@@ -25,8 +25,8 @@ import torch
 
 from ..gbuffer import GBuffer
 from ..scenes import load as load_scene
-from . import backend, cache, convert
-from .ao import check_arguments, primary_hits
+from . import cache
+from .ao import check_arguments, trace_primaries
 
 __all__ = ["BentNormalReference", "bent_normals"]
 
@@ -87,15 +87,9 @@ def bent_normals(scene, gbuffer: GBuffer, radius: float, rays: int = 256, seed: 
     if got is not None:
         return BentNormalReference(torch.from_numpy(got["normal"]), torch.from_numpy(got["stderr_deg"]),
                                    torch.from_numpy(got["visible"]), float(radius), rays, float(got["seconds"]))
-    if not backend.is_jit():
-        raise RuntimeError("bent_normals needs a vectorised Mitsuba variant (llvm_ad_rgb or cuda_ad_rgb); "
-                           "install libllvm19: apt-get install -y libllvm19")
     t0 = time.perf_counter()
-    mi = backend.mitsuba()
-    import drjit as dr
-    mscene = convert.load(sc, cam)
+    mi, dr, mscene, ph = trace_primaries(sc, cam, "bent_normals")
     W, H = cam.width, cam.height
-    ph = primary_hits(mi, dr, mscene, cam)
     sums = _moments(mi, dr, mscene, ph, float(radius), rays, seed, W * H)
     n = float(rays)
     m = torch.stack(sums[:3], 1) / n                                               # (P, 3) mean of V·ω

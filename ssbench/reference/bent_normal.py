@@ -101,8 +101,7 @@ def bent_normals(scene, gbuffer: GBuffer, radius: float, rays: int = 256, seed: 
     perp = (cov.diagonal(dim1=1, dim2=2).sum(1) - torch.einsum("pi,pij,pj->p", b, cov, b)).clamp_min(0.0)
     err = torch.rad2deg((perp / n).sqrt() / length.clamp_min(1e-300))
     hit = ph.hit.torch().bool()
-    shading = ph.n_view.torch().double().reshape(-1, 3) if hasattr(ph.n_view, "torch") else \
-        torch.stack([ph.n_view.x.torch(), ph.n_view.y.torch(), ph.n_view.z.torch()], 1).double()
+    shading = ph.n_view.torch().double().T                                        # (3, P) -> (P, 3)
     some = length > 0
     normal = torch.where((hit & some)[:, None], b, torch.where(hit[:, None], shading, 0.0))
     err = torch.where(hit, torch.where(some, err, math.inf), 0.0)

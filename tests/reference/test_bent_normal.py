@@ -47,3 +47,12 @@ def test_open_floor_is_its_normal_within_the_error_bar_and_a_wall_tilts_it_away(
     lean = bent_world[2][band]                                             # +z: away from the wall
     assert lean.mean().item() > 0.15 and (lean > 0).float().mean().item() > 0.95
     assert torch.all(ref.normal[:, :, ~g.mask[0, 0]] == 0) and torch.all(ref.stderr_deg[0, 0][~g.mask[0, 0]] == 0)
+
+
+def test_a_pixel_with_no_free_ray_keeps_its_shading_normal_and_an_infinite_error_bar():
+    sc = load("cornell_box")
+    g = gbuffer(sc, 32, 24, channels=CH)
+    ref = bent_normals(sc, g, 5.0, rays=2, seed=0, use_cache=False)         # a closed room, a long radius
+    none = g.mask[0, 0] & (ref.visible[0, 0] == 0)
+    assert none.sum() > 20 and torch.isinf(ref.stderr_deg[0, 0][none]).all()
+    assert torch.allclose(ref.normal[0][:, none], g.normal[0][:, none].float(), atol=1e-5)

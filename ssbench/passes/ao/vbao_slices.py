@@ -114,28 +114,24 @@ def vbao_rows(cam, z: torch.Tensor, row: torch.Tensor, normal: torch.Tensor, mas
         occluded = bits[:, :1]
         for i in range(1, 2 * K):
             occluded = occluded | bits[:, i:i + 1]
-        # ---- the slice's visibility from the clear sectors ----
+        # ---- the slice's visibility from the clear sectors (and their directions for the bent normal) ----
+        if params.weighting == "cosine" or bent is not None:                       # each clear sector's cosine share
+            edges = [cosine_arc(n - math.pi / 2 + math.pi * i / NS, n) for i in range(NS + 1)]
+            shares = [torch.where((occluded >> i) & 1 == 1, 0.0, edges[i + 1] - edges[i]) for i in range(NS)]
         if params.weighting == "uniform":                                           # the paper: 1 − count/N
             local = 1.0 - popcount(occluded).to(dtype) / NS
-        else:                                                                       # each sector's cosine share
+        else:
             local = torch.zeros_like(vis)
-            lo_arc = cosine_arc(n - math.pi / 2, n)
-            for i in range(NS):
-                hi_arc = cosine_arc(n - math.pi / 2 + math.pi * (i + 1) / NS, n)
-                local = local + torch.where((occluded >> i) & 1 == 1, 0.0, hi_arc - lo_arc)
-                lo_arc = hi_arc
+            for share in shares:
+                local = local + share
             local = proj_len * local
         vis = vis + local
         if bent is not None:                          # clear sectors' centre directions, cosine-share weighted
             o_hat = unit3(o)
-            lo_arc = cosine_arc(n - math.pi / 2, n)
-            for i in range(NS):
+            for i, share in enumerate(shares):
                 theta = n - math.pi / 2 + math.pi * (i + 0.5) / NS
-                hi_arc = cosine_arc(n - math.pi / 2 + math.pi * (i + 1) / NS, n)
-                w = torch.where((occluded >> i) & 1 == 1, 0.0, (hi_arc - lo_arc) * proj_len)
-                s_t, c_t = torch.sin(theta), torch.cos(theta)
+                w, s_t, c_t = share * proj_len, torch.sin(theta), torch.cos(theta)
                 bent = [bent[j] + w * (s_t * o_hat[j] + c_t * v[j]) for j in range(3)]
-                lo_arc = hi_arc
         if debug:
             dbg_bits.append(occluded)
             dbg_vis.append(local)

@@ -98,6 +98,7 @@ def explorer_data(effect: str, title: str, rows: list, metrics: list, fronts: di
     groups: dict = {}
     for r in ok:
         groups.setdefault(f"{r['scene']}|{r['method']}", []).append(r)
+    group_knobs = {g: knobs(rs) for g, rs in groups.items()}                      # once per scene and method
     points = []
     for r in ok:
         pics = r.get("images") or {}
@@ -108,7 +109,7 @@ def explorer_data(effect: str, title: str, rows: list, metrics: list, fronts: di
         ch = _choices(r)
         points.append({"id": r["config_id"], "scene": r["scene"], "method": r["method"],
                        "knobs": {k["name"]: _text(ch.get(k["name"], DEFAULT))
-                                 for k in knobs(groups[f"{r['scene']}|{r['method']}"])},
+                                 for k in group_knobs[f"{r['scene']}|{r['method']}"]},
                        "x": _finite(t), "y": _finite(row_value(r, primary)),
                        "front": (r["scene"], r["config_id"]) in on_front,
                        "image": pics.get("image"), "error_image": pics.get("error"), "numbers": numbers})
@@ -119,7 +120,7 @@ def explorer_data(effect: str, title: str, rows: list, metrics: list, fronts: di
     return {"effect": effect, "title": title, "page": f"explore_{effect}.html", "metric": metrics[0][1],
             "scenes": list(dict.fromkeys(r["scene"] for r in ok)),
             "methods": [{"name": m, "title": method_title(m)} for m in dict.fromkeys(r["method"] for r in ok)],
-            "groups": {g: {"knobs": knobs(rs)} for g, rs in groups.items()}, "points": points,
+            "groups": {g: {"knobs": ks} for g, ks in group_knobs.items()}, "points": points,
             "image_caption": getattr(pictures, "image", ""), "error_caption": getattr(pictures, "error", ""),
             "colorbar": colorbar, "classes": classes, "failed": len(rows) - len(ok),
             "without_images": sum(not p["image"] for p in points)}

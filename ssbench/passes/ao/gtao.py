@@ -33,16 +33,15 @@ import torch
 from torch import nn
 
 from ...gbuffer import GBuffer
-from ..common import AOResult, check_count, check_radius, make_generator, row_bands
+from ..common import AOResult, check_count, check_radius, row_bands
 from ..gbuffer_checks import check_gbuffer, half_in_float32
-from .gtao_parts import hilbert_index, unit3, noise_buffer, slice_visibility  # noqa: F401
+from .gtao_parts import NOISE_KINDS, check_noise, hilbert_index, unit3, noise_buffer, slice_visibility  # noqa: F401
 from .gtao_slices import gtao_rows
 from ..registry import Method, SpeedPanel
 
 FLAVOUR = "cosine"  # the ground-truth weighting this pass estimates (ssbench.reference.ao)
 REQUIRES = ("view_z", "normal", "mask")
 QUALITY_PRESETS = {"low": (1, 2), "medium": (2, 2), "high": (3, 3), "ultra": (9, 3)}  # slices, steps per side
-NOISE_KINDS = ("hash", "hilbert", "none")
 #: continuous parameters ``ssbench tune`` may fit: name -> (lo, hi, relative to the ground-truth radius)
 TUNABLE = {"radius": (0.25, 3.0, True), "falloff_range": (0.05, 1.0, False),
            "final_value_power": (0.5, 4.0, False)}
@@ -116,17 +115,7 @@ class GTAOParams:
                                      ("thin_occluder_compensation", False, math.inf),
                                      ("final_value_power", True, math.inf), ("min_offset_pixels", False, math.inf)):
             _number(getattr(self, name), name, 0.0, low_open, high)
-        if isinstance(self.noise, str):
-            if self.noise not in NOISE_KINDS:
-                raise ValueError(f"noise: expected one of {NOISE_KINDS} or a 4x4 tile, got {self.noise!r}")
-        else:
-            t = torch.as_tensor(self.noise, dtype=torch.float64)
-            if tuple(t.shape) not in ((4, 4), (2, 4, 4)) or not bool(((t >= 0) & (t < 1)).all()):
-                raise ValueError(f"noise: a tile must have shape (4, 4) or (2, 4, 4) with values in [0, 1), "
-                                 f"got shape {tuple(t.shape)}")
-        make_generator(self.seed, None)                      # validates seed
-        if isinstance(self.frame, bool) or not isinstance(self.frame, int) or self.frame < 0:
-            raise ValueError(f"frame: must be an integer >= 0, got {self.frame!r}")
+        check_noise(self.noise, self.seed, self.frame)
         if isinstance(self.denoise_passes, bool) or not isinstance(self.denoise_passes, int) \
                 or self.denoise_passes < 0:
             raise ValueError(f"denoise_passes: must be an integer >= 0, got {self.denoise_passes!r}")

@@ -36,6 +36,27 @@ def slice_visibility(h0: torch.Tensor, h1: torch.Tensor, n: torch.Tensor) -> tor
     return arc(h0) + arc(h1)
 
 
+#: the slice/step noise kinds by name (a tile is given as values)
+NOISE_KINDS = ("hash", "hilbert", "none")
+
+
+def check_noise(noise, seed: int, frame: int) -> None:
+    """The noise fields of a horizon pass's parameters (GTAO, VBAO): ``noise`` a kind of :data:`NOISE_KINDS` or a
+    ``(4, 4)`` / ``(2, 4, 4)`` tile in [0, 1), ``seed`` a valid generator seed, ``frame`` an integer >= 0; each
+    error names its field."""
+    if isinstance(noise, str):
+        if noise not in NOISE_KINDS:
+            raise ValueError(f"noise: expected one of {NOISE_KINDS} or a 4x4 tile, got {noise!r}")
+    else:
+        t = torch.as_tensor(noise, dtype=torch.float64)
+        if tuple(t.shape) not in ((4, 4), (2, 4, 4)) or not bool(((t >= 0) & (t < 1)).all()):
+            raise ValueError(f"noise: a tile must have shape (4, 4) or (2, 4, 4) with values in [0, 1), "
+                             f"got shape {tuple(t.shape)}")
+    make_generator(seed, None)                               # validates seed
+    if isinstance(frame, bool) or not isinstance(frame, int) or frame < 0:
+        raise ValueError(f"frame: must be an integer >= 0, got {frame!r}")
+
+
 def hilbert_index(x: torch.Tensor, y: torch.Tensor, width: int = 64) -> torch.Tensor:
     """XeGTAO's ``HilbertIndex`` of integer pixel coordinates (taken modulo ``width``)."""
     x, y, index, level = x % width, y % width, torch.zeros_like(x), width // 2

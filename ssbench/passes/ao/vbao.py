@@ -37,10 +37,10 @@ import torch
 from torch import nn
 
 from ...gbuffer import GBuffer
-from ..common import AOResult, check_count, check_radius, make_generator, row_bands
+from ..common import AOResult, check_count, check_radius, row_bands
 from ..gbuffer_checks import check_gbuffer, half_in_float32
-from .gtao import NOISE_KINDS, NoiseSpec
-from .gtao_parts import noise_buffer, unit3
+from .gtao import NoiseSpec
+from .gtao_parts import check_noise, noise_buffer, unit3
 from .vbao_slices import vbao_rows
 from ..registry import Method, SpeedPanel
 
@@ -97,11 +97,7 @@ class VBAOParams:
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0 \
                     or (low_open and v == 0):
                 raise ValueError(f"{name}: must be a finite number {'> 0' if low_open else '>= 0'}, got {v!r}")
-        if isinstance(self.noise, str) and self.noise not in NOISE_KINDS:
-            raise ValueError(f"noise: expected one of {NOISE_KINDS} or a 4x4 tile, got {self.noise!r}")
-        make_generator(self.seed, None)                      # validates seed
-        if isinstance(self.frame, bool) or not isinstance(self.frame, int) or self.frame < 0:
-            raise ValueError(f"frame: must be an integer >= 0, got {self.frame!r}")
+        check_noise(self.noise, self.seed, self.frame)
 
 
 def check_inputs(gbuffer: GBuffer, params: VBAOParams) -> None:

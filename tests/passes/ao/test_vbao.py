@@ -80,7 +80,7 @@ def test_module_dtype_and_bad_params():
     r = VBAO(thickness=0.1)(g)
     assert r.ao.dtype == torch.float32 and r.ao.shape == (1, 1, 9, 12)
     for bad in ({"sector_count": 33}, {"thickness": 0.0}, {"weighting": "obscurance"}, {"slices": 0},
-                {"noise": "perlin"}, {"sample_distribution_power": 0.0}):
+                {"noise": "perlin"}, {"noise": [[0.5] * 3] * 4}, {"sample_distribution_power": 0.0}):
         with pytest.raises(ValueError, match=next(iter(bad))):
             VBAOParams(**bad)
     with pytest.raises(TypeError, match="params"):

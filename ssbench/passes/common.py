@@ -88,6 +88,14 @@ def check_count(value: int, name: str) -> None:
         raise ValueError(f"{name}: must be a positive integer, got {value!r}")
 
 
+def check_positive(value: float, name: str, allow_zero: bool = False) -> None:
+    """A finite Python number > 0 (``>= 0`` with ``allow_zero``); the error names ``name``."""
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and value == value and value != float("inf")
+    if not ok or value < 0 or (value == 0 and not allow_zero):
+        bound = ">= 0" if allow_zero else "> 0"
+        raise ValueError(f"{name}: must be a finite number {bound}, got {value!r}")
+
+
 #: bytes of the per-sample blocks a pass may hold at once (about a core's L2): the AO passes work on a band of
 #: image rows at a time, so their working set is bounded and their time per pixel does not jump once an
 #: image's blocks would leave the cache

@@ -29,7 +29,6 @@ plane (24×18, defaults): mean AO 0.944 (uniform), 0.990 (cosine), no slice dark
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, replace
 from typing import Optional
 
@@ -37,7 +36,7 @@ import torch
 from torch import nn
 
 from ...gbuffer import GBuffer
-from ..common import AOResult, check_count, check_radius, row_bands
+from ..common import AOResult, check_count, check_positive, check_radius, row_bands
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from .gtao import NoiseSpec
 from .gtao_parts import check_noise, noise_buffer, unit3
@@ -92,11 +91,8 @@ class VBAOParams:
         check_radius(self.thickness, "thickness")
         if self.weighting not in WEIGHTINGS:
             raise ValueError(f"weighting: expected one of {WEIGHTINGS}, got {self.weighting!r}")
-        for name, low_open in (("sample_distribution_power", True), ("min_offset_pixels", False)):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0 \
-                    or (low_open and v == 0):
-                raise ValueError(f"{name}: must be a finite number {'> 0' if low_open else '>= 0'}, got {v!r}")
+        check_positive(self.sample_distribution_power, "sample_distribution_power")
+        check_positive(self.min_offset_pixels, "min_offset_pixels", allow_zero=True)
         check_noise(self.noise, self.seed, self.frame)
 
 

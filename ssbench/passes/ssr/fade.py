@@ -22,14 +22,9 @@ from dataclasses import dataclass
 
 import torch
 
+from ..common import check_positive
+
 EDGE_FADE_MODES = ("circular", "vignette")
-
-
-def check_positive(value: float, name: str, allow_zero: bool = False) -> None:
-    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and value == value and value != float("inf")
-    if not ok or value < 0 or (value == 0 and not allow_zero):
-        bound = ">= 0" if allow_zero else "> 0"
-        raise ValueError(f"{name}: must be a finite number {bound}, got {value!r}")
 
 
 def edge_fade(hit_pixel: torch.Tensor, width: int, height: int, edge_distance: float = 50.0,

@@ -41,9 +41,10 @@ import torch
 from torch import nn
 
 from ...gbuffer import GBuffer
+from ..common import check_positive
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from .common import HIT, NO_RAY, SSRResult
-from .fade import FadeParams, check_positive
+from .fade import FadeParams
 from .linear_march import MarchLog, march, refine
 from .linear_rays import flat, linear_rays
 from ..registry import Method, SpeedPanel

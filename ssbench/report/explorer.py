@@ -129,7 +129,7 @@ def explorer_data(effect: str, title: str, rows: list, metrics: list, fronts: di
 def write_pages(run_dir: str, speed: dict, tpl_env, meta: dict) -> list[str]:
     """Render ``explore_<effect>.html`` for every speed effect that carries explorer data; returns their names.
     A page that fails to render is left out and the failure noted in the effect's ``notes``."""
-    from ..bench.rows import write_text_atomic
+    from .render import write_text
     out = []
     for e in speed.get("effects", []) if speed.get("available") else []:
         data = e.get("explorer")
@@ -137,7 +137,7 @@ def write_pages(run_dir: str, speed: dict, tpl_env, meta: dict) -> list[str]:
             continue
         try:
             html = tpl_env.get_template("explore.html.j2").render(data=data, meta=meta)
-            write_text_atomic(os.path.join(run_dir, data["page"]), html)
+            write_text(os.path.join(run_dir, data["page"]), html)
             out.append(data["page"])
         except Exception as err:                              # noqa: BLE001 - the report must not crash
             e.setdefault("notes", []).append(f"sweep explorer not written: {type(err).__name__}: {err}")

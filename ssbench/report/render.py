@@ -6,9 +6,8 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 
-from ..io import umask_mode
+from ..io import write_atomic
 from . import summary
 
 __all__ = ["fmt", "templates", "render_index", "explorer_pages", "write_pages", "render_run", "write_text"]
@@ -19,11 +18,10 @@ fmt = summary.fmt
 
 def write_text(path: str, text: str) -> None:
     """Write ``text`` to ``path`` atomically (a temporary file beside it, renamed), with the usual mode."""
-    fd, tmp = tempfile.mkstemp(prefix=".tmp-", dir=os.path.dirname(path))
-    with os.fdopen(fd, "w", encoding="utf-8") as f:
-        f.write(text)
-    os.chmod(tmp, umask_mode())
-    os.replace(tmp, path)
+    def write(tmp: str) -> None:
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write(text)
+    write_atomic(path, ".tmp", write)
 
 
 def templates():

@@ -51,14 +51,9 @@ def test_points_carry_knobs_numbers_fronts_and_pictures_and_skip_failed_rows():
 
 @pytest.fixture(scope="module")
 def section(tmp_path_factory):
+    from tests.report.test_speed_section import build_in
     run_dir = tmp_path_factory.mktemp("run")
-    mp = pytest.MonkeyPatch()
-    mp.setenv("SSBENCH_CACHE_DIR", str(run_dir / "cache"))
-    try:
-        out = S.build_speed_section(str(run_dir), width=320, height=240, seed=0, progress=False,
-                                    sweeps={"ao": TINY_AO})
-    finally:
-        mp.undo()
+    out = build_in(run_dir, {"ao": TINY_AO})
     meta = {"run": "test", "speed": out}
     assert write_pages(str(run_dir), out, render.templates(), meta) == ["explore_ao.html"]
     return run_dir, out

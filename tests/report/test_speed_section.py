@@ -96,16 +96,20 @@ def test_every_artifact_panel_is_declared_by_its_method():
         assert sorted(got) == sorted(want) and got, effect
 
 
-@pytest.fixture(scope="module")
-def section(tmp_path_factory):
-    run_dir = tmp_path_factory.mktemp("run")
+def build_in(run_dir, sweeps: dict) -> dict:
+    """The speed section of ``sweeps`` built into ``run_dir``, with a ground-truth cache of its own."""
     mp = pytest.MonkeyPatch()
     mp.setenv("SSBENCH_CACHE_DIR", str(run_dir / "cache"))
     try:
-        out = S.build_speed_section(str(run_dir), width=320, height=240, seed=0, progress=False, sweeps=TINY)
+        return S.build_speed_section(str(run_dir), width=320, height=240, seed=0, progress=False, sweeps=sweeps)
     finally:
         mp.undo()
-    return run_dir, out
+
+
+@pytest.fixture(scope="module")
+def section(tmp_path_factory):
+    run_dir = tmp_path_factory.mktemp("run")
+    return run_dir, build_in(run_dir, TINY)
 
 
 @pytest.mark.slow

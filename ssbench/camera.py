@@ -187,10 +187,15 @@ class Camera:
     def view_to_ndc(self, p: torch.Tensor, dim: int = -3) -> torch.Tensor:
         """View points → NDC ``(x, y, z)`` in [−1, 1]³ inside the frustum (divide by ``w = −z``)."""
         x, y, z = split_components(p, dim, 3, "p")
-        n, f, F = self.near, self.far, self.focal
+        n, f = self.near, self.far
+        return torch.stack([*self.view_to_ndc_xy(x, y, z), (f + n) / (f - n) + 2.0 * f * n / ((f - n) * z)], dim)
+
+    def view_to_ndc_xy(self, x: torch.Tensor, y: torch.Tensor, z: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """NDC ``x, y`` of view points given as separate components (what :meth:`view_to_ndc` computes, op for
+        op, without stacking: a compiled kernel fuses it with the fetch that follows)."""
         w = -z
-        return torch.stack([F / self.aspect * x / w, F * y / w,
-                            (f + n) / (f - n) + 2.0 * f * n / ((f - n) * z)], dim)
+        F = self.focal
+        return F / self.aspect * x / w, F * y / w
 
     def ndc_to_view(self, ndc: torch.Tensor, dim: int = -3) -> torch.Tensor:
         """NDC ``(x, y, z)`` → view points (inverse of :meth:`view_to_ndc`)."""

@@ -43,7 +43,13 @@ def make_generator(seed: int, generator: Optional[torch.Generator], device=None)
 
 def uv_to_texel(uv: torch.Tensor, height: int, width: int, dim: int = 1) -> tuple[torch.Tensor, torch.Tensor]:
     """Integer ``(col, row)`` of the ``NEAREST``/``CLAMP_TO_EDGE`` texel a shader reads at ``uv`` (v up)."""
-    u, v = uv.unbind(dim)                         # NaN (a degenerate projection) reads texel 0, never INT64_MIN
+    u, v = uv.unbind(dim)
+    return texel_of(u, v, height, width)
+
+
+def texel_of(u: torch.Tensor, v: torch.Tensor, height: int, width: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """:func:`uv_to_texel` of ``u`` and ``v`` given apart (nothing stacked: a compiled kernel fuses it)."""
+    # NaN (a degenerate projection) reads texel 0, never INT64_MIN
     col = torch.floor(u * width).nan_to_num(0.0).clamp(0, width - 1).long()
     row = torch.floor((1.0 - v) * height).nan_to_num(0.0).clamp(0, height - 1).long()
     return col, row

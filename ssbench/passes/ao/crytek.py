@@ -92,7 +92,8 @@ def sphere_band(cam, position: torch.Tensor, rnd: torch.Tensor, k: torch.Tensor,
     :math:`(B, 1, h, W)` count (the pass's compilable kernel, :mod:`ssbench.passes.compiled`).
     """
     reflected = k - 2.0 * (k * rnd).sum(1, keepdim=True) * rnd                      # (1, 3, K, h, W)
-    sample_point = position.unsqueeze(2) + reflected * p.kernel_radius                # (B, 3, K, h, W)
+    sample_point = tuple(position[:, c:c + 1, None] + reflected[:, c:c + 1] * p.kernel_radius
+                         for c in range(3))                                            # 3 × (B, 1, K, h, W)
     return range_check_count(cam, sample_point, texture, False, p.min_distance, p.max_distance)
 
 

@@ -113,10 +113,12 @@ def hemisphere_band(cam: Camera, position: torch.Tensor, tbn: tuple, k: tuple, t
         :math:`(B, 1, h, W)` integer count (the pass's compilable kernel, :mod:`ssbench.passes.compiled`).
     """
     (t, b, n), (kx, ky, kz) = tbn, k
-    sample_vector = (t.unsqueeze(2) * kx + b.unsqueeze(2) * ky) + n.unsqueeze(2) * kz
-    sample_point = position.unsqueeze(2) + sample_vector * p.kernel_radius             # (B, 3, K, h, W)
-    return range_check_count(cam, sample_point, texture, p.position_from == "depth", p.min_distance,
-                             p.max_distance)
+
+    def component(c: int) -> torch.Tensor:                                           # (B, 1, K, h, W)
+        sample_vector = (t[:, c:c + 1, None] * kx + b[:, c:c + 1, None] * ky) + n[:, c:c + 1, None] * kz
+        return position[:, c:c + 1, None] + sample_vector * p.kernel_radius
+    return range_check_count(cam, (component(0), component(1), component(2)), texture,
+                             p.position_from == "depth", p.min_distance, p.max_distance)
 
 
 @half_in_float32

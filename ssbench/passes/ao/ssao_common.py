@@ -7,7 +7,7 @@ from __future__ import annotations
 import torch
 
 from ...camera import Camera
-from ..common import AOResult, check_count, check_radius, fetch_uv
+from ..common import AOResult, check_count, check_radius, fetch, texel_of
 
 __all__ = ["check_ssao_params", "view_position", "range_check_count", "occlusion_to_ao", "ssao_result"]
 
@@ -37,23 +37,24 @@ def view_position(camera: Camera, view_z: torch.Tensor, position_from: str) -> t
     return camera.uv_to_view(uv, view_z), view_z
 
 
-def range_check_count(camera: Camera, sample_point: torch.Tensor, texture: torch.Tensor, from_depth: bool,
+def range_check_count(camera: Camera, sample_point: tuple, texture: torch.Tensor, from_depth: bool,
                       min_distance: float, max_distance: float) -> torch.Tensor:
     """The shader's sample loop body for all samples at once: project, fetch, compare, count.
 
     Args:
-        sample_point: :math:`(B, 3, K, H, W)` view-space ``samplePoint``.
+        sample_point: view-space ``samplePoint`` as its ``(x, y, z)`` components, each :math:`(B, 1, K, H, W)`
+            (kept apart, never stacked, so that a compiled kernel fuses the whole loop body into one pass).
         texture: :math:`(B, 1, H, W)` GL depth buffer (``from_depth``) or view z.
 
     Returns:
         :math:`(B, 1, H, W)` integer count of samples with ``min_distance < delta < max_distance``.
     """
-    z = sample_point[:, 2:3]                                                     # (B, 1, K, H, W)
+    x, y, z = sample_point
     # NOTE: w = -z = 0 would divide by zero; the GPU result is undefined, ours reads as "just in front"
     z_proj = torch.where(z == 0, torch.full_like(z, -torch.finfo(z.dtype).tiny), z)
-    ndc = camera.view_to_ndc(torch.cat([sample_point[:, :2], z_proj], 1), dim=1)  # (B, 3, K, H, W)
-    uv = torch.nan_to_num(camera.ndc_to_uv(ndc[:, :2]))                          # (B, 2, K, H, W) samplePointUv
-    real = fetch_uv(texture, uv)                                                 # (B, 1, K, H, W) NEAREST, clamp
+    u, v = (torch.nan_to_num(camera.ndc_to_uv(c)) for c in camera.view_to_ndc_xy(x, y, z_proj))  # samplePointUv
+    col, row = texel_of(u, v, texture.shape[-2], texture.shape[-1])
+    real = fetch(texture, col.squeeze(1), row.squeeze(1)).reshape(z.shape)     # (B, 1, K, H, W) NEAREST, clamp
     if from_depth:
         real = camera.depth_to_view_z(real)                                      # perspectiveDepthToViewZ
     real_depth = camera.view_z_to_orthographic_depth(real)                       # realDepth

@@ -13,7 +13,7 @@ import sys
 from typing import Optional, Sequence
 
 from ..gbuffer import CHANNELS
-from ._args import (UsageError, Parser, channels_arg, non_negative, non_negative_float, param_arg, positive,
+from ._args import (UsageError, Parser, channels_arg, define_arg, non_negative, non_negative_float, param_arg, positive,
                     positive_float, gt_rays, scene_list, size_arg, coerce_params, parse_value)  # noqa: F401
 from ._effect_cmds import cmd_ao, cmd_ssr
 from ._implicit_cmd import cmd_implicit
@@ -38,7 +38,9 @@ def _parser() -> Parser:
     q = sub.add_parser("scenes", help="list the built-in scenes")
     q.add_argument("--json", action="store_true", help="print JSON")
     q = sub.add_parser("render", help="render a scene's reference G-buffer to EXR + PNG files")
-    q.add_argument("scene", metavar="SCENE", help="catalog name or scene file (.yaml, .toml, .xml)")
+    q.add_argument("scene", metavar="SCENE", help="catalog name or scene file (.yaml, .toml, Mitsuba 3 .xml)")
+    q.add_argument("-D", dest="defines", type=define_arg, action="append", default=[], metavar="NAME=VALUE",
+                   help="override a Mitsuba scene file's $NAME parameter (repeatable), e.g. -D res=256")
     q.add_argument("--out", required=True, metavar="DIR", help="output directory")
     q.add_argument("--width", type=positive("width"), help="image width (default: the scene camera's)")
     q.add_argument("--height", type=positive("height"), help="image height (default: the scene camera's)")
@@ -51,7 +53,9 @@ def _parser() -> Parser:
     from ..passes import AO_METHODS
     from ..reference.ao import WEIGHTINGS as AO_WEIGHTINGS
     q = sub.add_parser("ao", help="run one AO method on a scene and score it against the ray-traced GT")
-    q.add_argument("scene", metavar="SCENE", help="catalog name or scene file (.yaml, .toml, .xml)")
+    q.add_argument("scene", metavar="SCENE", help="catalog name or scene file (.yaml, .toml, Mitsuba 3 .xml)")
+    q.add_argument("-D", dest="defines", type=define_arg, action="append", default=[], metavar="NAME=VALUE",
+                   help="override a Mitsuba scene file's $NAME parameter (repeatable), e.g. -D res=256")
     q.add_argument("--method", required=True, choices=list(AO_METHODS), help="AO method")
     q.add_argument("--param", type=param_arg, action="append", default=[], metavar="NAME=VALUE",
                    help="override a pass parameter (repeatable), e.g. --param num_steps=8")
@@ -71,7 +75,9 @@ def _parser() -> Parser:
     q.add_argument("--force", action="store_true", help="run work above the size limits (ssbench/RELIABILITY.md)")
     from ..passes import SSR_METHODS
     q = sub.add_parser("ssr", help="run one SSR method on a scene and classify it against the exact reflections")
-    q.add_argument("scene", metavar="SCENE", help="catalog name or scene file (.yaml, .toml, .xml)")
+    q.add_argument("scene", metavar="SCENE", help="catalog name or scene file (.yaml, .toml, Mitsuba 3 .xml)")
+    q.add_argument("-D", dest="defines", type=define_arg, action="append", default=[], metavar="NAME=VALUE",
+                   help="override a Mitsuba scene file's $NAME parameter (repeatable), e.g. -D res=256")
     q.add_argument("--method", required=True, choices=list(SSR_METHODS), help="SSR method")
     q.add_argument("--param", type=param_arg, action="append", default=[], metavar="NAME=VALUE",
                    help="override a pass parameter (repeatable), e.g. --param pixel_stride=4")
@@ -172,7 +178,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run the ``ssbench`` command line; returns the exit status."""
     import warnings
     previous = warnings.formatwarning                        # warnings read as one line, for this call only
-    warnings.formatwarning = lambda message, category, *rest, **kw: f"ssbench: warning: {message}\n"
+    warnings.formatwarning = lambda message, category, *rest, **kw: (
+        f"ssbench: {'note' if category.__name__ == 'SceneNote' else 'warning'}: {message}\n")
     try:
         return _dispatch(argv)
     finally:

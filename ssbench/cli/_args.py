@@ -123,6 +123,15 @@ def param_arg(s: str) -> tuple[str, object]:
     return name, parse_value(value)
 
 
+def define_arg(s: str) -> tuple[str, str]:
+    """``-D NAME=VALUE``: a Mitsuba scene parameter override, kept as text (Mitsuba parses it)."""
+    name, sep, value = s.partition("=")
+    name = name.strip()
+    if not sep or not name.isidentifier():
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE (e.g. spp=16), got {s!r}")
+    return name, value.strip()
+
+
 def coerce_params(params_cls, pairs, method: str) -> dict:
     """``--param`` pairs checked against the pass's params dataclass: known names, no repeats, and values
     of the default's type (an int is accepted for a float; anything else is an error naming the parameter)."""

@@ -33,7 +33,7 @@ def _ao_table(row: dict) -> str:
 
 def _scene_and_params(args, resolve):
     """Scene, parameter class and ``--param`` overrides of an ``ao``/``ssr`` command."""
-    sc = load_scene(args.scene)
+    sc = load_scene(args.scene, args.defines)
     try:
         _, params_cls, _ = resolve(args.method)
     except (ImportError, AttributeError) as e:

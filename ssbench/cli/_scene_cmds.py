@@ -43,10 +43,11 @@ def cmd_scenes(args) -> int:
     return 0
 
 
-def load_scene(arg: str):
+def load_scene(arg: str, defines=()):
+    """The scene a command names (``-D`` overrides for a Mitsuba file); a usage error naming SCENE otherwise."""
     from ..scenes import SceneError, catalog, load
     try:
-        return load(arg)
+        return load(arg, defines)
     except SceneError as e:
         raise UsageError(f"argument SCENE: {e}") from None
     except (KeyError, ValueError, FileNotFoundError, OSError) as e:
@@ -60,7 +61,7 @@ def cmd_render(args) -> int:
     from .. import io
     from ..reference import backend
     from ..report.build import render_scene
-    sc = load_scene(args.scene)
+    sc = load_scene(args.scene, args.defines)
     guard_work(force=args.force, width=args.width or sc.camera.width, height=args.height or sc.camera.height)
     out_dir(args.out)
     t_start = time.perf_counter()

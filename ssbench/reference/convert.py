@@ -1,4 +1,6 @@
-"""Translate a :class:`~ssbench.scenes.Scene` into a Mitsuba scene dictionary (and load it).
+"""Translate a :class:`~ssbench.scenes.Scene` into a Mitsuba scene dictionary (and load it). A scene read from a
+Mitsuba file (``scene.mitsuba``) brings its own loaded shape and emitter objects
+(:func:`ssbench.reference.mitsuba_file.objects`); only the sensor and the integrator are ours.
 
 Mitsuba object ids encode the scene index: ``s0003__ball`` (and ``s0003__ball__cap1`` for a cylinder cap), so
 G-buffer ``shape_id`` never depends on the order of ``scene.shapes()``, which is not stable across processes
@@ -110,8 +112,14 @@ def scene_dict(scene: Scene, camera: Camera | None = None) -> dict[str, Any]:
                    "film": {"type": "hdrfilm", "width": cam.width, "height": cam.height,
                             "rfilter": {"type": "box"}, "pixel_format": "rgb"}},
     }
-    for i, s in enumerate(scene.shapes):
-        d.update(shape_dicts(i, s, T))
+    if scene.mitsuba is not None:               # a Mitsuba file: its own shape and emitter objects
+        from .mitsuba_file import objects
+        shapes, emitters = objects(scene.mitsuba)
+        d.update({mitsuba_id(i, s): obj for i, (s, obj) in enumerate(zip(scene.shapes, shapes))})
+        d.update({f"light{k}": e for k, e in enumerate(emitters)})
+    else:
+        for i, s in enumerate(scene.shapes):
+            d.update(shape_dicts(i, s, T))
     for k, light in enumerate(scene.lights):
         if light.type == "point":
             d[f"light{k}"] = {"type": "point", "position": list(light.param("position")),

@@ -51,7 +51,12 @@ def resolve_camera(scene, width, height) -> tuple[Scene, Camera]:
     return sc, sc.camera.with_resolution(int(w), int(h))
 
 
-def _trace(mi, dr, mscene, cam: Camera, want_back: bool) -> dict:
+def _albedo_at_hit(sc: Scene) -> bool:
+    """Whether some shape's albedo is a texture to look up at each hit (a Mitsuba file's diffuse textures)."""
+    return any(dict(s.params).get("albedo_at_hit", False) for s in sc.shapes)
+
+
+def _trace(mi, dr, mscene, cam: Camera, want_back: bool, want_albedo: bool = False) -> dict:
     """The kernel: arrays of length H·W (row-major, row 0 at the top)."""
     W, H = cam.width, cam.height
     sensor = mscene.sensors()[0]
@@ -76,6 +81,8 @@ def _trace(mi, dr, mscene, cam: Camera, want_back: bool) -> dict:
     sid = dr.select(hit, dr.gather(mi.Int32, mi.Int32(table), rid_px, hit), -1)
     out = {"hit": hit, "ray_o": ray.o, "ray_d": ray.d, "t": si.t, "p_view": p_view, "n_view": n_view,
            "sid": sid}
+    if want_albedo:                             # textured albedo, looked up at the hit (Mitsuba-file scenes)
+        out["albedo"] = si.bsdf().eval_diffuse_reflectance(si, hit)
 
     if want_back:                               # ------------ exit through the first object entered
         # Step along the *same* line (o + t·d): spawn_ray() would push the origin off it along the normal by
@@ -101,7 +108,7 @@ def _render_jit(sc: Scene, cam: Camera, chans: tuple[str, ...]) -> dict[str, np.
     mi = backend.mitsuba()
     import drjit as dr
     mscene = convert.load(sc, cam)
-    r = _trace(mi, dr, mscene, cam, "back_z" in chans)
+    r = _trace(mi, dr, mscene, cam, "back_z" in chans, "albedo" in chans and _albedo_at_hit(sc))
     H, W = cam.height, cam.width
     # Dr.Jit -> torch by DLPack (.torch(): zero-copy for flat arrays); numpy views of those for the cache
     img = lambda a: a.torch().reshape(1, 1, H, W).numpy()                        # noqa: E731
@@ -125,6 +132,8 @@ def _render_jit(sc: Scene, cam: Camera, chans: tuple[str, ...]) -> dict[str, np.
         out["shape_id"] = r["sid"].torch().reshape(1, 1, H, W).numpy()
     if "back_z" in chans:
         out["back_z"] = img(r["back_z"])
+    if "albedo" in r:
+        out["albedo_hit"] = vec(r["albedo"])
     return out
 
 
@@ -194,6 +203,10 @@ def _fill(sc: Scene, cam: Camera, raw: dict[str, np.ndarray], chans: tuple[str, 
         for name, tab in tables.items():
             if name in chans:
                 vals = tab[idx[:, 0]].permute(0, 3, 1, 2)                                  # (1, C, H, W)
+                if name == "albedo" and "albedo_hit" in raw:                      # textures, at each hit
+                    at_hit = torch.tensor([bool(dict(s.params).get("albedo_at_hit", False)) for s in sc.shapes])
+                    vals = torch.where(at_hit[idx[:, 0]].unsqueeze(1),
+                                       torch.from_numpy(raw["albedo_hit"].copy()).clamp(0.0, 1.0), vals)
                 out[name] = torch.where(mask, vals, torch.tensor(bg[name]))
         if "shape_id" in chans:
             out["shape_id"] = torch.where(mask, sid, torch.tensor(-1, dtype=torch.int32))
@@ -229,7 +242,7 @@ def gbuffer(scene, width: Optional[int] = None, height: Optional[int] = None,
         if not cached:
             t0 = time.perf_counter()
             raw = (_render_jit if backend.is_jit() else _render_scalar)(sc, cam, geo)
-            raw = {k: v for k, v in raw.items() if k in geo or k in ("mask", "shape_id")}
+            raw = {k: v for k, v in raw.items() if k in geo or k in ("mask", "shape_id", "albedo_hit")}
             stored = {"seconds": time.perf_counter() - t0}
             if use_cache:
                 cache.store(key, raw, stored)

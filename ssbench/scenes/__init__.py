@@ -13,13 +13,16 @@ __all__ = ["load", "Scene", "Shape", "Material", "Light", "SceneError", "scene_f
            "parse_toml", "load_file", "catalog"]
 
 
-def load(name_or_path: "str | os.PathLike | dict[str, Any] | Scene") -> Scene:
-    """Load a scene from the built-in catalog (by name), a YAML/TOML/XML file, or a plain dict.
+def load(name_or_path: "str | os.PathLike | dict[str, Any] | Scene", defines=()) -> Scene:
+    """Load a scene from the built-in catalog (by name), a YAML/TOML/Mitsuba XML file, or a plain dict;
+    ``defines`` (``-D name=value`` pairs or a dict) override a Mitsuba file's ``$name`` parameters.
 
     Example:
         >>> load("sphere_on_plane").camera.width
         320
     """
+    if defines and not isinstance(name_or_path, (str, os.PathLike)):
+        raise ValueError("defines: only Mitsuba .xml scene files take -D overrides")
     if isinstance(name_or_path, Scene):
         return name_or_path
     if isinstance(name_or_path, dict):
@@ -28,9 +31,9 @@ def load(name_or_path: "str | os.PathLike | dict[str, Any] | Scene") -> Scene:
         raise TypeError(f"name_or_path: expected a scene name, a file path or a dict, "
                         f"got {type(name_or_path).__name__}")
     s = os.fspath(name_or_path)
-    if s in catalog.CATALOG:
+    if s in catalog.CATALOG and not defines:
         return catalog.get(s)
     if os.path.splitext(s)[1].lower() in (".yaml", ".yml", ".toml", ".xml") or os.path.exists(s):
-        return load_file(s)
+        return load_file(s, defines)
     raise KeyError(f"name_or_path: {s!r} is neither a built-in scene ({', '.join(catalog.CATALOG)}) "
                    f"nor a scene file")

@@ -1,4 +1,5 @@
-"""Scene files: YAML and TOML (Mitsuba XML lives in ``mitsuba_xml.py``). Data only, never code.
+"""Scene files: YAML and TOML (Mitsuba XML is loaded by Mitsuba: ``ssbench.reference.mitsuba_file``). Data only,
+never code.
 
 YAML is read with PyYAML's *safe* loader (no object tags), TOML with ``tomllib``. Both keep track of the line
 of every key so that validation errors read ``path/to/scene.yaml:12: shapes[1].radius: must be > 0``.
@@ -210,19 +211,23 @@ def read_data_file(path: str | os.PathLike) -> tuple[Any, Locator]:
     return read_yaml(text, path) if ext in (".yaml", ".yml") else read_toml(text, path)
 
 
-def load_file(path: str | os.PathLike) -> Scene:
-    """Load a ``.yaml``/``.yml``, ``.toml`` or Mitsuba ``.xml`` scene file."""
+def load_file(path: str | os.PathLike, defines=()) -> Scene:
+    """Load a ``.yaml``/``.yml``, ``.toml`` or Mitsuba 3 ``.xml`` scene file. An ``.xml`` file is loaded by
+    Mitsuba itself (:func:`ssbench.reference.mitsuba_file.load_xml`), with ``defines`` (``-D name=value``)
+    overriding its ``$name`` parameters; YAML and TOML take no ``defines``."""
     path = os.fspath(path)
     ext = os.path.splitext(path)[1].lower()
     if not os.path.isfile(path):
         raise FileNotFoundError(f"name_or_path: scene file not found: {path}")
+    if ext == ".xml":
+        from ..reference.mitsuba_file import load_xml      # Mitsuba is imported only for Mitsuba files
+        return load_xml(path, defines)
+    if defines:
+        raise ValueError(f"defines: only Mitsuba .xml scenes take -D overrides, not {os.path.basename(path)}")
     text = read_text(path)
     base = os.path.dirname(os.path.abspath(path))
     if ext in (".yaml", ".yml"):
         return parse_yaml(text, path, base)
     if ext == ".toml":
         return parse_toml(text, path, base)
-    if ext == ".xml":
-        from .mitsuba_xml import parse_mitsuba_xml
-        return parse_mitsuba_xml(text, path, base)
     raise SceneError(f"{path}:1: unknown scene file type {ext!r} (use .yaml, .yml, .toml or .xml)")

@@ -1,7 +1,8 @@
 """Scene data model: geometry + materials + lights + camera, as frozen, hashable data.
 
 A scene models only what the comparisons need: analytic shapes (sphere, box, rectangle, disk, cylinder) and
-meshes (OBJ/PLY), each with a material of albedo / roughness / metallic; point, directional and constant
+meshes (OBJ/PLY) — or the shapes of a Mitsuba scene file, loaded by Mitsuba (type ``mitsuba``) — each with a
+material of albedo / roughness / metallic; point, directional and constant
 environment lights; one :class:`~ssbench.camera.Camera`. Nothing here imports Mitsuba; the reference backend
 translates a :class:`Scene` into a Mitsuba scene (``ssbench.reference.convert``).
 
@@ -19,7 +20,7 @@ from .transforms import Mat4
 
 Vec3 = tuple[float, float, float]
 
-SHAPE_TYPES = ("sphere", "box", "rectangle", "disk", "cylinder", "mesh")
+SHAPE_TYPES = ("sphere", "box", "rectangle", "disk", "cylinder", "mesh", "mitsuba")
 LIGHT_TYPES = ("point", "directional", "environment")
 
 
@@ -73,6 +74,16 @@ class Light:
 
 
 @dataclass(frozen=True)
+class MitsubaSource:
+    """A scene loaded from a Mitsuba 3 file by Mitsuba itself (:mod:`ssbench.reference.mitsuba_file`): the file's
+    real ``path``, the ``digest`` of every file it reads plus the overrides, and the ``defines`` (``-D``)."""
+
+    path: str
+    digest: str
+    defines: tuple[tuple[str, str], ...] = ()
+
+
+@dataclass(frozen=True)
 class Scene:
     """A complete, validated scene. Build one with :func:`ssbench.scenes.load` or :func:`scene_from_dict`."""
 
@@ -84,6 +95,7 @@ class Scene:
     max_depth: int = 6
     source: str = "<dict>"
     extra: tuple[tuple[str, Any], ...] = field(default=())
+    mitsuba: "MitsubaSource | None" = None   # set: the shapes and emitters are this file's Mitsuba objects
 
     def shape_index(self, shape_id: str) -> int:
         """Position of a shape in :attr:`shapes`; this index is the G-buffer ``shape_id``."""
@@ -100,6 +112,10 @@ class Scene:
         """SHA-256 of everything that affects a rendering (not the description or source path)."""
         d = asdict(self)
         d.pop("description"), d.pop("source")
+        if d["mitsuba"] is None:
+            d.pop("mitsuba")                     # scenes without a file hash as they always did
+        else:
+            d["mitsuba"].pop("path"), d.pop("extra")
         for s in d["shapes"]:
             s.pop("where")
         blob = json.dumps(d, sort_keys=True, default=str).encode()

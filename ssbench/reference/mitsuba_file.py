@@ -59,6 +59,8 @@ def _mitsuba_scene(g: GuardedScene):
         obj = mi.load_file(g.path, optimize=False, **dict(g.defines))
     except Exception as e:                                     # Mitsuba's own message, in one line
         raise SceneError(f"{g.path}: Mitsuba could not load the scene: {_one_line(e)}") from None
+    # the file's own shape ids, read now: every rebuilt scene renames these objects (convert.mitsuba_id)
+    obj = (obj, tuple(sh.id() for sh in obj.shapes()))
     _LOADED[key] = obj
     while len(_LOADED) > 4:
         _LOADED.popitem(last=False)
@@ -98,8 +100,8 @@ def _camera(mscene, where: str) -> tuple[Camera, list[str]]:
     return cam, notes
 
 
-def _name(shape, i: int, taken: set) -> str:
-    base = shape.id() or f"shape{i}"
+def _name(file_id: str, i: int, taken: set) -> str:
+    base = file_id or f"shape{i}"
     name, k = base, 1
     while name in taken:
         name, k = f"{base}_{k}", k + 1
@@ -120,13 +122,13 @@ def load_xml(path: "str | os.PathLike", defines=()) -> Scene:
         SceneError: naming ``file:line`` where the guard refuses, else Mitsuba's own message in one line.
     """
     g = guard(path, defines)
-    mscene = _mitsuba_scene(g)
+    mscene, ids = _mitsuba_scene(g)
     cam, notes = _camera(mscene, g.path)
     notes = list(g.notes) + notes
     shapes, taken = [], set()
     for i, sh in enumerate(mscene.shapes()):
         mapped = map_bsdf(sh.bsdf())
-        name = _name(sh, i, taken)
+        name = _name(ids[i], i, taken)
         notes += [f"{g.path}: shape {name!r}: {n}" for n in mapped.notes]
         shapes.append(Shape(name, "mitsuba", (("albedo_at_hit", mapped.albedo_at_hit),
                                               ("kind", str(sh).split("[")[0].strip())),
@@ -146,6 +148,6 @@ def objects(source: MitsubaSource) -> tuple[list, list]:
     g = guard(source.path, source.defines)
     if g.digest != source.digest:
         raise SceneError(f"{source.path}: the scene's files changed since it was loaded; load it again")
-    mscene = _mitsuba_scene(g)
+    mscene, _ = _mitsuba_scene(g)
     lone = [e for e in mscene.emitters() if not str(e).startswith("AreaLight")]
     return list(mscene.shapes()), lone

@@ -124,6 +124,9 @@ def _parser() -> Parser:
     q.add_argument("--spp", type=positive("spp"), default=64)
     q.add_argument("--seed", type=non_negative, default=0)
     q.add_argument("--scenes", type=scene_list, default=None, help="comma-separated subset of the catalog")
+    q.add_argument("--scene", dest="extra_scenes", action="append", default=[], metavar="FILE",
+                   help="add your own scene file (Mitsuba .xml, .yaml, .toml) to the previews and the AO and SSR "
+                        "sections (repeatable)")
     q.add_argument("--fresh-previews", action="store_true", help="render and time the scene previews afresh (by "
                    "default they come from the render cache when there, with the times recorded when rendered)")
     q.add_argument("--no-gt-cache", action="store_true", help="trace every section's ground truth afresh (by "

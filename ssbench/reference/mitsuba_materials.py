@@ -134,5 +134,11 @@ def map_bsdf(bsdf) -> MappedMaterial:
     from . import backend
     mi = backend.mitsuba()
     kind = str(bsdf).split("[")[0].split(" ")[0].strip() or "BSDF"
-    params = mi.traverse(bsdf)
-    return _map({k: params[k] for k in params.keys()}, kind)
+    try:
+        params = mi.traverse(bsdf)
+        flat = {k: params[k] for k in params.keys()}
+    except Exception as e:                      # some plugins' parameters cannot be read back (e.g. hair)
+        return MappedMaterial(DEFAULT, False, (f"{kind}: its parameters cannot be read ({' '.join(str(e).split())[:80]}"
+                                               f"); using albedo {DEFAULT.albedo}, roughness {DEFAULT.roughness}, "
+                                               f"metallic {DEFAULT.metallic}",))
+    return _map(flat, kind)

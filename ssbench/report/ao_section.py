@@ -21,7 +21,7 @@ import math
 import os
 import time
 import traceback
-from typing import Iterable, Optional
+from typing import TYPE_CHECKING, Iterable, Optional
 
 import numpy as np
 import torch
@@ -30,6 +30,9 @@ from ..passes import ao_method, declared
 from ..pictures import ao_rgb, error_rgb
 from .summary import unavailable_md
 from .flip_maps import flip_rgb
+
+if TYPE_CHECKING:
+    from ..scenes import Scene
 
 #: scenes of the AO section when the report names none (small, so ``make report`` stays fast)
 AO_SCENES = ("crease", "cornell_box", "sphere_on_plane", "stairs")
@@ -124,7 +127,7 @@ def _methods() -> tuple[list[str], list[str], tuple[str, ...]]:
     return ok, notes, tuple(channels)
 
 
-def build_ao_section(run_dir: str, scenes: Optional[Iterable[str]] = None, width: int = 320, height: int = 240,
+def build_ao_section(run_dir: str, scenes: Optional[Iterable["str | Scene"]] = None, width: int = 320, height: int = 240,
                      *, radius: float = 0.5, rays: int = 128, seed: int = 0, use_cache: bool = False,
                      progress: Optional[bool] = None) -> dict:
     """Run the AO section into ``run_dir`` (images under ``img/ao/``); returns its metadata for the template.
@@ -154,7 +157,7 @@ def build_ao_section(run_dir: str, scenes: Optional[Iterable[str]] = None, width
             out_scenes.append(s)
             rows += r
         except Exception as e:
-            notes.append(f"scene {name} skipped: {type(e).__name__}: {e}")
+            notes.append(f"scene {getattr(name, 'name', name)} skipped: {type(e).__name__}: {e}")
             if os.environ.get("SSBENCH_DEBUG"):
                 traceback.print_exc()
     overview = [{"method": m, "cells": [fmt(next((r["rmse_cos"] for r in rows if r["scene"] == s["name"]
@@ -182,7 +185,8 @@ def build_ao_section(run_dir: str, scenes: Optional[Iterable[str]] = None, width
 def _scene(run_dir, name, methods, channels, width, height, radius, rays, seed, use_cache, evaluate, reference):
     from ..metrics import halo
     from ..scenes import load
-    sc = load(name)
+    sc = load(name)                                             # a catalog name or a user's loaded scene
+    name = sc.name
     d = os.path.join(run_dir, "img", "ao", name)
     rel = f"img/ao/{name}"
     t0 = time.perf_counter()

@@ -84,6 +84,27 @@ def refresh_latest(run_dir: str, out_root: str) -> str:
     return replace_dir(tmp, latest)
 
 
+def user_scenes(paths: Iterable, taken: Iterable[str]) -> list:
+    """A user's scene files loaded as scenes named after their files (safe for paths, unique, never a catalog
+    name: ``file_<name>`` then)."""
+    import dataclasses
+    import re
+    from ..scenes import load
+    if isinstance(paths, (str, os.PathLike)):
+        raise TypeError("extra_scenes: expected a list of scene files, got one path")
+    out, used = [], set(taken)
+    for p in paths:
+        sc = load(os.fspath(p))
+        name = re.sub(r"[^A-Za-z0-9_.-]", "_", sc.name) or "scene"
+        if name in used:
+            name = f"file_{name}"
+        while name in used:
+            name += "_"
+        used.add(name)
+        out.append(dataclasses.replace(sc, name=name))
+    return out
+
+
 def _ao_section(run_dir, scenes, width, height, enabled, radius, rays, seed, use_cache, progress) -> dict:
     """The AO section's metadata (see :mod:`.ao_section`); a note instead whenever it cannot run."""
     if not enabled:
@@ -159,8 +180,12 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
                  progress: Optional[bool] = None, ao: bool = True, ao_radius: float = 0.5,
                  ao_rays: int = 128, ssr: bool = True, ssr_spp: int = 16, implicit: Optional[bool] = None,
                  speed: Optional[bool] = None, tuning: Optional[bool] = None, calibration: Optional[bool] = None,
-                 gt_cache: bool = True) -> str:
+                 gt_cache: bool = True, extra_scenes: Iterable = ()) -> str:
     """Render every catalog scene (or ``scenes``) and write a report run; returns the run's ``index.html``.
+
+    ``extra_scenes``: a user's scene files (Mitsuba ``.xml``, YAML, TOML), added to the scene previews and to the
+    AO and SSR sections (after their own scenes), each under its file's name (``file_`` in front when that is a
+    catalog name).
 
     ``use_cache=True`` (default) reads the scene previews from the render cache when they are there (their times
     are then the ones recorded when they were rendered, flagged "cached" in the page); ``use_cache=False``
@@ -194,13 +219,15 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
     t0 = time.perf_counter()
     env = environment()                                     # probes the backend and imports Mitsuba
     backend_init_s = time.perf_counter() - t0
+    extras = user_scenes(extra_scenes, known)
     run, run_dir = _new_run_dir(out_root)
     descriptions = catalog.describe()
     rows, gbuffers = [], {}
-    for name in tqdm(names, desc="report", unit="scene", disable=None if progress is None else not progress):
-        sc = load(name)
+    for spec in tqdm(names + extras, desc="report", unit="scene", disable=None if progress is None else not progress):
+        sc = load(spec)
+        name = sc.name
         g, timings = render_scene(sc, width, height, ALL_CHANNELS, spp=spp, seed=seed, use_cache=use_cache)
-        if ssr and (scenes is not None or name in _SSR_SCENES):
+        if ssr and (scenes is not None or name in _SSR_SCENES or spec in extras):
             gbuffers[name] = g                              # reused by the SSR section
         t0 = time.perf_counter()
         images = {}
@@ -222,8 +249,13 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
             "preview_row": list(PREVIEW_ROW)}
     sc_cache = use_cache or gt_cache                          # the sections' ground truth
     meta["gt_cache"] = sc_cache
-    meta["ao"] = _ao_section(run_dir, scenes, width, height, ao, ao_radius, ao_rays, seed, sc_cache, progress)
-    meta["ssr"] = _ssr_section(run_dir, scenes, width, height, ssr, ssr_spp, seed, sc_cache, gbuffers, progress)
+    from .ao_section import AO_SCENES
+    ao_scenes = list(AO_SCENES if scenes is None else names) + extras if extras else scenes
+    ssr_scenes = list(_SSR_SCENES if scenes is None else names) + extras if extras else scenes
+    meta["user_scenes"] = [{"name": sc.name, "file": sc.source} for sc in extras]
+    meta["ao"] = _ao_section(run_dir, ao_scenes, width, height, ao, ao_radius, ao_rays, seed, sc_cache, progress)
+    meta["ssr"] = _ssr_section(run_dir, ssr_scenes, width, height, ssr, ssr_spp, seed, sc_cache, gbuffers,
+                               progress)
     del gbuffers
     meta["implicit"] = _implicit_section(run_dir, scenes, width, height, implicit, seed, sc_cache)
     meta["speed"] = _speed_section(run_dir, scenes, width, height, speed, seed, sc_cache, progress)

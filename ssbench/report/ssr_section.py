@@ -27,7 +27,7 @@ from __future__ import annotations
 import os
 import time
 import traceback
-from typing import Iterable, Optional
+from typing import TYPE_CHECKING, Iterable, Optional
 
 import torch
 
@@ -35,6 +35,9 @@ from ..passes import declared, ssr_method
 from .ao_section import fmt, write_png
 from .ssr_images import color_rgb, scored_error_rgb, visits_rgb
 from .summary import unavailable_md
+
+if TYPE_CHECKING:
+    from ..scenes import Scene
 
 #: scenes of the SSR section when the report names none
 SSR_SCENES = ("reflective_floor", "fence")
@@ -94,7 +97,7 @@ def thickness_rows(camera, thickness: float = THICKNESS, depths: Iterable[float]
             "size": f"{camera.width}×{camera.height}", "fovy": camera.fovy_deg}
 
 
-def build_ssr_section(run_dir: str, scenes: Optional[Iterable[str]] = None, width: int = 320, height: int = 240,
+def build_ssr_section(run_dir: str, scenes: Optional[Iterable["str | Scene"]] = None, width: int = 320, height: int = 240,
                       *, spp: int = 16, seed: int = 0, k_px: float = 1.5, use_cache: bool = False,
                       gbuffers: Optional[dict] = None, progress: Optional[bool] = None) -> dict:
     """Run the SSR section into ``run_dir`` (images under ``img/ssr/``); returns its metadata for the template.
@@ -122,12 +125,13 @@ def build_ssr_section(run_dir: str, scenes: Optional[Iterable[str]] = None, widt
     for name in tqdm(names, desc="SSR", unit="scene", disable=None if progress is None else not progress):
         try:
             s, r, g = _scene(run_dir, name, methods, channels, width, height, spp, seed, k_px, use_cache,
-                             (gbuffers or {}).get(name), evaluate, reflections, fig11=name == names[0])
+                             (gbuffers or {}).get(getattr(name, "name", name)), evaluate, reflections,
+                             fig11=name == names[0])
             out_scenes.append(s)
             rows += r
             cam = cam or g.camera
         except Exception as e:
-            notes.append(f"scene {name} skipped: {type(e).__name__}: {e}")
+            notes.append(f"scene {getattr(name, 'name', name)} skipped: {type(e).__name__}: {e}")
             if os.environ.get("SSBENCH_DEBUG"):
                 traceback.print_exc()
 
@@ -157,7 +161,8 @@ def _scene(run_dir, name, methods, channels, width, height, spp, seed, k_px, use
     from .. import reference
     from ..metrics import ssr as M
     from ..scenes import load
-    sc = load(name)
+    sc = load(name)                                             # a catalog name or a user's loaded scene
+    name = sc.name
     d = os.path.join(run_dir, "img", "ssr", name)
     rel = f"img/ssr/{name}"
     need = tuple(dict.fromkeys(channels + evaluate.SSR_GT_CHANNELS + ("metallic", "roughness")))

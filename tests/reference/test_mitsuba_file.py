@@ -209,3 +209,33 @@ def test_cli_runs_a_mitsuba_file_with_overrides_and_prints_notes_as_one_line_eac
                         "gtao"], capture_output=True, text=True, timeout=600)
     lines = r.stderr.strip().splitlines()
     assert r.returncode != 0 and lines[-1].startswith("ssbench: error: ") and "Traceback" not in r.stderr
+
+
+@pytest.mark.slow
+def test_report_adds_the_users_scene_files_to_its_sections(built, tmp_path):
+    from ssbench.report.build import build_report
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SceneNote)
+        index = build_report(str(tmp_path / "reports"), scenes=["sphere_on_plane"], width=48, height=36, spp=2,
+                             ao_rays=8, ssr_spp=2, progress=False, implicit=False, speed=False, tuning=False,
+                             calibration=False, extra_scenes=[built["cbox"], built["pile"], built["matrix"]])
+    meta = json.loads((tmp_path / "reports" / "latest" / "meta.json").read_text())
+    names = ["sphere_on_plane", "cbox", "pile", "matrix"]
+    assert [s["name"] for s in meta["scenes"]] == names
+    assert [u["file"] for u in meta["user_scenes"]] == [str(built[k].resolve()) for k in ("cbox", "pile", "matrix")]
+    for section in ("ao", "ssr"):
+        assert [s["name"] for s in meta[section]["scenes"]] == names, (section, meta[section]["notes"])
+        assert not any("skipped" in n for n in meta[section]["notes"]), meta[section]["notes"]
+    html = open(index, encoding="utf-8").read()
+    assert all(f"img/ao/{n}/" in html and f"img/ssr/{n}/" in html for n in names[1:])
+
+
+def test_user_scene_names_never_shadow_the_catalog(built, tmp_path):
+    from ssbench.report.build import user_scenes
+    shutil.copytree(built["matrix"].parent / "parts", tmp_path / "parts")
+    clash = tmp_path / "fence.xml"                                      # named like a catalog scene
+    clash.write_text(built["matrix"].read_text())
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SceneNote)
+        got = user_scenes([clash, built["matrix"], built["matrix"]], ["fence", "stairs"])
+    assert [s.name for s in got] == ["file_fence", "matrix", "file_matrix"]

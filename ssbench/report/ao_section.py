@@ -35,7 +35,7 @@ if TYPE_CHECKING:
     from ..scenes import Scene
 
 #: scenes of the AO section when the report names none (small, so ``make report`` stays fast)
-AO_SCENES = ("crease", "cornell_box", "sphere_on_plane", "stairs")
+AO_SCENES = ("crease", "cornell_box", "sphere_on_plane", "stairs", "furnished_room")
 FLAVOURS = ("cosine", "uniform", "obscurance", "volume_hemisphere", "volume_sphere")
 #: signed-error colour range
 ERR_RANGE = 0.5

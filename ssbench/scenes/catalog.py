@@ -7,6 +7,7 @@ faces would hide their bottom face from the back-face (exit depth) search and z-
 from __future__ import annotations
 
 import copy
+import math
 from typing import Any, Callable
 
 from .model import Scene
@@ -118,6 +119,72 @@ def grazing_floor() -> dict:
             "lights": LIGHTS}
 
 
+WOOD = {"albedo": [0.42, 0.27, 0.15]}
+VARNISH = {"albedo": [0.35, 0.2, 0.1], "roughness": 0.25}
+PAPER = [{"albedo": [0.6, 0.15, 0.1]}, {"albedo": [0.15, 0.3, 0.55]}, {"albedo": [0.75, 0.7, 0.55]},
+         {"albedo": [0.2, 0.45, 0.25]}, {"albedo": [0.5, 0.5, 0.5]}]
+
+
+def _block(sid, size, centre, mat, rotate=(0, 0, 0)) -> dict:
+    """A box by its centre (furniture parts off the floor)."""
+    return {"type": "box", "id": sid, "size": list(size), "rotate": list(rotate), "translate": list(centre),
+            "material": mat}
+
+
+def _table(x, z, top_y=0.74) -> list:
+    legs = [_block(f"table_leg_{i}", [0.05, top_y - 0.03, 0.05], [x + dx, (top_y - 0.03) / 2 + _LIFT, z + dz], WOOD)
+            for i, (dx, dz) in enumerate([(-0.55, -0.3), (0.55, -0.3), (-0.55, 0.3), (0.55, 0.3)])]
+    return legs + [_block("table_top", [1.25, 0.04, 0.72], [x, top_y - 0.01, z], VARNISH)]
+
+
+def _chair(x, z, turn) -> list:
+    c, s = math.cos(math.radians(turn)), math.sin(math.radians(turn))
+    at = lambda dx, dz: (x + c * dx + s * dz, z - s * dx + c * dz)                      # noqa: E731
+    parts = [_block(f"chair_leg_{i}", [0.035, 0.44, 0.035], [*at(dx, dz)[:1], 0.22 + _LIFT, at(dx, dz)[1]],
+                    WOOD, (0, turn, 0)) for i, (dx, dz) in enumerate([(-0.18, -0.18), (0.18, -0.18),
+                                                                      (-0.18, 0.18), (0.18, 0.18)])]
+    sx, sz = at(0, 0)
+    bx, bz = at(0, 0.185)
+    return parts + [_block("chair_seat", [0.42, 0.035, 0.42], [sx, 0.46, sz], WOOD, (0, turn, 0)),
+                    _block("chair_back", [0.42, 0.42, 0.03], [bx, 0.69, bz], WOOD, (0, turn, 0))]
+
+
+def _shelf(x, z) -> list:
+    parts = [_block(f"shelf_side_{i}", [0.03, 1.7, 0.3], [x + dx, 0.85 + _LIFT, z], WOOD)
+             for i, dx in enumerate((-0.48, 0.48))]
+    books, k = [], 0
+    for j, y in enumerate((0.05, 0.45, 0.85, 1.25, 1.65)):
+        parts.append(_block(f"shelf_{j}", [0.93, 0.025, 0.3], [x, y, z], WOOD))
+        if j == 4:
+            continue
+        u = x - 0.44
+        while u < x + 0.36 - 0.05 * (j % 2):
+            w, h = 0.03 + 0.012 * ((k * 7) % 3), 0.22 + 0.03 * ((k * 5) % 4)
+            books.append(_block(f"book_{k}", [w, h, 0.2], [u + w / 2, y + 0.0125 + h / 2 + _LIFT, z + 0.02],
+                                PAPER[k % len(PAPER)]))
+            u, k = u + w + 0.004 * (1 + k % 3), k + 1                                  # thin gaps between books
+    return parts + books
+
+
+def furnished_room() -> dict:
+    return {"name": "furnished_room",
+            "description": "A furnished room: table, chair, a shelf of books with thin gaps, small objects.",
+            "camera": _cam([1.1, 1.3, 2.3], [-0.45, 0.7, -0.7], fovy=55),
+            "shapes": [_floor(size=8, mat=WOOD),
+                       {"type": "rectangle", "id": "back_wall", "size": [8, 4], "translate": [0, 2, -1.5],
+                        "material": WHITE},
+                       {"type": "rectangle", "id": "side_wall", "size": [8, 4], "translate": [-2, 2, 0],
+                        "rotate": [0, 90, 0], "material": WHITE}]
+                      + _table(0.2, 0.3) + _chair(0.2, 1.0, 180) + _shelf(-1.2, -1.33)
+                      + [{"type": "sphere", "id": "apple", "center": [0.45, 0.78, 0.35], "radius": 0.045,
+                          "material": RED},
+                         {"type": "cylinder", "id": "cup", "p0": [0.0, 0.741, 0.2], "p1": [0.0, 0.84, 0.2],
+                          "radius": 0.04, "caps": True, "material": WHITE},
+                         _block("book_on_table", [0.22, 0.04, 0.3], [-0.2, 0.761, 0.45], PAPER[1], (0, 25, 0))],
+            "lights": [{"type": "point", "position": [0.5, 2.6, 1.0], "intensity": 8},
+                       {"type": "environment", "radiance": 0.25}]}
+
+
 def _scaled(build: Callable[[], dict], s: float, name: str, what: str) -> Callable[[], dict]:
     """A copy of a scene with every length multiplied by ``s`` (camera, near/far and lights included)."""
     def scaled() -> dict:
@@ -152,6 +219,7 @@ CATALOG: dict[str, Callable[[], dict]] = {
     "stairs": stairs,
     "reflective_floor": reflective_floor,
     "grazing_floor": grazing_floor,
+    "furnished_room": furnished_room,
     "sphere_on_plane_small": _scaled(sphere_on_plane, 0.01, "sphere_on_plane_small",
                                      "sphere_on_plane scaled by 0.01: a scale-invariant pass gives the same image."),
     "sphere_on_plane_large": _scaled(sphere_on_plane, 100.0, "sphere_on_plane_large",

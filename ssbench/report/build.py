@@ -268,6 +268,8 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
     meta["explorer_mb"] = sum(_folder_mb(os.path.join(run_dir, "sweeps", d, "img"))   # what the explorers load
                               for d in (os.listdir(os.path.join(run_dir, "sweeps"))
                                         if os.path.isdir(os.path.join(run_dir, "sweeps")) else ()))
+    from ..peer import proofs
+    meta["peer_parity"] = proofs()
     meta["metadata_rows"] = summary.metadata_rows(meta)
     meta["glance"] = summary.glance(meta)
     raw = summary.rows_jsonl(meta)

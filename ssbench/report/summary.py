@@ -146,7 +146,8 @@ def metadata_rows(meta: dict) -> list[tuple[str, Any]]:
             ("ground-truth cache", "on" if meta.get("gt_cache") else "off"),
             ("backend start-up s", fmt(meta["backend_init_s"])), ("total wall time s", fmt(meta["total_s"])),
             ("page weight (images)", f"{fmt(meta.get('images_mb'), '{:.1f}')} MB"),
-            ("sweep explorers (images)", f"{fmt(meta.get('explorer_mb'), '{:.1f}')} MB")]
+            ("sweep explorers (images)", f"{fmt(meta.get('explorer_mb'), '{:.1f}')} MB"),
+            ("peer parity (tests/peer)", "; ".join(meta.get("peer_parity") or ["not recorded"]))]
 
 
 def summary_md(meta: dict) -> str:

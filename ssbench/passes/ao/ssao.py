@@ -60,6 +60,7 @@ DEFAULTS_SOURCE = ('three.js SSAOPass (32-sample kernel, 4×4 noise; https://git
                    'scaled to the catalog scenes')
 REQUIRES = ("view_z", "normal", "mask")
 POSITION_FROM = ("depth", "view_z")
+NOISE_CHANNELS = ("xyz", "r")
 
 
 @dataclass(frozen=True)
@@ -82,6 +83,9 @@ class HemisphereSSAOParams:
         seed: seeds the kernel and the noise when no generator is passed.
         position_from: ``"depth"`` (the article: ``getViewPosition`` from the GL depth buffer, and the
             depth buffer is what ``getLinearDepth`` reads) or ``"view_z"`` (exact positions and depths).
+        noise_channels: how ``random`` reads the noise texel: ``"xyz"`` (the article, §2.2: a random 3-vector)
+            or ``"r"`` (three.js ``SSAOShader`` as shipped: ``vec3(texture2D(tNoise, …).r)``, one value in all
+            three components, so the kernel turns about the fixed diagonal (1, 1, 1) only).
     """
 
     kernel_size: int = 32
@@ -92,11 +96,14 @@ class HemisphereSSAOParams:
     noise_size: int = 4
     seed: int = 0
     position_from: str = "depth"
+    noise_channels: str = "xyz"
 
     def __post_init__(self) -> None:
         check_ssao_params(self)
         if self.position_from not in POSITION_FROM:
             raise ValueError(f"position_from: expected one of {POSITION_FROM}, got {self.position_from!r}")
+        if self.noise_channels not in NOISE_CHANNELS:
+            raise ValueError(f"noise_channels: expected one of {NOISE_CHANNELS}, got {self.noise_channels!r}")
 
 
 @kernel
@@ -207,6 +214,8 @@ def hemisphere_frame(gbuffer: GBuffer, params: HemisphereSSAOParams,
     position, texture = view_position(cam, gbuffer.view_z, p.position_from)       # (B, 3, H, W) viewPosition
     col, row = noise_texel(cam.uv_grid(dtype, device), cam.width, cam.height, p.noise_size)   # (H, W)
     random = noise[:, row, col].unsqueeze(0)                                       # (1, 3, H, W)
+    if p.noise_channels == "r":                                                    # three.js: vec3(noise.r)
+        random = random[:, :1].expand(-1, 3, -1, -1)
     tangent = random - n * (random * n).sum(1, keepdim=True)                      # (B, 3, H, W) Gram–Schmidt
     tangent = tangent / length(tangent).clamp_min(torch.finfo(dtype).tiny)
     return HemisphereFrame(position, texture, tangent, torch.cross(n, tangent, dim=1), n, kernel, noise, row, col)

@@ -253,3 +253,20 @@ def test_reference_crease():
         assert bool(((out.ao >= 0) & (out.ao <= 1)).all()) and float(out.ao.min()) < 1
 
 
+
+
+def test_red_channel_noise_turns_the_kernel_about_the_diagonal_only(crease):
+    """three.js's ``vec3(noise.r)``: ``random = r·(1, 1, 1)``, so every pixel's tangent is ±normalize(d − n(n·d)),
+    d = (1, 1, 1), whatever the noise; the article's ``.xyz`` tangents are not."""
+    from ssbench.passes.ao.ssao import hemisphere_frame
+    g = crease.to(dtype=torch.float64)
+    fr = hemisphere_frame(g, HemisphereSSAOParams(noise_channels="r"))
+    n, d = fr.normal, torch.ones(1, 3, 1, 1, dtype=torch.float64)
+    expect = d - n * (d * n).sum(1, keepdim=True)
+    expect = expect / expect.norm(dim=1, keepdim=True)
+    cos = (fr.tangent * expect).sum(1)[g.mask[:, 0]]
+    assert torch.allclose(cos.abs(), torch.ones_like(cos), atol=1e-12)
+    xyz = hemisphere_frame(g, HemisphereSSAOParams()).tangent
+    assert float(((xyz * expect).sum(1)[g.mask[:, 0]].abs() - 1).abs().max()) > 0.1
+    with pytest.raises(ValueError, match="noise_channels"):
+        HemisphereSSAOParams(noise_channels="rgb")

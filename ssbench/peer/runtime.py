@@ -1,0 +1,158 @@
+"""Run one three.js shader pass for real, in headless Chromium (WebGL2 through SwiftShader), on float textures.
+
+:func:`ensure_three` installs the pinned ``three`` package (``js/package.json`` + ``package-lock.json``, ``npm ci``)
+into ``<cache>/peer/three-<version>`` once (``$SSBENCH_CACHE_DIR`` or ``~/.cache/ssbench``, as the reference
+cache; nothing is written into the source tree). :func:`run_pass` writes a page that imports the shader module
+from that install (an import map over ``file://``), uploads the textures as ``DataTexture`` (``FloatType``,
+``NearestFilter``, rows bottom-up as GL stores them), sets the uniforms, draws one full-screen quad into a float
+render target (``FullScreenQuad``) and reads the pixels back; Chromium prints the page (``--dump-dom``) and the
+result is parsed from it. No server, no network (host names do not resolve), no code but the shader runs.
+
+Rows: an ssbench image has row 0 at the top, a GL texture at the bottom, so :func:`to_gl` flips rows on the way in
+and :func:`run_pass` flips them back on the way out (``flip_rows=False``: the control that must fail).
+"""
+from __future__ import annotations
+
+import base64
+import json
+import os
+import re
+import shutil
+import subprocess
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+__all__ = ["PeerUnavailable", "Uniform", "ShaderPass", "available", "ensure_three", "run_pass", "to_gl",
+           "THREE_VERSION", "find_chromium"]
+
+_JS = Path(__file__).with_name("js")
+THREE_VERSION = json.loads((_JS / "package.json").read_text())["dependencies"]["three"]
+CHROMIUM_NAMES = ("chromium", "chromium-browser", "google-chrome")
+_FLAGS = ("--headless=new", "--no-sandbox", "--disable-gpu-sandbox", "--use-angle=swiftshader",
+          "--enable-unsafe-swiftshader", "--allow-file-access-from-files", "--host-resolver-rules=MAP * ~NOTFOUND",
+          "--no-first-run", "--disable-extensions", "--virtual-time-budget=60000", "--dump-dom")
+
+
+class PeerUnavailable(RuntimeError):
+    """No Chromium or no npm here (the parity checks are skipped, with this message as the reason)."""
+
+
+@dataclass(frozen=True)
+class Uniform:
+    """A uniform's ``kind`` (``float``, ``vec2``, ``mat4`` column-major, ``vec3[]``) and ``value``."""
+
+    kind: str
+    value: object
+
+
+@dataclass(frozen=True)
+class ShaderPass:
+    """One full-screen pass: the shader ``export`` of ``module`` (a ``three/addons/...`` path), its textures
+    (``name → (H, W, C ≤ 4)`` float arrays in ssbench row order; names in ``repeat`` wrap with ``REPEAT``), uniforms,
+    extra ``defines`` and ``patches`` (``(from, to)`` replacements in the fragment shader, each must match)."""
+
+    module: str
+    export: str
+    width: int
+    height: int
+    textures: dict = field(default_factory=dict)
+    uniforms: dict = field(default_factory=dict)
+    defines: dict = field(default_factory=dict)
+    patches: tuple = ()
+    repeat: tuple = ()
+
+
+def find_chromium() -> Optional[str]:
+    return next((shutil.which(n) for n in CHROMIUM_NAMES if shutil.which(n)), None)
+
+
+def _install_dir() -> Path:
+    root = os.environ.get("SSBENCH_CACHE_DIR") or os.path.join(os.path.expanduser("~"), ".cache", "ssbench")
+    return Path(root) / "peer" / f"three-{THREE_VERSION}"
+
+
+def available() -> Optional[str]:
+    """``None`` when the parity checks can run here, else why not."""
+    if find_chromium() is None:
+        return f"no Chromium on PATH ({', '.join(CHROMIUM_NAMES)}); `make browser` installs Debian's"
+    if not (_install_dir() / "node_modules" / "three" / "package.json").exists() and shutil.which("npm") is None:
+        return "no npm on PATH to install the pinned three.js"
+    return None
+
+
+def ensure_three() -> Path:
+    """The folder holding ``node_modules/three`` at the pinned version, installed with ``npm ci`` when missing."""
+    folder = _install_dir()
+    done = folder / "node_modules" / "three" / "package.json"
+    if done.exists() and json.loads(done.read_text())["version"] == THREE_VERSION:
+        return folder
+    npm = shutil.which("npm")
+    if npm is None:
+        raise PeerUnavailable("no npm on PATH to install the pinned three.js")
+    folder.mkdir(parents=True, exist_ok=True)
+    for name in ("package.json", "package-lock.json"):
+        shutil.copyfile(_JS / name, folder / name)
+    r = subprocess.run([npm, "ci", "--no-audit", "--no-fund", "--ignore-scripts"], cwd=folder, capture_output=True,
+                       text=True, timeout=600)
+    if r.returncode != 0 or not done.exists():
+        raise PeerUnavailable(f"npm ci of three@{THREE_VERSION} failed: {' '.join(r.stderr.split())[-300:]}")
+    return folder
+
+
+def to_gl(image: np.ndarray, flip_rows: bool = True) -> str:
+    """``(H, W, C)`` floats → base64 of a float32 RGBA texture, rows bottom-up (``flip_rows``), C padded to 4."""
+    a = np.asarray(image, dtype=np.float32)
+    if a.ndim == 2:
+        a = a[..., None]
+    rgba = np.zeros(a.shape[:2] + (4,), np.float32)
+    rgba[..., :a.shape[2]] = a
+    if flip_rows:
+        rgba = rgba[::-1]
+    return base64.b64encode(np.ascontiguousarray(rgba).tobytes()).decode("ascii")
+
+
+def _page(spec: dict, three: Path) -> str:
+    imports = {"three": (three / "node_modules/three/build/three.module.js").as_uri(),
+               "three/addons/": (three / "node_modules/three/examples/jsm").as_uri() + "/"}
+    data = json.dumps(spec).replace("</", "<\\/")
+    runner = (_JS / "pass_runner.js").as_uri()
+    return (f'<!doctype html><html><head><meta charset="utf-8"><script type="importmap">'
+            f'{json.dumps({"imports": imports})}</script></head><body><pre id="out">pending</pre>'
+            f'<script type="application/json" id="spec">{data}</script>'
+            f'<script type="module" src="{runner}"></script></body></html>')
+
+
+def run_pass(p: ShaderPass, *, flip_rows: bool = True, timeout: float = 180.0) -> np.ndarray:
+    """Run ``p`` in headless Chromium; returns its ``(H, W, 4)`` float32 output in ssbench row order (row 0 at the
+    top, when ``flip_rows``). Raises :class:`PeerUnavailable` (no Chromium / npm) or ``RuntimeError`` (the page
+    failed: the shader did not compile, a patch target is missing, …) with the page's message."""
+    chromium = find_chromium()
+    if chromium is None:
+        raise PeerUnavailable(available() or "no Chromium")
+    three = ensure_three()
+    spec = {"module": p.module, "export": p.export, "width": int(p.width), "height": int(p.height),
+            "textures": {name: {"data": to_gl(img, flip_rows), "width": int(np.shape(img)[1]),
+                                "height": int(np.shape(img)[0]), "repeat": name in p.repeat}
+                         for name, img in p.textures.items()},
+            "uniforms": {name: {"kind": u.kind, "value": u.value} for name, u in p.uniforms.items()},
+            "defines": dict(p.defines), "patches": [list(x) for x in p.patches]}
+    with tempfile.TemporaryDirectory(prefix="ssbench-peer-") as tmp:
+        page = Path(tmp) / "pass.html"
+        page.write_text(_page(spec, three), encoding="utf-8")
+        r = subprocess.run([chromium, *_FLAGS, f"--user-data-dir={tmp}/profile", page.as_uri()],
+                           capture_output=True, text=True, timeout=timeout)
+    m = re.search(r'<pre id="out">(.*?)</pre>', r.stdout, re.S)
+    if m is None:
+        raise RuntimeError(f"peer: Chromium printed no result (exit {r.returncode}): {r.stderr.strip()[-400:]}")
+    text = m.group(1).strip()
+    if not text.startswith("OK "):
+        raise RuntimeError(f"peer: {p.export}: {' '.join(text.split())[:600]}")
+    _, revision, gl_error, payload = text.split(" ", 3)
+    if gl_error != "0":
+        raise RuntimeError(f"peer: {p.export}: WebGL error {gl_error}")
+    out = np.frombuffer(base64.b64decode(payload), np.float32).reshape(p.height, p.width, 4)
+    return np.ascontiguousarray(out[::-1] if flip_rows else out)

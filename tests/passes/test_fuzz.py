@@ -30,7 +30,7 @@ from ssbench.passes.ssr.common import HIT
 
 EXAMPLES = 500
 AO = ("crytek", "ssao", "hbao", "gtao")
-SSR = ("linear", "dda", "dda_supercover")
+SSR = ("linear", "dda", "dda_supercover", "three_ssr")
 DTYPES = (torch.float16, torch.bfloat16, torch.float32, torch.float64)
 Z_BAD = ("nan", "inf", "-inf", "zero", "positive")
 Z_ODD = ("beyond_far", "huge", "before_near", "tiny")          # legal: finite and < 0

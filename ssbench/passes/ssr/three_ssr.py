@@ -1,0 +1,229 @@
+"""three.js ``SSRPass``'s reflection shader (``SSRShader``, three.js ``examples/jsm/shaders/SSRShader.js``, after
+lettier's "3D Game Shaders For Beginners: SSR"), transliterated: what a user of three.js ships, scored like the
+article's marchers. Proven equal to the shader itself, run in headless Chromium (``ssbench/PARITY.md``).
+
+Per pixel (GL conventions: ``xy`` in pixels from the bottom-left corner, ``uv = xy / resolution``):
+
+1. ``viewPosition`` from the depth buffer (``getViewPosition``), ``viewIncidentDir = normalize(viewPosition)``,
+   ``viewReflectDir = reflect(viewIncidentDir, viewNormal)``.
+2. The ray's far end ``d1viewPosition = viewPosition + viewReflectDir · maxDistance / dot(−I, N)``, pulled back to
+   the near plane when it crosses it; ``d0 = gl_FragCoord.xy``, ``d1`` its projection in pixels.
+3. A pixel DDA: ``totalStep = max(|Δx|, |Δy|)`` steps of one pixel along the major axis; at step ``i`` the texel
+   at ``d0 + i·span`` is read; the ray's depth is interpolated perspective-correctly (``1/z`` linear in
+   ``s``); ``s`` advances by ``1/totalStep`` per step — **except after a background texel** (the shader's
+   ``continue`` skips ``s += sStep``, so the ray's depth lags behind its pixel from then on; kept, as shipped).
+4. Where the ray is behind the texel (``viewReflectRayZ ≤ vZ``): hit iff the texel's view point lies within
+   ``max(thickness, 3 × the texel's width in view units)`` of the ray's *line* (``pointToLineDistance``), or
+   always with ``infinite_thick``. On a hit, a texel facing away from the ray (``dot(R, vN) ≥ 0``) or farther
+   than ``max_distance`` from the reflecting plane ends the ray without a hit.
+5. ``op = opacity · (1 − distance/maxDistance)² · (dot(I, R) + 1)/2`` (distance attenuation, Fresnel-like term).
+
+Outputs: ``raw_color`` the hit texel's colour, ``fade = op`` and ``color = raw_color · op`` (what ``SSRPass``
+blends over the image with ``op`` as alpha). Terminations: ``OFF_SCREEN`` (left ``[0, resolution]``),
+``MAX_DISTANCE`` (``i ≥ totalStep``, or stopped at a back face or beyond ``max_distance`` from the plane),
+``OUT_OF_STEPS`` (``MAX_STEP``, by default ``⌊√(W² + H²)⌋`` as ``SSRPass`` sets it), ``NO_RAY`` off ``mask`` or at
+the far plane.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Optional
+
+import torch
+from torch import nn
+
+from ...gbuffer import GBuffer
+from ..common import check_positive
+from ..gbuffer_checks import check_gbuffer, half_in_float32
+from ..registry import Method, SpeedPanel
+from .common import HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult
+
+REQUIRES = ("view_z", "normal", "mask", "color")
+DEFAULTS_SOURCE = "three.js SSRShader / SSRPass defaults (maxDistance 180, thickness 0.018, opacity 0.5)"
+EQUAL_SETTINGS = {"thickness": "thickness", "ray_length": "max_distance"}
+
+
+@dataclass(frozen=True)
+class ThreeSSRParams:
+    """Settings of :func:`ssr_three`, named after the shader's uniforms and defines.
+
+    Args:
+        max_distance: ``maxDistance``, the ray's length along the view axis and the plane-distance cut.
+        thickness: ``thickness``, the smallest hit distance from the ray's line (view units).
+        opacity: ``opacity``, the reflection's alpha before attenuation.
+        max_step: ``MAX_STEP``; 0: ``⌊√(W² + H²)⌋``, as ``SSRPass`` sets it.
+        distance_attenuation, fresnel: ``DISTANCE_ATTENUATION``, ``FRESNEL`` (both on in three.js).
+        infinite_thick: ``INFINITE_THICK``: every sample behind the depth buffer hits.
+    """
+
+    max_distance: float = 180.0
+    thickness: float = 0.018
+    opacity: float = 0.5
+    max_step: int = 0
+    distance_attenuation: bool = True
+    fresnel: bool = True
+    infinite_thick: bool = False
+
+    def __post_init__(self) -> None:
+        check_positive(self.max_distance, "max_distance")
+        check_positive(self.thickness, "thickness")
+        if isinstance(self.opacity, bool) or not isinstance(self.opacity, (int, float)) or not 0 <= self.opacity <= 1:
+            raise ValueError(f"opacity: must be a number in [0, 1], got {self.opacity!r}")
+        if isinstance(self.max_step, bool) or not isinstance(self.max_step, int) or self.max_step < 0:
+            raise ValueError(f"max_step: must be an integer >= 0 (0: the image diagonal), got {self.max_step!r}")
+        for name in ("distance_attenuation", "fresnel", "infinite_thick"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"{name}: expected True or False, got {getattr(self, name)!r}")
+
+
+def _unproject(cam, u: torch.Tensor, v: torch.Tensor, d: torch.Tensor, clip_w: torch.Tensor) -> torch.Tensor:
+    """``getViewPosition``: ``(cameraInverseProjectionMatrix · ((uv, d) − ½)·2·clipW).xyz`` → ``(..., 3)``."""
+    m = cam.inverse_projection_matrix(dtype=u.dtype, device=u.device)
+    clip = ((u - 0.5) * 2.0 * clip_w, (v - 0.5) * 2.0 * clip_w, (d - 0.5) * 2.0 * clip_w, clip_w)
+    return torch.stack([sum(m[i, k] * clip[k] for k in range(4)) for i in range(3)], -1)
+
+
+def _texel(u: torch.Tensor, v: torch.Tensor, H: int, W: int) -> torch.Tensor:
+    """Flat index (row 0 at the top) of the ``NEAREST``/``CLAMP_TO_EDGE`` texel at GL ``uv`` (v up)."""
+    col = torch.floor(u * W).nan_to_num(0.0).clamp(0, W - 1).long()         # NaN (a degenerate ray): texel 0
+    gl_row = torch.floor(v * H).nan_to_num(0.0).clamp(0, H - 1).long()
+    return (H - 1 - gl_row) * W + col
+
+
+@half_in_float32
+def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
+              generator: Optional[torch.Generator] = None, debug: bool = False) -> SSRResult:
+    """three.js ``SSRShader`` on a G-buffer (see the module docstring); ``generator`` is unused (no jitter).
+
+    Example:
+        >>> from ssbench.camera import Camera
+        >>> cam = Camera.from_look_at((0, 0, 0), (0, 0, -1), (0, 1, 0), 60.0, 8, 6, 0.1, 10.0)
+        >>> z, n = torch.full((1, 1, 6, 8), -2.0), torch.zeros(1, 3, 6, 8); n[:, 2] = 1
+        >>> r = ssr_three(GBuffer(cam, view_z=z, normal=n, mask=z < 0, color=n))
+        >>> r.color.shape, bool(r.hit.any())
+        (torch.Size([1, 3, 6, 8]), False)
+    """
+    if not isinstance(params, ThreeSSRParams):
+        raise TypeError(f"params: expected ThreeSSRParams, got {type(params).__name__}")
+    check_gbuffer(gbuffer, REQUIRES, finite=("color",), meta_ok=False)
+    cam, p = gbuffer.camera, params
+    view_z = gbuffer.view_z
+    B, _, H, W = view_z.shape
+    dt, dev, HW = view_z.dtype, view_z.device, H * W
+    far = cam.far
+    depth = cam.view_z_to_depth(view_z).reshape(B, HW)                            # tDepth
+    normal = gbuffer.normal.to(dt).permute(0, 2, 3, 1).reshape(B, HW, 3)
+    colour = gbuffer.color.to(dt).permute(0, 2, 3, 1).reshape(B, HW, 3)
+    vz_tex = cam.depth_to_view_z(depth)                                           # getViewZ of every texel
+    max_step = p.max_step or int(math.sqrt(W * W + H * H))
+
+    # ---- 1–2: per pixel, the ray (rays only where the shader does not return early) ----
+    b, k = torch.nonzero(gbuffer.mask.reshape(B, HW) & (-vz_tex < far), as_tuple=True)
+    row, col = k // W, k % W
+    d0 = torch.stack([col.to(dt) + 0.5, (H - 1 - row).to(dt) + 0.5], -1)          # gl_FragCoord.xy
+    vuv = d0 / torch.tensor([W, H], dtype=dt, device=dev)
+    vp = _unproject(cam, vuv[:, 0], vuv[:, 1], depth[b, k], -vz_tex[b, k])        # viewPosition
+    n = normal[b, k]
+    inc = vp / vp.norm(dim=1, keepdim=True)                                      # viewIncidentDir
+    refl = inc - 2.0 * (n * inc).sum(1, keepdim=True) * n                         # reflect(I, N)
+    d1v = vp + refl * (p.max_distance / (-inc * n).sum(1, keepdim=True))
+    cross_near = d1v[:, 2] > -cam.near
+    t = (-cam.near - vp[:, 2]) / refl[:, 2]
+    d1v = torch.where(cross_near[:, None], vp + refl * t[:, None], d1v)
+    ndc = cam.view_to_ndc(d1v, dim=-1)[:, :2]
+    d1 = (ndc + 1.0) / 2.0 * torch.tensor([W, H], dtype=dt, device=dev)         # viewPositionToXY
+    span = d1 - d0
+    total = span.abs().amax(1)                                                   # totalStep
+    span, s_step = span / total[:, None], 1.0 / total
+    recip = 1.0 / vp[:, 2]
+    recip_end = 1.0 / d1v[:, 2]
+
+    # ---- 3–5: the pixel DDA over the live rays ----
+    m = len(k)
+    term = torch.full((m,), OUT_OF_STEPS, dtype=torch.int8, device=dev)
+    steps = torch.zeros(m, dtype=torch.int32, device=dev)
+    hit_k = torch.zeros(m, dtype=torch.long, device=dev)
+    hit_xy = torch.zeros(m, 2, dtype=dt, device=dev)
+    hit_vp = torch.zeros(m, 3, dtype=dt, device=dev)
+    s = s_step.clone()
+    live = torch.arange(m, device=dev)
+    res = torch.tensor([W, H], dtype=dt, device=dev)
+    for i in range(1, max_step):
+        if live.numel() == 0:
+            break
+        end = i >= total[live]
+        xy = d0[live] + i * span[live]
+        off = ~end & ((xy[:, 0] < 0) | (xy[:, 0] > W) | (xy[:, 1] < 0) | (xy[:, 1] > H))
+        term[live[end]], term[live[off]] = MAX_DISTANCE, OFF_SCREEN
+        steps[live] = i - 1 + (~end).int()
+        keep = ~(end | off)
+        live, xy = live[keep], xy[keep]
+        bl = b[live]
+        uv = xy / res
+        tex = _texel(uv[:, 0], uv[:, 1], H, W)
+        d, vz = depth[bl, tex], vz_tex[bl, tex]
+        sky = -vz >= far                                                         # continue: s does not advance
+        vpt = _unproject(cam, uv[:, 0], uv[:, 1], d, -vz)
+        ray_z = 1.0 / (recip[live] + s[live] * (recip_end[live] - recip[live]))
+        behind = ~sky & (ray_z <= vz)
+        if p.infinite_thick:
+            hit = behind
+        else:
+            a, e = vp[live], d1v[live]
+            away = torch.linalg.cross(vpt - a, vpt - e, dim=1).norm(dim=1) / (e - a).norm(dim=1)
+            nb = _unproject(cam, (xy[:, 0] + 1.0) / W, uv[:, 1], d, -vz)               # the texel to the right
+            hit = behind & (away <= torch.clamp((nb[:, 0] - vpt[:, 0]) * 3.0, min=p.thickness))
+        if bool(hit.any()):                       # every hit ends the ray: a true hit, or a back face / too far
+            back = (refl[live] * normal[bl, tex]).sum(1) >= 0
+            nrm = n[live]
+            plane = (nrm * vpt).sum(1) - (nrm * vp[live]).sum(1)                  # pointPlaneDistance
+            done = hit & ~back & ~(plane > p.max_distance)
+            term[live[hit & ~done]] = MAX_DISTANCE
+            term[live[done]] = HIT
+            hit_k[live[done]], hit_xy[live[done]], hit_vp[live[done]] = tex[done], xy[done], vpt[done]
+        s[live] = s[live] + torch.where(sky | hit, 0.0, s_step[live])
+        live = live[~hit]
+
+    # ---- outputs ----
+    h = (term == HIT).nonzero().squeeze(1)
+    raw = colour[b[h], hit_k[h]]
+    op = torch.full((len(h),), float(p.opacity), dtype=dt, device=dev)
+    if p.distance_attenuation:
+        plane = (n[h] * hit_vp[h]).sum(1) - (n[h] * vp[h]).sum(1)
+        op = op * (1.0 - plane / p.max_distance) ** 2
+    if p.fresnel:
+        op = op * ((inc[h] * refl[h]).sum(1) + 1.0) / 2.0
+    pixel = torch.stack([hit_xy[h, 0], H - hit_xy[h, 1]], -1)                   # ssbench pixels (y down)
+    flat = b * HW + k
+
+    def scatter(values, rows, fill, C, dtype):
+        out = torch.full((B * HW, C), fill, dtype=dtype, device=dev)
+        out[rows] = values.reshape(len(rows), C).to(dtype)
+        return out.reshape(B, H, W, C).permute(0, 3, 1, 2).contiguous()
+
+    termination = scatter(term, flat, NO_RAY, 1, torch.int8)
+    rows = flat[h]
+    return SSRResult(color=scatter(raw * op[:, None], rows, 0.0, 3, dt), hit=termination == HIT,
+                     hit_pixel=scatter(pixel, rows, -1.0, 2, dt), hit_view=scatter(hit_vp[h], rows, 0.0, 3, dt),
+                     steps=scatter(steps, flat, 0, 1, torch.int32), termination=termination,
+                     fade=scatter(op, rows, 1.0, 1, dt), raw_color=scatter(raw, rows, 0.0, 3, dt),
+                     debug={"ray_end": scatter(d1v, flat, 0.0, 3, dt)} if debug else {})
+
+
+class ThreeSSR(nn.Module):
+    """``nn.Module`` wrapper of :func:`ssr_three`."""
+
+    def __init__(self, params: ThreeSSRParams = ThreeSSRParams(), debug: bool = False) -> None:
+        super().__init__()
+        self.params, self.debug = params, debug
+
+    def forward(self, gbuffer: GBuffer, generator: Optional[torch.Generator] = None) -> SSRResult:
+        return ssr_three(gbuffer, self.params, generator=generator, debug=self.debug)
+
+
+#: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
+METHOD = Method("three_ssr", ssr_three, ThreeSSRParams, ThreeSSR, order=40,
+                title="three.js SSRPass shader (pixel DDA, distance-to-line thickness)")
+SPEED_GRIDS = {"cost": [{"thickness": [0.018, 0.1]}]}
+SPEED_PANELS = (SpeedPanel("hits", "thickness", ()),)

@@ -1,6 +1,6 @@
 """Peer parity: the shaders ssbench's passes transliterate, run for real in headless Chromium on ssbench's
 G-buffers and compared with the torch passes (:mod:`.runtime`: the harness; :mod:`.ssao`: three.js
-``SSAOShader``; :mod:`.ssr`: ``SSRShader``). ``ssbench/PARITY.md`` says what is proven equal to which shader version; :func:`proofs` lists it
+``SSAOShader``; :mod:`.ssr`: ``SSRShader``; :mod:`.gtao`: ``GTAOShader``). ``ssbench/PARITY.md`` says what is proven equal to which shader version; :func:`proofs` lists it
 for the report."""
 from .runtime import THREE_VERSION, PeerUnavailable, ShaderPass, Uniform, available, run_pass
 

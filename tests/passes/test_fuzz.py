@@ -29,7 +29,7 @@ from ssbench.passes.gbuffer_checks import normal_tolerance
 from ssbench.passes.ssr.common import HIT
 
 EXAMPLES = 500
-AO = ("crytek", "ssao", "hbao", "gtao")
+AO = ("crytek", "ssao", "hbao", "gtao", "three_gtao")
 SSR = ("linear", "dda", "dda_supercover", "three_ssr")
 DTYPES = (torch.float16, torch.bfloat16, torch.float32, torch.float64)
 Z_BAD = ("nan", "inf", "-inf", "zero", "positive")

@@ -30,10 +30,8 @@ function uniformValue(u) {
   }
 }
 
-async function run() {
+function render(Shader) {
   const spec = JSON.parse(document.getElementById('spec').textContent);
-  const mod = await import(spec.module);
-  const Shader = mod[spec.export];
   if (!Shader) throw new Error(spec.export + ' not exported by ' + spec.module);
   const renderer = new THREE.WebGLRenderer({ antialias: false });
   if (!renderer.capabilities.isWebGL2) throw new Error('no WebGL2');
@@ -79,4 +77,12 @@ async function run() {
   out.textContent = 'OK ' + THREE.REVISION + ' ' + errors + ' ' + base64(pixels);
 }
 
-run().catch((e) => { out.textContent = 'ERR ' + (e && e.stack ? e.stack : e); });
+// Synchronous from the page's static imports to the result, so the result is in the page before its load event
+// (module scripts run before it): what --dump-dom prints is never the placeholder.
+export function run(Shader) {
+  try {
+    render(Shader);
+  } catch (e) {
+    out.textContent = 'ERR ' + (e && e.stack ? e.stack : e);
+  }
+}

@@ -15,7 +15,7 @@ import torch
 
 from ..gbuffer import GBuffer
 from ..passes.ao.three_gtao import ThreeGTAOParams, noise_tile, three_gtao
-from .runtime import ShaderPass, Uniform, run_pass
+from .runtime import ShaderPass, Uniform, camera_uniforms, gbuffer_textures, run_pass
 
 __all__ = ["three_gtao_shader", "MODULE", "PROOF"]
 
@@ -23,29 +23,18 @@ MODULE = "three/addons/shaders/GTAOShader.js"
 PROOF = "three_gtao = three.js GTAOShader (3 and 5 directions, distance fall-off on and off)"
 
 
-def _mat4(m: torch.Tensor) -> Uniform:
-    return Uniform("mat4", [float(v) for v in m.to(torch.float32).T.reshape(-1)])
-
-
 def three_gtao_shader(gbuffer: GBuffer, params: ThreeGTAOParams = ThreeGTAOParams(), *,
                       flip_rows: bool = True) -> tuple[torch.Tensor, torch.Tensor]:
     """``(shader_ao, pass_ao)``, both :math:`(1, 1, H, W)` (the shader's background is 0: it discards there)."""
-    if gbuffer.view_z.shape[0] != 1:
-        raise ValueError(f"gbuffer: one image at a time, got a batch of {gbuffer.view_z.shape[0]}")
     g = gbuffer.to(dtype=torch.float32)
     cam = g.camera
+    textures = gbuffer_textures(g)                                             # depth 1.0: discarded
     ours = three_gtao(g, params).ao
-    depth = cam.view_z_to_depth(g.view_z)[0, 0].clone()
-    depth[~g.mask[0, 0]] = 1.0
     tile = noise_tile(params.noise_size).to(torch.float32).flip(1)              # as an ssbench image (top first)
     shader = ShaderPass(
         MODULE, "GTAOShader", cam.width, cam.height,
-        textures={"tDepth": depth.numpy(), "tNormal": (g.normal[0].permute(1, 2, 0) * 0.5 + 0.5).numpy(),
-                  "tNoise": tile.permute(1, 2, 0).numpy()}, repeat=("tNoise",),
-        uniforms={"cameraNear": Uniform("float", cam.near), "cameraFar": Uniform("float", cam.far),
-                  "resolution": Uniform("vec2", [cam.width, cam.height]),
-                  "cameraProjectionMatrix": _mat4(cam.projection_matrix()),
-                  "cameraProjectionMatrixInverse": _mat4(cam.inverse_projection_matrix()),
+        textures={**textures, "tNoise": tile.permute(1, 2, 0).numpy()}, repeat=("tNoise",),
+        uniforms={**camera_uniforms(cam, "cameraProjectionMatrixInverse"),
                   "radius": Uniform("float", float(params.radius)),
                   "distanceExponent": Uniform("float", float(params.distance_exponent)),
                   "thickness": Uniform("float", float(params.thickness)),

@@ -25,9 +25,10 @@ from pathlib import Path
 from typing import Optional
 
 import numpy as np
+import torch
 
 __all__ = ["PeerUnavailable", "Uniform", "ShaderPass", "available", "ensure_three", "run_pass", "to_gl",
-           "THREE_VERSION", "find_chromium"]
+           "THREE_VERSION", "find_chromium", "camera_uniforms", "gbuffer_textures"]
 
 _JS = Path(__file__).with_name("js")
 THREE_VERSION = json.loads((_JS / "package.json").read_text())["dependencies"]["three"]
@@ -64,6 +65,27 @@ class ShaderPass:
     defines: dict = field(default_factory=dict)
     patches: tuple = ()
     repeat: tuple = ()
+
+
+def camera_uniforms(cam, inverse: str = "cameraInverseProjectionMatrix") -> dict:
+    """The camera uniforms every peer shader takes: ``cameraNear``, ``cameraFar``, ``resolution``,
+    ``cameraProjectionMatrix`` and its closed-form inverse (under the shader's name ``inverse``), column-major."""
+    def mat4(m) -> Uniform:
+        return Uniform("mat4", [float(v) for v in m.to(torch.float32).T.reshape(-1)])
+    return {"cameraNear": Uniform("float", cam.near), "cameraFar": Uniform("float", cam.far),
+            "resolution": Uniform("vec2", [cam.width, cam.height]),
+            "cameraProjectionMatrix": mat4(cam.projection_matrix()), inverse: mat4(cam.inverse_projection_matrix())}
+
+
+def gbuffer_textures(g) -> dict:
+    """``tDepth`` (the GL depth buffer, exactly 1.0 on background texels: the shaders' "nothing here") and
+    ``tNormal`` (view normals packed ``n · 0.5 + 0.5``, undone by the shaders' ``unpackRGBToNormal``) of a
+    batch-1 float32 G-buffer, as ``(H, W, C)`` arrays in ssbench row order."""
+    if g.view_z.shape[0] != 1:
+        raise ValueError(f"gbuffer: one image at a time, got a batch of {g.view_z.shape[0]}")
+    depth = g.camera.view_z_to_depth(g.view_z)[0, 0].clone()
+    depth[~g.mask[0, 0]] = 1.0
+    return {"tDepth": depth.numpy(), "tNormal": (g.normal[0].permute(1, 2, 0) * 0.5 + 0.5).numpy()}
 
 
 def find_chromium() -> Optional[str]:

@@ -24,7 +24,7 @@ import torch
 
 from ..gbuffer import GBuffer
 from ..passes.ao.ssao import HemisphereSSAOParams, hemisphere_ssao
-from .runtime import ShaderPass, Uniform, run_pass
+from .runtime import ShaderPass, Uniform, camera_uniforms, gbuffer_textures, run_pass
 
 __all__ = ["three_ssao", "ARTICLE_NOISE", "DIFFERENCES", "MODULE", "PROOF"]
 
@@ -43,9 +43,6 @@ PROOF = ("ssao (hemisphere) = three.js SSAOShader, as shipped (noise_channels='r
          "noise patched in (noise_channels='xyz')")
 
 
-def _mat4(m: torch.Tensor) -> Uniform:
-    return Uniform("mat4", [float(v) for v in m.to(torch.float32).T.reshape(-1)])      # column-major
-
 
 def three_ssao(gbuffer: GBuffer, params: HemisphereSSAOParams = HemisphereSSAOParams(), *, flip_rows: bool = True,
                article_noise: bool = False) -> tuple[torch.Tensor, torch.Tensor]:
@@ -61,24 +58,14 @@ def three_ssao(gbuffer: GBuffer, params: HemisphereSSAOParams = HemisphereSSAOPa
     for name, want in (("noise_size", 4), ("strength", 1.0), ("position_from", "depth")):
         if getattr(p, name) != want:
             raise ValueError(f"{name}: SSAOShader has no such setting; use {want!r}")
-    if gbuffer.view_z.shape[0] != 1:
-        raise ValueError(f"gbuffer: one image at a time, got a batch of {gbuffer.view_z.shape[0]}")
     g = gbuffer.to(dtype=torch.float32)
     cam = g.camera
+    textures = gbuffer_textures(g)                                             # depth 1.0: depthThreshold
     ours = hemisphere_ssao(g, p, debug=True)
-    mask = g.mask[0, 0].numpy()
-    depth = cam.view_z_to_depth(g.view_z)[0, 0].numpy().copy()
-    depth[~mask] = 1.0                                                         # depthThreshold
-    normal = (g.normal[0].permute(1, 2, 0) * 0.5 + 0.5).numpy()
     noise = ours.debug["noise"].permute(1, 2, 0).numpy()                      # (S, S, 3), row 0 at the top
     shader = ShaderPass(
-        MODULE, "SSAOShader", cam.width, cam.height,
-        textures={"tDepth": depth, "tNormal": normal, "tNoise": noise}, repeat=("tNoise",),
-        uniforms={"kernel": Uniform("vec3[]", ours.debug["kernel"].tolist()),
-                  "cameraNear": Uniform("float", cam.near), "cameraFar": Uniform("float", cam.far),
-                  "resolution": Uniform("vec2", [cam.width, cam.height]),
-                  "cameraProjectionMatrix": _mat4(cam.projection_matrix()),
-                  "cameraInverseProjectionMatrix": _mat4(cam.inverse_projection_matrix()),
+        MODULE, "SSAOShader", cam.width, cam.height, textures={**textures, "tNoise": noise}, repeat=("tNoise",),
+        uniforms={**camera_uniforms(cam), "kernel": Uniform("vec3[]", ours.debug["kernel"].tolist()),
                   "kernelRadius": Uniform("float", float(p.kernel_radius)),
                   "minDistance": Uniform("float", float(p.min_distance)),
                   "maxDistance": Uniform("float", float(p.max_distance))},

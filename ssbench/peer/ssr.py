@@ -19,7 +19,7 @@ import torch
 
 from ..gbuffer import GBuffer
 from ..passes.ssr.three_ssr import ThreeSSRParams, ssr_three
-from .runtime import ShaderPass, Uniform, run_pass
+from .runtime import ShaderPass, Uniform, camera_uniforms, gbuffer_textures, run_pass
 
 __all__ = ["three_ssr_shader", "DIFFERENCES", "MODULE", "PROOF", "ZERO_FIRST"]
 
@@ -37,33 +37,20 @@ DIFFERENCES = ("SSRShader marches a pixel DDA (one texel per step along the majo
                "depth lags its pixel from then on")
 
 
-def _mat4(m: torch.Tensor) -> Uniform:
-    return Uniform("mat4", [float(v) for v in m.to(torch.float32).T.reshape(-1)])
-
-
 def three_ssr_shader(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
                      flip_rows: bool = True) -> tuple[torch.Tensor, torch.Tensor]:
     """``(shader_rgba, pass_rgba)``, both :math:`(1, 4, H, W)`: three.js ``SSRShader``'s output (reflected colour,
     alpha ``op``; 0 where it finds nothing) and the same from :func:`ssr_three` (``raw_color``, ``fade``)."""
-    if gbuffer.view_z.shape[0] != 1:
-        raise ValueError(f"gbuffer: one image at a time, got a batch of {gbuffer.view_z.shape[0]}")
     g = gbuffer.to(dtype=torch.float32)
     cam = g.camera
+    textures = gbuffer_textures(g)
     max_step = params.max_step or int(math.sqrt(cam.width ** 2 + cam.height ** 2))
     ours = ssr_three(g, params)
-    mask = g.mask[0, 0].numpy()
-    depth = cam.view_z_to_depth(g.view_z)[0, 0].numpy().copy()
-    depth[~mask] = 1.0
     shader = ShaderPass(
         MODULE, "SSRShader", cam.width, cam.height,
-        textures={"tDepth": depth, "tNormal": (g.normal[0].permute(1, 2, 0) * 0.5 + 0.5).numpy(),
-                  "tDiffuse": np.concatenate([g.color[0].permute(1, 2, 0).numpy(),
-                                              np.ones((cam.height, cam.width, 1), np.float32)], -1)},
-        uniforms={"cameraNear": Uniform("float", cam.near), "cameraFar": Uniform("float", cam.far),
-                  "resolution": Uniform("vec2", [cam.width, cam.height]),
-                  "cameraProjectionMatrix": _mat4(cam.projection_matrix()),
-                  "cameraInverseProjectionMatrix": _mat4(cam.inverse_projection_matrix()),
-                  "opacity": Uniform("float", float(params.opacity)),
+        textures={**textures, "tDiffuse": np.concatenate([g.color[0].permute(1, 2, 0).numpy(),
+                                                          np.ones((cam.height, cam.width, 1), np.float32)], -1)},
+        uniforms={**camera_uniforms(cam), "opacity": Uniform("float", float(params.opacity)),
                   "maxDistance": Uniform("float", float(params.max_distance)),
                   "thickness": Uniform("float", float(params.thickness))},
         defines={"MAX_STEP": max_step, "DISTANCE_ATTENUATION": params.distance_attenuation,

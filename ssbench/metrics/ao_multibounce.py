@@ -1,8 +1,9 @@
 """Multi-bounce AO: Jimenez et al.'s fit from single-bounce visibility and albedo, and its error against the
 path-traced truth (:func:`ssbench.reference.multibounce.multibounce_ao`).
 
-Jimenez, Wu, Pesce, Jarabo. *Practical Realtime Strategies for Accurate Indirect Occlusion.* SIGGRAPH 2016 Course
-(Physically Based Shading), §5, https://www.activision.com/cdn/research/Practical_Real_Time_Strategies_for_Accurate_Indirect_Occlusion_NEW%20VERSION_COLOR.pdf:
+Jimenez, Wu, Pesce, Jarabo. *Practical Real-Time Strategies for Accurate Indirect Occlusion.* SIGGRAPH 2016 course
+"Physically Based Shading in Theory and Practice", §5,
+https://www.activision.com/cdn/research/Practical_Real_Time_Strategies_for_Accurate_Indirect_Occlusion_NEW%20VERSION_COLOR.pdf:
 a cubic in the visibility ``V`` whose coefficients are linear in the albedo ``ρ``, fitted to ray-traced
 interreflections:
 

@@ -37,3 +37,29 @@ def test_arguments_are_checked():
         ao_frames("sphere_on_plane", "ssao", frames=1)
     with pytest.raises(ValueError, match="seed"):
         ao_frames("sphere_on_plane", "ssao", seed=-1)
+
+
+def test_accumulation_cuts_flicker_for_every_ao_method():
+    """A still scene with advancing noise and sub-pixel jitter: the temporal resolve (reprojection, rejection,
+    clamp, blend) must flicker less than the raw frames, for every declared AO method."""
+    from ssbench.passes import AO_METHODS
+    from ssbench.passes.temporal import AccumulationParams
+    for method in AO_METHODS:
+        run = ao_frames("stairs", method, accumulation=AccumulationParams(), **{**KW, "frames": 8})
+        assert run.flicker_accumulated < run.flicker, (method, run.flicker, run.flicker_accumulated)
+        assert run.accumulated.shape == run.ao.shape and bool(run.history_valid[1:].any())
+        assert not bool(run.history_valid[0].any())                       # frame 0 has no history
+
+
+def test_ghosting_responds_to_a_resolve_that_keeps_stale_history():
+    """The calibration of ghosting: on an orbiting camera, loosening the resolve (no clamp, a 10× depth
+    tolerance, half the blend weight) must raise the error it adds over the raw frames."""
+    from ssbench.passes.temporal import AccumulationParams
+    kw = {**KW, "frames": 8, "radius": 0.5, "orbit_deg": 2.0, "truth_rays": 32}
+    tight = ao_frames("stairs", "ssao", accumulation=AccumulationParams(), **kw)
+    loose = ao_frames("stairs", "ssao", accumulation=AccumulationParams(alpha=0.05, clamp="none",
+                                                                         depth_tolerance=10.0), **kw)
+    assert loose.ghosting > tight.ghosting + 0.001, (tight.ghosting, loose.ghosting)
+    assert tight.cameras[0].eye != tight.cameras[1].eye
+    with pytest.raises(ValueError, match="truth_rays"):
+        ao_frames("stairs", "ssao", truth_rays=8, **KW)

@@ -1,0 +1,125 @@
+"""Temporal accumulation of a screen-space effect: reproject last frame's output, reject what the depth says is
+new, clamp it to the current neighbourhood, blend (the TAA-style resolve real-time AO ships with; Karis,
+"High Quality Temporal Supersampling", SIGGRAPH 2014 Advances in Real-Time Rendering,
+https://advances.realtimerendering.com/s2014/).
+
+Per frame, with the current G-buffer and the previous frame's camera and view depth:
+
+1. **Reproject**: the pixel's view position → world → the previous camera's view → its pixel; the previous
+   output and view depth are read there (bilinear, ``grid_sample``, pixel centres at half-integers).
+2. **Reject** (disocclusion): the history is invalid off the previous screen, on its background, or where the
+   previous depth there differs from the reprojected depth by more than ``depth_tolerance`` (relative).
+3. **Clamp** (``clamp="minmax"``): the history is clamped to the min/max of the current output over the 3×3
+   neighbourhood, which bounds ghosting where the rejection misses (``"none"``: no clamp).
+4. **Blend**: ``out = lerp(history, current, alpha)`` where the history is valid, ``current`` elsewhere.
+
+With a still camera and ``clamp="none"`` this is the exponential moving average of the frames, exactly (tested).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional
+
+import torch
+import torch.nn.functional as F
+
+from ..camera import Camera
+from ..gbuffer import GBuffer
+
+__all__ = ["AccumulationParams", "reproject", "accumulate", "TemporalAccumulator", "CLAMPS"]
+
+CLAMPS = ("minmax", "none")
+
+
+@dataclass(frozen=True)
+class AccumulationParams:
+    """Settings of :func:`accumulate`.
+
+    Args:
+        alpha: the current frame's weight (0.1: about ten frames of history, as TAA resolves ship).
+        clamp: ``"minmax"`` (3×3 neighbourhood clamp) or ``"none"``.
+        depth_tolerance: relative view-depth mismatch beyond which the history is rejected.
+    """
+
+    alpha: float = 0.1
+    clamp: str = "minmax"
+    depth_tolerance: float = 0.02
+
+    def __post_init__(self) -> None:
+        if isinstance(self.alpha, bool) or not isinstance(self.alpha, (int, float)) or not 0 < self.alpha <= 1:
+            raise ValueError(f"alpha: must be a number in (0, 1], got {self.alpha!r}")
+        if self.clamp not in CLAMPS:
+            raise ValueError(f"clamp: expected one of {CLAMPS}, got {self.clamp!r}")
+        t = self.depth_tolerance
+        if isinstance(t, bool) or not isinstance(t, (int, float)) or not 0 < t < float("inf"):
+            raise ValueError(f"depth_tolerance: must be a finite number > 0, got {t!r}")
+
+
+def reproject(history: torch.Tensor, prev_camera: Camera, prev_view_z: torch.Tensor, gbuffer: GBuffer,
+              depth_tolerance: float = 0.02) -> tuple[torch.Tensor, torch.Tensor]:
+    """``(history_here, valid)``: last frame's :math:`(B, C, H, W)` ``history`` read at where each current pixel
+    was (bilinear), and :math:`(B, 1, H, W)` where that is trusted (see the module docstring, steps 1–2)."""
+    cam = gbuffer.camera
+    z = gbuffer.view_z
+    dt = history.dtype
+    pos = cam.uv_to_view(cam.uv_grid(dt, z.device).unsqueeze(0), z.to(dt))           # (B, 3, H, W) view
+    prev = prev_camera.world_to_view(cam.view_to_world(pos, dim=1), dim=1)
+    px = prev_camera.view_to_pixel(prev, dim=1)                                         # (B, 2, H, W)
+    W, H = prev_camera.width, prev_camera.height
+    grid = torch.stack([px[:, 0] / W * 2 - 1, px[:, 1] / H * 2 - 1], -1)                # align_corners=False
+    grid = torch.nan_to_num(grid, nan=-2.0, posinf=-2.0, neginf=-2.0)
+    sample = lambda img: F.grid_sample(img.to(dt), grid, mode="bilinear", padding_mode="border",   # noqa: E731
+                                       align_corners=False)
+    here = sample(history)
+    prev_z = sample(prev_view_z)
+    inside = ((grid.abs() <= 1).all(-1) & (prev[:, 2] < 0)).unsqueeze(1)
+    agree = (prev_z - prev[:, 2:3]).abs() <= depth_tolerance * prev[:, 2:3].abs()
+    valid = inside & agree & gbuffer.mask
+    return here, valid
+
+
+def _neighbourhood(x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    hi = F.max_pool2d(x, 3, 1, 1)
+    lo = -F.max_pool2d(-x, 3, 1, 1)
+    return lo, hi
+
+
+def accumulate(current: torch.Tensor, history: torch.Tensor, valid: torch.Tensor,
+               params: AccumulationParams = AccumulationParams()) -> torch.Tensor:
+    """One resolve (steps 3–4): ``current`` and reprojected ``history`` :math:`(B, C, H, W)`, ``valid``
+    :math:`(B, 1, H, W)` → the accumulated frame.
+
+    Example:
+        >>> cur, hist = torch.zeros(1, 1, 2, 2), torch.ones(1, 1, 2, 2)
+        >>> ok = torch.ones(1, 1, 2, 2, dtype=torch.bool)
+        >>> accumulate(cur, hist, ok, AccumulationParams(alpha=0.25, clamp="none"))[0, 0, 0, 0].item()
+        0.75
+    """
+    if params.clamp == "minmax":
+        lo, hi = _neighbourhood(current)
+        history = torch.minimum(torch.maximum(history, lo), hi)
+    blended = history + (current - history) * params.alpha
+    return torch.where(valid, blended, current)
+
+
+class TemporalAccumulator:
+    """Frame-by-frame state of :func:`accumulate`: ``step(current, gbuffer)`` returns the accumulated frame and
+    remembers it, the camera and the view depth for the next frame (the first frame passes through)."""
+
+    def __init__(self, params: AccumulationParams = AccumulationParams()) -> None:
+        if not isinstance(params, AccumulationParams):
+            raise TypeError(f"params: expected AccumulationParams, got {type(params).__name__}")
+        self.params = params
+        self._prev: Optional[tuple] = None
+        self.valid: Optional[torch.Tensor] = None                   # the last step's trusted-history mask
+
+    def step(self, current: torch.Tensor, gbuffer: GBuffer) -> torch.Tensor:
+        if self._prev is None:
+            out = current
+            self.valid = torch.zeros_like(gbuffer.mask)
+        else:
+            history, cam, z = self._prev
+            here, self.valid = reproject(history, cam, z, gbuffer, self.params.depth_tolerance)
+            out = accumulate(current, here, self.valid, self.params)
+        self._prev = (out, gbuffer.camera, gbuffer.view_z)
+        return out

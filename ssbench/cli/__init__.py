@@ -140,6 +140,8 @@ def _parser() -> Parser:
     q.add_argument("--no-implicit", action="store_true", help="leave out the implicit-surface section")
     q.add_argument("--no-speed", action="store_true", help="leave out the speed section")
     q.add_argument("--no-tuning", action="store_true", help="leave out the tuning section")
+    q.add_argument("--no-time", action="store_true",
+                   help="leave out the time section (flicker, ghosting and error over frames, raw and accumulated)")
     q.add_argument("--no-calibration", action="store_true",
                    help="leave out the metric calibration section (each metric against its artifact's knob)")
     q.add_argument("--screenshots", action="store_true",

@@ -78,6 +78,7 @@ class AOFrames:
         cameras: each frame's camera.
         ghosting, ghosting_edges: :func:`ssbench.metrics.temporal.ghosting` against each frame's ray-traced truth
             of the method's flavour (``truth_rays > 0``), over every trusted pixel / those near depth edges.
+        truth: :math:`(T, 1, 1, H, W)` that truth (``None`` without ``truth_rays``).
     """
 
     ao: torch.Tensor
@@ -91,6 +92,7 @@ class AOFrames:
     cameras: tuple = ()
     ghosting: float = math.nan
     ghosting_edges: float = math.nan
+    truth: Optional[torch.Tensor] = None
 
 
 def ao_frames(scene, method: str, params=None, *, frames: int = 8, jitter: bool = True,
@@ -170,9 +172,10 @@ def ao_frames(scene, method: str, params=None, *, frames: int = 8, jitter: bool 
         return AOFrames(ao, mask, tuple(offsets), float(flicker(ao, mask)), p, cameras=tuple(cams))
     accumulated, valid = torch.stack(acc), torch.stack(trusted)
     ghost = ghost_edges = math.nan
+    truth = None
     if truth_rays:
         truth = torch.stack(truths)
         ghost = ghosting(accumulated, ao, truth, valid)
         ghost_edges = ghosting(accumulated, ao, truth, valid, torch.stack(edges))
     return AOFrames(ao, mask, tuple(offsets), float(flicker(ao, mask)), p, accumulated,
-                    float(flicker(accumulated, mask)), valid, tuple(cams), ghost, ghost_edges)
+                    float(flicker(accumulated, mask)), valid, tuple(cams), ghost, ghost_edges, truth)

@@ -59,6 +59,9 @@ def reproject(history: torch.Tensor, prev_camera: Camera, prev_view_z: torch.Ten
               depth_tolerance: float = 0.02) -> tuple[torch.Tensor, torch.Tensor]:
     """``(history_here, valid)``: last frame's :math:`(B, C, H, W)` ``history`` read at where each current pixel
     was (bilinear), and :math:`(B, 1, H, W)` where that is trusted (see the module docstring, steps 1–2)."""
+    from .. import checks
+    checks.check_shape(history, ["B", "C", "H", "W"], "history")
+    checks.check_shape(prev_view_z, ["B", "1", "H", "W"], "prev_view_z")
     cam = gbuffer.camera
     z = gbuffer.view_z
     dt = history.dtype

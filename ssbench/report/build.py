@@ -180,6 +180,7 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
                  progress: Optional[bool] = None, ao: bool = True, ao_radius: float = 0.5,
                  ao_rays: int = 128, ssr: bool = True, ssr_spp: int = 16, implicit: Optional[bool] = None,
                  speed: Optional[bool] = None, tuning: Optional[bool] = None, calibration: Optional[bool] = None,
+                 time_axis: Optional[bool] = None,
                  gt_cache: bool = True, extra_scenes: Iterable = ()) -> str:
     """Render every catalog scene (or ``scenes``) and write a report run; returns the run's ``index.html``.
 
@@ -198,7 +199,9 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
     rendered here; ``implicit`` the implicit-surface section (:mod:`ssbench.report.implicit_section`; default:
     on for a full report, off with a ``scenes`` subset); ``speed`` and ``tuning`` the speed and tuning sections
     (:mod:`ssbench.report.speed_section`, :mod:`ssbench.report.tuning_section`; defaults like ``implicit``);
-    ``calibration`` the metric calibration section (:mod:`ssbench.report.calibration_section`; likewise).
+    ``calibration`` the metric calibration section (:mod:`ssbench.report.calibration_section`; likewise);
+    ``time_axis`` the time section (:mod:`ssbench.report.time_section`: flicker, ghosting and error over frames,
+    raw and accumulated; likewise).
     No section ever fails the report (problems show as notes in the page). Each section's evaluation rows
     also go to ``rows/<section>.jsonl`` (see reports/README.md).
     """
@@ -260,6 +263,8 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
     meta["implicit"] = _implicit_section(run_dir, scenes, width, height, implicit, seed, sc_cache)
     meta["speed"] = _speed_section(run_dir, scenes, width, height, speed, seed, sc_cache, progress)
     meta["tuning"] = _tuning_section(run_dir, scenes, width, height, tuning, seed, sc_cache, progress)
+    meta["time"] = _optional_section("time", "Time", time_axis, scenes, lambda m: m.build_time_section(
+        run_dir, min(width, 128), min(height, 96), use_cache=sc_cache, progress=progress))
     meta["calibration"] = _optional_section("calibration", "Metric calibration", calibration, scenes,
                                             lambda m: m.build_calibration_section(run_dir, use_cache=sc_cache,
                                                                                   progress=progress))

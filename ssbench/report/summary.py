@@ -15,7 +15,7 @@ from typing import Any, Iterable, Optional
 
 #: (meta key, title) of every report section, in page order
 SECTIONS = (("ao", "Ambient occlusion"), ("ssr", "Screen-space reflections"), ("implicit", "Implicit surfaces"),
-            ("speed", "Speed"), ("tuning", "Tuning"), ("calibration", "Metric calibration"))
+            ("time", "Time"), ("speed", "Speed"), ("tuning", "Tuning"), ("calibration", "Metric calibration"))
 
 
 def fmt(s: Optional[float], spec: str = "{:.3f}") -> str:

@@ -1,0 +1,52 @@
+"""The time section on a real (small) run: every AO method's flicker and ghosting, raw and accumulated, the error
+plot and the animation; a method that fails becomes a note; the template renders what the section returns."""
+import re
+
+import jinja2
+import pytest
+
+from ssbench.report import render
+from ssbench.report import time_section as T
+
+pytestmark = [pytest.mark.slow, pytest.mark.mitsuba]
+
+
+@pytest.fixture(scope="module")
+def section(tmp_path_factory):
+    run = tmp_path_factory.mktemp("time")
+    return run, T.build_time_section(str(run), 48, 36, progress=False)
+
+
+def test_every_ao_method_has_a_row_and_the_pictures_exist(section):
+    from ssbench.passes import AO_METHODS
+    run, sec = section
+    assert sec["available"] and not sec["notes"]
+    assert [r["method"] for r in sec["rows"]] == list(AO_METHODS)
+    for r in sec["rows"]:
+        assert r["flicker"] > 0 and r["flicker_accumulated"] > 0 and r["ghosting"] == r["ghosting"]   # not NaN
+    assert (run / "img" / "time" / "error.png").is_file() and (run / "img" / "time" / "gtao.gif").is_file()
+    from PIL import Image
+    with Image.open(run / "img" / "time" / "gtao.gif") as gif:
+        assert gif.n_frames == T.FRAMES and gif.size == (2 * 48 + 4, 36)
+
+
+def test_template_and_summary_render_the_rows(section):
+    _, sec = section
+    env = jinja2.Environment(loader=jinja2.PackageLoader("ssbench.report", "templates"), autoescape=True,
+                             undefined=jinja2.StrictUndefined)
+    html = env.get_template("time_section.html.j2").render(timesec=sec, fmt=render.fmt)
+    assert re.findall(r'<img[^>]*src="([^"]+)"', html) == ["img/time/error.png", "img/time/gtao.gif"]
+    assert all(r["method"] in html for r in sec["rows"])
+    md = T.summary_md(sec)
+    assert "## Time" in md and md.count("\n| ") >= len(sec["rows"]) + 1
+
+
+def test_a_failing_method_is_a_note(tmp_path, monkeypatch):
+    import ssbench.evaluate as E
+
+    def broken(*a, **k):
+        raise RuntimeError("no frames here")
+    monkeypatch.setattr(E, "ao_frames", broken)
+    sec = T.build_time_section(str(tmp_path), 16, 12, progress=False)
+    assert not sec["available"] and all("no frames here" in n for n in sec["notes"])
+    assert "no AO method" in T.summary_md(sec) or "Time" in T.summary_md(sec)

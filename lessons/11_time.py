@@ -37,7 +37,6 @@
 # frames. The size is 128 × 96 (64 × 48 in the tests).
 
 # %%
-import dataclasses
 
 import matplotlib.pyplot as plt
 import torch

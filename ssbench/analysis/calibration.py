@@ -225,3 +225,25 @@ def flicker_response(scene: str = "sphere_on_plane", knobs: Optional[dict] = Non
         out.append(Response("flicker", param, scene, f"{method}, noise advancing", tuple(values), tuple(ys),
                             tuple(0.0 for _ in values), "falls", 1, note))
     return out
+
+
+def ghosting_response(scene: str = "stairs", method: str = "ssao", alphas: tuple = (0.05, 0.1, 0.2, 0.5), *,
+                      frames: int = 8, width: int = 96, height: int = 72, radius: float = 0.5, orbit_deg: float = 1.5,
+                      truth_rays: int = 32, use_cache: bool = True) -> list[Response]:
+    """``ghosting`` (:func:`ssbench.metrics.temporal.ghosting`) over the temporal resolve's blend weight ``alpha``
+    on a camera turning ``orbit_deg`` per frame: once with a resolve that keeps stale history (no clamp, depth
+    tolerance 10: nothing rejected) and once with the default resolve (3×3 clamp, 2 % depth tolerance). Less weight
+    on the current frame keeps history longer, so ghosting must fall as ``alpha`` grows."""
+    from ..evaluate import ao_frames
+    from ..passes.temporal import AccumulationParams
+    out = []
+    for series, extra in (("stale history (no clamp, nothing rejected)", {"clamp": "none", "depth_tolerance": 10.0}),
+                          ("default resolve (clamp, depth rejection)", {})):
+        ys = [ao_frames(scene, method, frames=frames, width=width, height=height, radius=radius,
+                        orbit_deg=orbit_deg, truth_rays=truth_rays, use_cache=use_cache,
+                        accumulation=AccumulationParams(alpha=a, **extra)).ghosting for a in alphas]
+        note = (f"{method}, radius {radius}, {frames} frames at {width}×{height}, camera turning {orbit_deg}° per "
+                f"frame, {truth_rays}-ray truth per frame")
+        out.append(Response("ghosting", "alpha", scene, series, tuple(alphas), tuple(ys), tuple(0.0 for _ in alphas),
+                            "falls", 1, note))
+    return out

@@ -36,6 +36,8 @@ def _experiments(use_cache: bool) -> list[tuple[str, str, str, Callable]]:
          lambda: C.noise_response(use_cache=use_cache)),
         ("flicker", "Flicker vs sample count (noise advancing every frame)", "falls as the samples grow",
          lambda: C.flicker_response(use_cache=use_cache)),
+        ("ghosting", "Ghosting vs the temporal resolve's blend weight (camera turning)",
+         "falls as α grows (less history kept)", lambda: C.ghosting_response(use_cache=use_cache)),
         ("ssr", "SSR classes vs thickness and stride (SSR article Figs. 4–6)",
          "false hits rise and misses fall with the thickness; misplaced hits rise with the stride",
          lambda: H.ssr_response(use_cache=use_cache)),

@@ -2,7 +2,8 @@
 run on real scenes against Mitsuba ground truth, pinned."""
 import pytest
 
-from ssbench.analysis.calibration import (banding_response, flat_bias_response, flicker_response, halo_response,
+from ssbench.analysis.calibration import (banding_response, flat_bias_response, flicker_response, ghosting_response,
+                                          halo_response,
                                           noise_response, verdict)
 from ssbench.analysis.calibration_hits import punch_through_response, ssr_response
 
@@ -33,6 +34,16 @@ def test_flicker_falls_with_the_sample_count_and_is_zero_when_nothing_moves():
         v = verdict(r)
         assert v["monotone"] and v["ratio"] >= 2.5, (r.series, r.y)
         assert "noise frozen and no jitter 0," in r.note                   # exactly 0: nothing moves
+
+
+def test_ghosting_falls_as_the_resolve_keeps_less_history():
+    """On an orbiting camera, ghosting against each frame's truth falls as the blend weight α grows, with and
+    without the clamp and depth rejection; the stale-history resolve ghosts more at every α."""
+    stale, default = ghosting_response(width=48, height=36, frames=6, truth_rays=16)
+    for r in (stale, default):
+        assert verdict(r, 1e-9)["monotone"], (r.series, r.y)
+        assert r.y[0] > 2 * abs(r.y[-1]), (r.series, r.y)
+    assert all(a >= b for a, b in zip(stale.y, default.y)), (stale.y, default.y)
 
 
 def test_ssr_classes_respond_to_thickness_and_stride():

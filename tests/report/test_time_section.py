@@ -34,7 +34,7 @@ def test_template_and_summary_render_the_rows(section):
     _, sec = section
     env = jinja2.Environment(loader=jinja2.PackageLoader("ssbench.report", "templates"), autoescape=True,
                              undefined=jinja2.StrictUndefined)
-    html = env.get_template("time_section.html.j2").render(timesec=sec, fmt=render.fmt)
+    html = env.get_template("time_section.html.j2").render(time=sec, fmt=render.fmt)
     assert re.findall(r'<img[^>]*src="([^"]+)"', html) == ["img/time/error.png", "img/time/gtao.gif"]
     assert all(r["method"] in html for r in sec["rows"])
     md = T.summary_md(sec)
@@ -50,3 +50,16 @@ def test_a_failing_method_is_a_note(tmp_path, monkeypatch):
     sec = T.build_time_section(str(tmp_path), 16, 12, progress=False)
     assert not sec["available"] and all("no frames here" in n for n in sec["notes"])
     assert "no AO method" in T.summary_md(sec) or "Time" in T.summary_md(sec)
+
+
+def test_the_report_page_shows_the_time_section(tmp_path):
+    """Through build_report and the page renderer (which renders each section template under its own key)."""
+    import json
+    from ssbench.report.build import build_report
+    index = build_report(str(tmp_path / "reports"), scenes=["sphere_on_plane"], width=32, height=24, spp=2,
+                         progress=False, ao=False, ssr=False, implicit=False, speed=False, tuning=False,
+                         calibration=False, time_axis=True)
+    meta = json.loads((tmp_path / "reports" / "latest" / "meta.json").read_text())
+    assert meta["time"]["available"], meta["time"].get("note")
+    html = open(index, encoding="utf-8").read()
+    assert 'id="time"' in html and "img/time/error.png" in html and "img/time/gtao.gif" in html

@@ -42,13 +42,13 @@ import matplotlib.pyplot as plt
 import torch
 
 import _setup
-from ssbench.evaluate import ao_frames
-from ssbench.metrics.temporal import depth_edges, flicker, ghosting
+from ssbench.evaluate import EDGE_BAND, EDGE_JUMP, ao_frames, orbit
+from ssbench.metrics.ao import edge_band
+from ssbench.metrics.temporal import flicker, ghosting
 from ssbench.passes import AO_METHODS
 from ssbench.passes.temporal import AccumulationParams, accumulate, reproject
 from ssbench.reference import gbuffer
 from ssbench.scenes import catalog
-from ssbench.evaluate._temporal import orbit
 
 torch.set_num_threads(1)
 W, H = _setup.size((128, 96))
@@ -165,7 +165,8 @@ tight = ao_frames(sc, "ssao", accumulation=AccumulationParams(), **moving)
 loose = ao_frames(sc, "ssao", accumulation=AccumulationParams(alpha=0.05, clamp="none", depth_tolerance=10.0),
                   **moving)
 print(f"SSAO ghosting: tight resolve {tight.ghosting:+.4f}, loose resolve {loose.ghosting:+.4f}")
-edges = depth_edges(gbuffer(sc.with_camera(tight.cameras[-1]), W, H, channels=("view_z",)).view_z)
+last = gbuffer(sc.with_camera(tight.cameras[-1]), W, H, channels=("view_z", "mask"))
+edges = edge_band(last.view_z, last.mask, EDGE_BAND, EDGE_JUMP, silhouettes=True)   # what ghosting_edges counts
 fig, ax = plt.subplots(1, 3, figsize=(11, 3))
 ax[0].imshow(tight.truth[-1, 0, 0], cmap="gray", vmin=0, vmax=1), ax[0].set_title("truth, last frame")
 ax[1].imshow((loose.accumulated[-1] - loose.truth[-1])[0, 0], cmap="RdBu", vmin=-0.2, vmax=0.2)

@@ -16,7 +16,7 @@ from __future__ import annotations
 from ._ao import (BLUR_NAMES, GT_CHANNELS, RADIUS_NAMES, TARGET_METRICS, TARGETS, AOEvaluation, ao, blur_fn,
                   flavour, radius_param, run_ao, score)
 from ._common import resolve_params
-from ._temporal import AOFrames, ao_frames
+from ._temporal import EDGE_BAND, EDGE_JUMP, AOFrames, ao_frames, orbit
 from ._implicit import ImplicitEvaluation, implicit, lipschitz_diagnostic, run_implicit, steps_param
 from ._ssr import (EQUAL_RAY_LENGTH, EQUAL_THICKNESS, SSR_GT_CHANNELS, SSREvaluation, equal_roles, equal_settings,
                    pass_channels, run_ssr, scene_scale, ssr)
@@ -25,5 +25,5 @@ __all__ = ["ao", "run_ao", "AOEvaluation", "resolve_params", "radius_param", "fl
            "RADIUS_NAMES", "GT_CHANNELS", "TARGET_METRICS", "TARGETS", "BLUR_NAMES",
            "ssr", "run_ssr", "SSREvaluation", "pass_channels", "SSR_GT_CHANNELS", "equal_settings", "equal_roles",
            "scene_scale", "EQUAL_RAY_LENGTH", "EQUAL_THICKNESS",
-           "ao_frames", "AOFrames",
+           "ao_frames", "AOFrames", "orbit", "EDGE_BAND", "EDGE_JUMP",
            "implicit", "run_implicit", "ImplicitEvaluation", "steps_param", "lipschitz_diagnostic"]

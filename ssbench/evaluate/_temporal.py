@@ -25,11 +25,16 @@ from typing import Optional
 import torch
 
 from ..camera import Camera
-from ..metrics.temporal import depth_edges, flicker, ghosting
+from ..metrics.ao import edge_band
+from ..metrics.temporal import flicker, ghosting
 from ..passes.temporal import AccumulationParams, TemporalAccumulator
 from ._common import resolve_params
 
 __all__ = ["AOFrames", "ao_frames", "halton", "orbit"]
+
+#: ``ghosting_edges`` counts the pixels within this many pixels of a depth edge (a relative jump above
+#: :data:`EDGE_JUMP`; silhouettes against the background included): where trails show
+EDGE_BAND, EDGE_JUMP = 2, 0.05
 
 
 def orbit(camera: Camera, degrees: float) -> Camera:
@@ -128,8 +133,8 @@ def ao_frames(scene, method: str, params=None, *, frames: int = 8, jitter: bool 
     fn, params_cls, requires = ao_method(method)
     module = importlib.import_module(fn.__module__)
     p = resolve_params(params_cls, params, method)
+    rname = radius_param(params_cls, module)
     if radius is not None:
-        rname = radius_param(params_cls, module)
         if rname is None:
             raise ValueError(f"radius: method {method!r} has no radius parameter")
         p = dataclasses.replace(p, **{rname: float(radius)})
@@ -146,13 +151,12 @@ def ao_frames(scene, method: str, params=None, *, frames: int = 8, jitter: bool 
     if truth_rays and resolve is None:
         raise ValueError("truth_rays: ghosting needs accumulation")
     flavour = declared(fn, "FLAVOUR") or "cosine"
-    rname = radius_param(params_cls, module)
     truth_radius = float(getattr(p, rname)) if rname else 0.5
     aos, masks, offsets, acc, trusted, cams, truths, edges = [], [], [], [], [], [], [], []
+    channels = tuple(dict.fromkeys(tuple(requires) + ("mask", "view_z")))
     for t in range(frames):
         dx, dy = (halton(t + 1, 2) - 0.5, halton(t + 1, 3) - 0.5) if jitter else (0.0, 0.0)
         cams.append(orbit(cam, orbit_deg * t).jittered(dx, dy))
-        channels = tuple(dict.fromkeys(tuple(requires) + ("mask", "view_z")))
         g = reference.gbuffer(sc.with_camera(cams[-1]), width, height, channels=channels, use_cache=use_cache)
         k = t if advance_noise else 0
         pt = dataclasses.replace(p, **{frame_param: k}) if frame_param else p
@@ -166,7 +170,7 @@ def ao_frames(scene, method: str, params=None, *, frames: int = 8, jitter: bool 
             if truth_rays:
                 truths.append(reference.ambient_occlusion(sc.with_camera(cams[-1]), g, truth_radius, truth_rays,
                                                           flavour, seed, use_cache=use_cache).ao.float())
-                edges.append(depth_edges(g.view_z))
+                edges.append(edge_band(g.view_z, g.mask, EDGE_BAND, EDGE_JUMP, silhouettes=True))
     ao, mask = torch.stack(aos), torch.stack(masks)
     if resolve is None:
         return AOFrames(ao, mask, tuple(offsets), float(flicker(ao, mask)), p, cameras=tuple(cams))

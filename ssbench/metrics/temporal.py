@@ -7,7 +7,7 @@
 
 * :func:`ghosting` — on a moving camera, the error the temporal resolve *adds* where it kept history: mean
   |accumulated − truth| minus mean |raw − truth| over the pixels whose history was trusted (optionally only near
-  depth edges, where trails show). Averaging noise makes it negative on a still scene; stale history behind
+  depth edges, where trails show: :func:`ssbench.metrics.ao.edge_band`). Averaging noise makes it negative on a still scene; stale history behind
   moving edges and view-dependent AO that lags make it positive.
 
 Frames are :math:`(T, B, 1, H, W)` (or :math:`(T, 1, H, W)` for one image per frame); masks likewise, bool.
@@ -20,7 +20,7 @@ import torch
 
 from .. import checks
 
-__all__ = ["flicker", "temporal_std", "ghosting", "depth_edges"]
+__all__ = ["flicker", "temporal_std", "ghosting"]
 
 
 def _frames(frames: torch.Tensor, mask: Optional[torch.Tensor]) -> tuple[torch.Tensor, torch.Tensor]:
@@ -82,30 +82,6 @@ def flicker(frames: torch.Tensor, mask: Optional[torch.Tensor] = None) -> torch.
     if not bool(valid.any()):
         return torch.tensor(float("nan"), dtype=std.dtype)
     return std[valid].mean()
-
-
-def depth_edges(view_z: torch.Tensor, width: int = 2, jump: float = 0.05) -> torch.Tensor:
-    """:math:`(B, 1, H, W)` bool: pixels within ``width`` pixels of a depth discontinuity (a neighbour's view
-    depth differs by more than ``jump`` relative) — where moving edges leave trails.
-
-    Example:
-        >>> z = torch.full((1, 1, 1, 8), -1.0); z[..., 4:] = -2.0
-        >>> depth_edges(z, width=1)[0, 0, 0].tolist()
-        [False, False, False, True, True, False, False, False]
-        >>> depth_edges(z, width=2)[0, 0, 0].tolist()
-        [False, False, True, True, True, True, False, False]
-    """
-    checks.check_shape(view_z, ["B", "1", "H", "W"], "view_z")
-    z = view_z.double().abs()
-    pad = torch.nn.functional.pad(z, (1, 1, 1, 1), mode="replicate")
-    H, W = z.shape[-2:]
-    near = [pad[..., 1 + dy:1 + dy + H, 1 + dx:1 + dx + W] for dy in (-1, 0, 1) for dx in (-1, 0, 1)]
-    edge = torch.zeros_like(z, dtype=torch.bool)
-    for n in near:
-        edge |= (n - z).abs() > jump * torch.minimum(n, z)
-    if width > 1:
-        edge = torch.nn.functional.max_pool2d(edge.double(), 2 * width - 1, 1, width - 1) > 0
-    return edge
 
 
 def ghosting(accumulated: torch.Tensor, raw: torch.Tensor, truth: torch.Tensor, trusted: torch.Tensor,

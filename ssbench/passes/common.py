@@ -55,6 +55,16 @@ def texel_of(u: torch.Tensor, v: torch.Tensor, height: int, width: int) -> tuple
     return col, row
 
 
+def gl_texel_index(u: torch.Tensor, v: torch.Tensor, height: int, width: int) -> torch.Tensor:
+    """Flat index (row 0 at the top) of the ``NEAREST``/``CLAMP_TO_EDGE`` texel at ``uv`` (v up), rounded as GL
+    rounds it: row ``⌊v·H⌋`` counted from the bottom. (:func:`texel_of`'s ``⌊(1 − v)·H⌋`` from the top picks the
+    same texel except exactly on a texel edge; the three.js transliterations need GL's side.) NaN reads texel 0.
+    """
+    col = torch.floor(u * width).nan_to_num(0.0).clamp(0, width - 1).long()
+    gl_row = torch.floor(v * height).nan_to_num(0.0).clamp(0, height - 1).long()
+    return (height - 1 - gl_row) * width + col
+
+
 def fetch(tex: torch.Tensor, col: torch.Tensor, row: torch.Tensor) -> torch.Tensor:
     """Gather texels of ``tex`` :math:`(B, C, H, W)` at integer ``col``/``row`` of shape :math:`(B, *S)`.
 

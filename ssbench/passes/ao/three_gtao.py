@@ -29,7 +29,7 @@ import torch
 from torch import nn
 
 from ...gbuffer import GBuffer
-from ..common import AOResult, check_positive
+from ..common import AOResult, check_positive, gl_texel_index
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..registry import Method, SpeedPanel
 
@@ -181,9 +181,7 @@ def three_gtao(gbuffer: GBuffer, params: ThreeGTAOParams = ThreeGTAOParams(), *,
                 q = view_pos + sign * offset
                 clip = [sum(P[r, k] * (q[:, k] if k < 3 else 1.0) for k in range(4)) for r in (0, 1, 3)]
                 su, sv = clip[0] / clip[2] * 0.5 + 0.5, clip[1] / clip[2] * 0.5 + 0.5      # getSceneUvAndDepth
-                col = torch.floor(su * W).nan_to_num(0.0).clamp(0, W - 1).long()
-                gl_row = torch.floor(sv * H).nan_to_num(0.0).clamp(0, H - 1).long()
-                sd = torch.gather(depth_tex, 1, ((H - 1 - gl_row) * W + col).reshape(B, -1)).reshape(B, H, W)
+                sd = torch.gather(depth_tex, 1, gl_texel_index(su, sv, H, W).reshape(B, -1)).reshape(B, H, W)
                 delta = _view_position(minv, su, sv, sd) - view_pos
                 c = _dot(view_dir, _normalize(delta))
                 gain = ((c - cos_h[side]) * (1.0 + (2.0 / (j + 2) - 1.0) * p.distance_fall_off)).nan_to_num(0.0)

@@ -34,7 +34,7 @@ import torch
 from torch import nn
 
 from ...gbuffer import GBuffer
-from ..common import check_positive
+from ..common import check_positive, gl_texel_index
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..registry import Method, SpeedPanel
 from .common import HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult
@@ -82,13 +82,6 @@ def _unproject(cam, u: torch.Tensor, v: torch.Tensor, d: torch.Tensor, clip_w: t
     m = cam.inverse_projection_matrix(dtype=u.dtype, device=u.device)
     clip = ((u - 0.5) * 2.0 * clip_w, (v - 0.5) * 2.0 * clip_w, (d - 0.5) * 2.0 * clip_w, clip_w)
     return torch.stack([sum(m[i, k] * clip[k] for k in range(4)) for i in range(3)], -1)
-
-
-def _texel(u: torch.Tensor, v: torch.Tensor, H: int, W: int) -> torch.Tensor:
-    """Flat index (row 0 at the top) of the ``NEAREST``/``CLAMP_TO_EDGE`` texel at GL ``uv`` (v up)."""
-    col = torch.floor(u * W).nan_to_num(0.0).clamp(0, W - 1).long()         # NaN (a degenerate ray): texel 0
-    gl_row = torch.floor(v * H).nan_to_num(0.0).clamp(0, H - 1).long()
-    return (H - 1 - gl_row) * W + col
 
 
 @half_in_float32
@@ -161,7 +154,7 @@ def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
         live, xy = live[keep], xy[keep]
         bl = b[live]
         uv = xy / res
-        tex = _texel(uv[:, 0], uv[:, 1], H, W)
+        tex = gl_texel_index(uv[:, 0], uv[:, 1], H, W)
         d, vz = depth[bl, tex], vz_tex[bl, tex]
         sky = -vz >= far                                                         # continue: s does not advance
         vpt = _unproject(cam, uv[:, 0], uv[:, 1], d, -vz)

@@ -51,9 +51,9 @@ def resolve_camera(scene, width, height) -> tuple[Scene, Camera]:
     return sc, sc.camera.with_resolution(int(w), int(h))
 
 
-def _albedo_at_hit(sc: Scene) -> bool:
-    """Whether some shape's albedo is a texture to look up at each hit (a Mitsuba file's diffuse textures)."""
-    return any(dict(s.params).get("albedo_at_hit", False) for s in sc.shapes)
+def _albedo_at_hit(sc: Scene) -> list[bool]:
+    """Per shape, whether its albedo is a texture to look up at each hit (a Mitsuba file's diffuse textures)."""
+    return [bool(dict(s.params).get("albedo_at_hit", False)) for s in sc.shapes]
 
 
 def _trace(mi, dr, mscene, cam: Camera, want_back: bool, want_albedo: bool = False) -> dict:
@@ -108,7 +108,7 @@ def _render_jit(sc: Scene, cam: Camera, chans: tuple[str, ...]) -> dict[str, np.
     mi = backend.mitsuba()
     import drjit as dr
     mscene = convert.load(sc, cam)
-    r = _trace(mi, dr, mscene, cam, "back_z" in chans, "albedo" in chans and _albedo_at_hit(sc))
+    r = _trace(mi, dr, mscene, cam, "back_z" in chans, "albedo" in chans and any(_albedo_at_hit(sc)))
     H, W = cam.height, cam.width
     # Dr.Jit -> torch by DLPack (.torch(): zero-copy for flat arrays); numpy views of those for the cache
     img = lambda a: a.torch().reshape(1, 1, H, W).numpy()                        # noqa: E731
@@ -204,7 +204,7 @@ def _fill(sc: Scene, cam: Camera, raw: dict[str, np.ndarray], chans: tuple[str, 
             if name in chans:
                 vals = tab[idx[:, 0]].permute(0, 3, 1, 2)                                  # (1, C, H, W)
                 if name == "albedo" and "albedo_hit" in raw:                      # textures, at each hit
-                    at_hit = torch.tensor([bool(dict(s.params).get("albedo_at_hit", False)) for s in sc.shapes])
+                    at_hit = torch.tensor(_albedo_at_hit(sc))
                     vals = torch.where(at_hit[idx[:, 0]].unsqueeze(1),
                                        torch.from_numpy(raw["albedo_hit"].copy()).clamp(0.0, 1.0), vals)
                 out[name] = torch.where(mask, vals, torch.tensor(bg[name]))

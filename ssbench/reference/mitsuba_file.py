@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from ..camera import Camera
-from ..scenes.mitsuba_guard import GuardedScene, guard
+from ..scenes.mitsuba_guard import GuardedScene, guard, unchanged
 from ..scenes.model import MitsubaSource, Scene, SceneError, Shape
 from ..scenes.transforms import freeze4, identity4
 from . import backend
@@ -37,6 +37,7 @@ from .mitsuba_materials import map_bsdf
 __all__ = ["load_xml", "objects", "SceneNote"]
 
 _LOADED: "OrderedDict[tuple, Any]" = OrderedDict()
+_CHECKED: dict = {}                  # (path, defines, digest) -> the files the guard read, stamped (mtime, size)
 _SENSORS = {"PerspectiveCamera": None, "ThinLensCamera": "thin-lens sensor used as a pinhole camera (no depth of "
                                                          "field)"}
 
@@ -50,6 +51,7 @@ def _one_line(e: Exception) -> str:
 
 
 def _mitsuba_scene(g: GuardedScene):
+    _CHECKED[(g.path, g.defines, g.digest)] = g.files
     key = (g.path, g.digest)
     if key in _LOADED:
         _LOADED.move_to_end(key)
@@ -144,10 +146,17 @@ def load_xml(path: "str | os.PathLike", defines=()) -> Scene:
 
 def objects(source: MitsubaSource) -> tuple[list, list]:
     """The loaded scene's shapes (in the :class:`Scene`'s order) and its emitters that are not attached to a
-    shape, as Mitsuba objects; the files are checked again and must still hash to ``source.digest``."""
-    g = guard(source.path, source.defines)
-    if g.digest != source.digest:
-        raise SceneError(f"{source.path}: the scene's files changed since it was loaded; load it again")
-    mscene, _ = _mitsuba_scene(g)
+    shape, as Mitsuba objects. The files must still hash to ``source.digest``: checked again in full (the guard)
+    unless every file this process checked still has its modification time and size, as on every reference
+    call after the first (each rebuilds the Mitsuba scene for its own camera)."""
+    key = (source.path, source.defines, source.digest)
+    if key in _CHECKED and (source.path, source.digest) in _LOADED and unchanged(_CHECKED[key]):
+        _LOADED.move_to_end((source.path, source.digest))
+        mscene = _LOADED[(source.path, source.digest)][0]
+    else:
+        g = guard(source.path, source.defines)
+        if g.digest != source.digest:
+            raise SceneError(f"{source.path}: the scene's files changed since it was loaded; load it again")
+        mscene, _ = _mitsuba_scene(g)
     lone = [e for e in mscene.emitters() if not str(e).startswith("AreaLight")]
     return list(mscene.shapes()), lone

@@ -26,7 +26,7 @@ from xml.parsers import expat
 
 from .model import SceneError
 
-__all__ = ["GuardedScene", "guard", "parse_tree", "Node", "check_defines", "MAX_XML_BYTES", "MAX_RESOURCE_BYTES",
+__all__ = ["GuardedScene", "guard", "unchanged", "parse_tree", "Node", "check_defines", "MAX_XML_BYTES", "MAX_RESOURCE_BYTES",
            "MAX_ELEMENTS", "MAX_FILM_SIDE", "MAX_INCLUDE_DEPTH"]
 
 MAX_XML_BYTES = 16 << 20
@@ -113,7 +113,8 @@ def check_defines(defines) -> tuple[tuple[str, str], ...]:
 @dataclass(frozen=True)
 class GuardedScene:
     """What :func:`guard` found: the main file's real ``path`` and ``folder``, the ``defines`` as passed, a
-    ``digest`` of every file read plus the defines, the integrator's ``max_depth``, and the ``notes``."""
+    ``digest`` of every file read plus the defines, the integrator's ``max_depth``, the ``notes``, and ``files``:
+    ``(path, mtime_ns, size)`` of every file read, for :func:`unchanged`."""
 
     path: str
     folder: str
@@ -121,6 +122,21 @@ class GuardedScene:
     digest: str
     max_depth: int
     notes: tuple[str, ...]
+    files: tuple[tuple[str, int, int], ...] = ()
+
+
+def _stat(path: str) -> tuple[str, int, int]:
+    st = os.stat(path)
+    return path, st.st_mtime_ns, st.st_size
+
+
+def unchanged(files: tuple) -> bool:
+    """Whether every file :func:`guard` read still has the modification time and size it had then (the cheap
+    test before hashing them all again; an edit that keeps both is not seen)."""
+    try:
+        return all(_stat(f[0]) == tuple(f) for f in files)
+    except OSError:
+        return False
 
 
 class _Walk:
@@ -130,6 +146,7 @@ class _Walk:
         self.hash = hashlib.sha256(repr(defines).encode())
         self.elements, self.notes = 0, {}
         self.max_depth: Optional[int] = None
+        self.files: list = []
 
     def sub(self, value: str) -> str:
         return _PARAM.sub(lambda m: self.defines.get(m.group(1), self.defaults.get(m.group(1), m.group(0))), value)
@@ -155,6 +172,7 @@ class _Walk:
     def file(self, path: str, where: str, depth: int) -> None:
         if depth > MAX_INCLUDE_DEPTH:
             raise SceneError(f"{where}: <include> nested more than {MAX_INCLUDE_DEPTH} deep")
+        self.files.append(_stat(path))
         with open(path, "rb") as f:
             data = f.read(MAX_XML_BYTES + 1)
         if len(data) > MAX_XML_BYTES:
@@ -163,9 +181,9 @@ class _Walk:
         root = parse_tree(data, path)
         if root.tag != "scene":
             raise SceneError(f"{path}:{root.line}: the root element must be <scene>, got <{root.tag}>")
-        self.node(root, path, depth, top=True)
+        self.node(root, path, depth)
 
-    def node(self, node: Node, path: str, depth: int, top: bool = False) -> None:
+    def node(self, node: Node, path: str, depth: int) -> None:
         self.elements += 1
         where = f"{path}:{node.line}"
         if self.elements > MAX_ELEMENTS:
@@ -178,7 +196,9 @@ class _Walk:
                 raise SceneError(f"{where}: <include> needs a filename")
             self.file(self.resolve(node.get("filename"), where, MAX_XML_BYTES), where, depth + 1)
         elif tag == "string" and name == "filename" and node.get("value") is not None:
-            with open(self.resolve(node.get("value"), where, MAX_RESOURCE_BYTES), "rb") as f:
+            resource = self.resolve(node.get("value"), where, MAX_RESOURCE_BYTES)
+            self.files.append(_stat(resource))
+            with open(resource, "rb") as f:
                 for chunk in iter(lambda: f.read(1 << 22), b""):
                     self.hash.update(chunk)
         elif tag == "integer" and name in ("width", "height"):
@@ -231,4 +251,4 @@ def guard(path: "str | os.PathLike", defines=()) -> GuardedScene:
         walk.note("integrator", f"{real}:1: no <integrator>: the colour reference paths up to "
                                 f"{UNLIMITED_DEPTH} bounces (Mitsuba's default is unlimited)")
     return GuardedScene(real, walk.folder, defs, walk.hash.hexdigest(), walk.max_depth or UNLIMITED_DEPTH,
-                        tuple(walk.notes.values()))
+                        tuple(walk.notes.values()), tuple(walk.files))

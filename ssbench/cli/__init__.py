@@ -20,6 +20,13 @@ from ._implicit_cmd import cmd_implicit
 from ._scene_cmds import cmd_info, cmd_render, cmd_report, cmd_scenes
 
 
+def _scene_arguments(q) -> None:
+    """The SCENE argument of ``render``, ``ao`` and ``ssr``, with its ``-D`` overrides."""
+    q.add_argument("scene", metavar="SCENE", help="catalog name or scene file (.yaml, .toml, Mitsuba 3 .xml)")
+    q.add_argument("-D", dest="defines", type=define_arg, action="append", default=[], metavar="NAME=VALUE",
+                   help="override a Mitsuba scene file's $NAME parameter (repeatable), e.g. -D res=256")
+
+
 def _parser() -> Parser:
     from .. import __version__
     p = Parser(prog="ssbench", description="Screen-space rendering passes vs Mitsuba 3 ground truth.")
@@ -38,9 +45,7 @@ def _parser() -> Parser:
     q = sub.add_parser("scenes", help="list the built-in scenes")
     q.add_argument("--json", action="store_true", help="print JSON")
     q = sub.add_parser("render", help="render a scene's reference G-buffer to EXR + PNG files")
-    q.add_argument("scene", metavar="SCENE", help="catalog name or scene file (.yaml, .toml, Mitsuba 3 .xml)")
-    q.add_argument("-D", dest="defines", type=define_arg, action="append", default=[], metavar="NAME=VALUE",
-                   help="override a Mitsuba scene file's $NAME parameter (repeatable), e.g. -D res=256")
+    _scene_arguments(q)
     q.add_argument("--out", required=True, metavar="DIR", help="output directory")
     q.add_argument("--width", type=positive("width"), help="image width (default: the scene camera's)")
     q.add_argument("--height", type=positive("height"), help="image height (default: the scene camera's)")
@@ -53,9 +58,7 @@ def _parser() -> Parser:
     from ..passes import AO_METHODS
     from ..reference.ao import WEIGHTINGS as AO_WEIGHTINGS
     q = sub.add_parser("ao", help="run one AO method on a scene and score it against the ray-traced GT")
-    q.add_argument("scene", metavar="SCENE", help="catalog name or scene file (.yaml, .toml, Mitsuba 3 .xml)")
-    q.add_argument("-D", dest="defines", type=define_arg, action="append", default=[], metavar="NAME=VALUE",
-                   help="override a Mitsuba scene file's $NAME parameter (repeatable), e.g. -D res=256")
+    _scene_arguments(q)
     q.add_argument("--method", required=True, choices=list(AO_METHODS), help="AO method")
     q.add_argument("--param", type=param_arg, action="append", default=[], metavar="NAME=VALUE",
                    help="override a pass parameter (repeatable), e.g. --param num_steps=8")
@@ -75,9 +78,7 @@ def _parser() -> Parser:
     q.add_argument("--force", action="store_true", help="run work above the size limits (ssbench/RELIABILITY.md)")
     from ..passes import SSR_METHODS
     q = sub.add_parser("ssr", help="run one SSR method on a scene and classify it against the exact reflections")
-    q.add_argument("scene", metavar="SCENE", help="catalog name or scene file (.yaml, .toml, Mitsuba 3 .xml)")
-    q.add_argument("-D", dest="defines", type=define_arg, action="append", default=[], metavar="NAME=VALUE",
-                   help="override a Mitsuba scene file's $NAME parameter (repeatable), e.g. -D res=256")
+    _scene_arguments(q)
     q.add_argument("--method", required=True, choices=list(SSR_METHODS), help="SSR method")
     q.add_argument("--param", type=param_arg, action="append", default=[], metavar="NAME=VALUE",
                    help="override a pass parameter (repeatable), e.g. --param pixel_stride=4")

@@ -116,11 +116,12 @@ def cmd_report(args) -> int:
     from ..report.build import build_report
     out_dir(args.out)
     off = lambda flag: False if flag else None                # noqa: E731  (None: the section's default)
-    for f in args.extra_scenes:                              # refused here, as usage errors, before any work
+    extra = []                                               # loaded here (once), so a bad file is a usage error
+    for f in args.extra_scenes:                              # before any work
         if not os.path.isfile(f):
             raise UsageError(f"argument --scene: {f!r} is not a scene file")
-        load_scene(f)
-    index = build_report(args.out, scenes=args.scenes, extra_scenes=args.extra_scenes, width=args.width, height=args.height, spp=args.spp,
+        extra.append(load_scene(f))
+    index = build_report(args.out, scenes=args.scenes, extra_scenes=extra, width=args.width, height=args.height, spp=args.spp,
                          seed=args.seed, use_cache=not args.fresh_previews, gt_cache=not args.no_gt_cache, ao=not args.no_ao,
                          ao_radius=args.ao_radius, ao_rays=args.ao_rays, ssr=not args.no_ssr, ssr_spp=args.ssr_spp,
                          implicit=off(args.no_implicit), speed=off(args.no_speed), tuning=off(args.no_tuning),

@@ -85,16 +85,16 @@ def refresh_latest(run_dir: str, out_root: str) -> str:
 
 
 def user_scenes(paths: Iterable, taken: Iterable[str]) -> list:
-    """A user's scene files loaded as scenes named after their files (safe for paths, unique, never a catalog
-    name: ``file_<name>`` then)."""
+    """A user's scene files (or scenes already loaded from them) as scenes named after their files (safe for
+    paths, unique, never a catalog name: ``file_<name>`` then)."""
     import dataclasses
     import re
-    from ..scenes import load
+    from ..scenes import Scene, load
     if isinstance(paths, (str, os.PathLike)):
         raise TypeError("extra_scenes: expected a list of scene files, got one path")
     out, used = [], set(taken)
     for p in paths:
-        sc = load(os.fspath(p))
+        sc = load(p if isinstance(p, Scene) else os.fspath(p))
         name = re.sub(r"[^A-Za-z0-9_.-]", "_", sc.name) or "scene"
         if name in used:
             name = f"file_{name}"
@@ -184,9 +184,9 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
                  gt_cache: bool = True, extra_scenes: Iterable = ()) -> str:
     """Render every catalog scene (or ``scenes``) and write a report run; returns the run's ``index.html``.
 
-    ``extra_scenes``: a user's scene files (Mitsuba ``.xml``, YAML, TOML), added to the scene previews and to the
-    AO and SSR sections (after their own scenes), each under its file's name (``file_`` in front when that is a
-    catalog name).
+    ``extra_scenes``: a user's scene files (Mitsuba ``.xml``, YAML, TOML) or the scenes loaded from them, added to
+    the scene previews and to the AO and SSR sections (after their own scenes), each under its file's name
+    (``file_`` in front when that is a catalog name).
 
     ``use_cache=True`` (default) reads the scene previews from the render cache when they are there (their times
     are then the ones recorded when they were rendered, flagged "cached" in the page); ``use_cache=False``

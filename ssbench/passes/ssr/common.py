@@ -19,8 +19,9 @@ OFF_SCREEN = 2      #: the ray left the screen
 MAX_DISTANCE = 3    #: reached MaxRayDistance / the clipped end point without a hit
 OUT_OF_STEPS = 4    #: the iteration budget ran out before the end point (NOT a hit)
 BEHIND_CAMERA = 5   #: the ray crossed the near plane toward the camera (clipped away)
+BEHIND_SURFACE = 6  #: the ray went behind a surface deeper than the thickness and stopped there (Hi-Z, FidelityFX)
 TERMINATION_NAMES = {NO_RAY: "no ray", HIT: "hit", OFF_SCREEN: "off screen", MAX_DISTANCE: "max distance",
-                     OUT_OF_STEPS: "out of steps", BEHIND_CAMERA: "behind camera"}
+                     OUT_OF_STEPS: "out of steps", BEHIND_CAMERA: "behind camera", BEHIND_SURFACE: "behind surface"}
 
 
 @dataclass(frozen=True)

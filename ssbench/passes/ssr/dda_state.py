@@ -14,7 +14,7 @@ from typing import Callable, Optional
 
 import torch
 
-__all__ = ["DDARays", "MarchOutput", "RAY_CHUNK", "march_in_chunks"]
+__all__ = ["DDARays", "MarchOutput", "RAY_CHUNK", "march_in_chunks", "select_rows"]
 
 #: rays marched at once: a march's per-step temporaries stay a few MB, whatever the image size
 RAY_CHUNK = 1 << 16
@@ -66,9 +66,7 @@ class DDARays:
 
     def select(self, index: torch.Tensor) -> "DDARays":
         """The rays at ``index`` (a :math:`(M,)` long tensor), every field (also a subclass's) indexed."""
-        return dataclasses.replace(self, **{f.name: getattr(self, f.name).index_select(0, index)
-                                            for f in dataclasses.fields(self)
-                                            if isinstance(getattr(self, f.name), torch.Tensor)})
+        return select_rows(self, index)
 
     def ray(self, r: int) -> dict:
         """Ray ``r`` as plain Python numbers, by field name (for the per-pixel teaching twins)."""
@@ -79,6 +77,13 @@ class DDARays:
     def count(self) -> int:
         """``N``, the rays held."""
         return self.i.numel()
+
+
+def select_rows(state, index: torch.Tensor):
+    """A copy of the per-ray dataclass ``state`` keeping the rows ``index`` of every tensor field."""
+    return dataclasses.replace(state, **{f.name: getattr(state, f.name).index_select(0, index)
+                                         for f in dataclasses.fields(state)
+                                         if isinstance(getattr(state, f.name), torch.Tensor)})
 
 
 @dataclass

@@ -1,0 +1,203 @@
+"""Hi-Z SSR (FidelityFX SSSR / HDRP traversal): pyramid, closed form, teaching twin, the anchors' pinned bugs."""
+from __future__ import annotations
+
+import math
+
+import pytest
+import torch
+
+from ssbench.gbuffer import GBuffer
+from ssbench.passes.ssr.common import BEHIND_SURFACE, HIT, OFF_SCREEN, OUT_OF_STEPS, reflection_rays
+from ssbench.passes.ssr.dda import DDASSRParams, ssr_dda
+from ssbench.passes.ssr.hiz import HiZSSR, HiZSSRParams, ssr_hiz
+from ssbench.passes.ssr.hiz_pyramid import depth_pyramid, reversed_depth
+from ssbench.passes.teaching.ssr_hiz_basic import build_pyramid, ssr_hiz_basic, trace_ray, validate_hit
+from tests.passes.ssr_scenes import FLOOR, WALL, analytic, one_ray, room
+
+F64 = torch.float64
+
+
+# ----------------------------------------------------------------------------- the pyramid
+@pytest.mark.parametrize("h,w", [(7, 13), (8, 8), (1, 5), (11, 17)])
+def test_pyramid_cells_are_the_max_of_their_texels(h, w):
+    rz = torch.rand(2, 1, h, w, generator=torch.Generator().manual_seed(h * w), dtype=F64)
+    p = depth_pyramid(rz)
+    assert tuple(p.levels[-1].shape[-2:]) == (1, 1)
+    for m, level in enumerate(p.levels):
+        s = 2 ** m
+        assert level.shape[-2:] == (math.ceil(h / s), math.ceil(w / s))
+        for cy in range(level.shape[-2]):
+            for cx in range(level.shape[-1]):                 # a cell covers texels [c·2^m, (c+1)·2^m), clipped
+                block = rz[:, 0, cy * s:(cy + 1) * s, cx * s:(cx + 1) * s]
+                assert torch.equal(level[:, 0, cy, cx], block.amax((1, 2)))
+                b, mm = torch.tensor([1]), torch.tensor([m])
+                assert float(p.cell(b, mm, torch.tensor([cx]), torch.tensor([cy]))) == float(level[1, 0, cy, cx])
+    twin = build_pyramid(rz[0, 0].tolist())
+    assert all(torch.equal(torch.tensor(t, dtype=F64), lv[0, 0]) for t, lv in zip(twin, p.levels))
+
+
+def test_reversed_depth():
+    z = torch.tensor([[[[-0.1, -1.0, -1e6, -50.0]]]], dtype=F64)
+    rz = reversed_depth(z, z != -50.0, 0.1)
+    assert rz.flatten().tolist() == [1.0, 0.1, 1e-7, 0.0]     # near plane 1, background 0
+    with pytest.raises(ValueError, match="view_z"):
+        reversed_depth(z[0], z[0] < 0, 0.1)
+
+
+# ----------------------------------------------------------------------------- closed form
+def test_mirror_floor_hits_wall_closed_form():
+    g = room()
+    cam, W, H = g.camera, g.width, g.height
+    r = ssr_hiz(g, HiZSSRParams(max_ray_distance=50.0, depth_buffer_thickness=0.5))
+    target, ok = analytic(g, [FLOOR, WALL])
+    pix = cam.view_to_pixel(target)
+    floor = ok & (g.shape_id == 0)
+    inside = floor & (pix[:, :1] > 1) & (pix[:, :1] < W - 1) & (pix[:, 1:] > 1) & (pix[:, 1:] < H - 1)
+    outside = floor & ((pix[:, :1] < -1) | (pix[:, :1] > W + 1) | (pix[:, 1:] < -1) | (pix[:, 1:] > H + 1))
+    assert int(inside.sum()) > 600 and int(outside.sum()) > 10
+    assert bool(r.hit[inside].all())
+    err = (r.hit_pixel - pix).norm(dim=1, keepdim=True)[inside]
+    assert float(err.max()) < 1.0, float(err.max())
+    assert bool((r.termination[outside] == OFF_SCREEN).all())
+    off_line = torch.cross(r.hit_view - g.position, reflection_rays(g.position, g.normal), dim=1).norm(dim=1, keepdim=True)
+    assert float(off_line[r.hit].max()) < 1e-9                 # the hit point lies on the mirror ray
+    assert torch.allclose(cam.view_to_pixel(r.hit_view)[r.hit.expand(-1, 2, -1, -1)],
+                          r.hit_pixel[r.hit.expand(-1, 2, -1, -1)], atol=1e-6)
+    assert torch.allclose(r.color, r.raw_color * r.fade)
+
+
+def test_fewer_reads_than_the_dda_for_the_same_hits():
+    """Reads grow like the log of the ray's length in pixels, the DDA's linearly."""
+    g = room(96, 72)
+    h = ssr_hiz(g, HiZSSRParams(max_ray_distance=50.0, depth_buffer_thickness=0.5), debug=True)
+    d = ssr_dda(g, DDASSRParams(max_ray_distance=50.0, refinement="none"))
+    both = h.hit & d.hit
+    assert int(both.sum()) > 2500
+    assert float(h.steps[both].double().mean()) < 0.5 * float(d.steps[both].double().mean())
+    long = both & (d.steps >= 48)
+    assert int(long.sum()) > 500 and float(h.steps[long].double().mean()) < 0.3 * float(d.steps[long].double().mean())
+    levels = h.debug["reads_per_level"]
+    assert int(levels.sum()) == int(h.steps.sum()) and int(levels[1:].sum()) > 0   # it climbs
+    assert int(h.debug["visits"].sum()) == int(levels[0])
+
+
+# ----------------------------------------------------------------------------- teaching twin
+@pytest.mark.parametrize("size,kw", [
+    ((16, 12), dict()), ((16, 12), dict(depth_buffer_thickness=0.5)), ((17, 11), dict(trace_behind=True)),
+    ((16, 12), dict(thickness_mode="relative", depth_buffer_thickness=0.05, reject_backfaces=False)),
+    ((16, 12), dict(max_traversal_intersections=5, max_mip=1)), ((13, 9), dict(max_ray_distance=3.0))])
+def test_teaching_twin_equals_vectorised(size, kw):
+    for g in (room(*size), room(*size, slat=True)):
+        p = HiZSSRParams(**{"max_ray_distance": 30.0, **kw})
+        a, b = ssr_hiz(g, p), ssr_hiz_basic(g, p)
+        assert torch.equal(a.termination, b.termination) and torch.equal(a.steps, b.steps)
+        assert float((a.hit_pixel - b.hit_pixel).abs().max()) <= 1e-9
+        assert torch.allclose(a.hit_view, b.hit_view, atol=1e-9) and torch.allclose(a.color, b.color, atol=1e-9)
+
+
+def test_trace_ray_path_climbs_and_descends():
+    g = room(32, 24)
+    cam, near = g.camera, g.camera.near
+    z = g.view_z[0, 0].tolist()
+    levels = build_pyramid([[near / -v if v > -cam.far else 0.0 for v in row] for row in z])
+    r = ssr_hiz(g, HiZSSRParams(max_ray_distance=50.0, depth_buffer_thickness=0.5), debug=True)
+    steps = torch.where(r.hit, r.steps, 0)[0, 0]
+    j, i = divmod(int(steps.argmax()), g.width)                # the hit that took the most reads
+    assert bool(r.hit[0, 0, j, i]) and int(g.shape_id[0, 0, j, i]) == 0   # a floor pixel
+    o = r.debug["ray_end"][0, :, j, i]
+    P0 = (i + 0.5, j + 0.5)
+    path = []
+    view = g.position[0, :, j, i]
+    d = reflection_rays(g.position, g.normal)[0, :, j, i].tolist()
+    e = view + torch.tensor(d, dtype=F64) * 50.0
+    t = trace_ray(levels, lambda x, y: (z[y][x], None, g.normal[0, :, y, x].tolist()),
+                  (P0[0], P0[1], near / -float(view[2])),
+                  (float(o[0]) - P0[0], float(o[1]) - P0[1], near / -float(e[2]) - near / -float(view[2])),
+                  d, False, HiZSSRParams(max_ray_distance=50.0, depth_buffer_thickness=0.5), near, path)
+    assert t[0] == HIT and t[1] == int(r.steps[0, 0, j, i]) == len(path)
+    mips = [p[0] for p in path]
+    assert max(mips) >= 2 and mips[-1] == 0 and any(p[4] for p in path)   # skipped tiles, then down to level 0
+
+
+# ----------------------------------------------------------------------------- the anchors' bugs, pinned
+def test_running_out_of_iterations_is_never_a_hit():
+    """FidelityFX's ``valid_hit = i <= max_traversal_intersections`` is true on every exit of its loop."""
+    g = room()
+    r = ssr_hiz(g, HiZSSRParams(max_ray_distance=50.0, depth_buffer_thickness=0.5, max_traversal_intersections=4))
+    spent = r.termination == OUT_OF_STEPS
+    assert int(spent.sum()) > 100
+    assert not bool(r.hit[spent].any()) and bool((r.color.abs().sum(1, keepdim=True)[spent] == 0).all())
+    assert bool((r.steps[spent] == 4).all())
+
+
+def test_rays_toward_the_camera_keep_their_screen_direction():
+    """FidelityFX projects ``o + d`` unclipped: from a surface 0.5 in front of the eye, toward the camera, that
+    point is behind the eye (``w ≤ 0``) and its projection flips the ray's screen direction."""
+    R = (0.3, 0.2, 0.93)
+    g = one_ray(R, z=-0.5)
+    cam = g.camera
+    r = ssr_hiz(g, HiZSSRParams(), debug=True)
+    y, x = (g.mask[0, 0]).nonzero()[0].tolist()
+    o = g.view_z.new_tensor(cam.uv_to_view(cam.uv_grid(F64)[None], g.view_z)[0, :, y, x].tolist())
+    d = reflection_rays(cam.uv_to_view(cam.uv_grid(F64)[None], g.view_z), g.normal)[0, :, y, x]
+    P0 = torch.tensor([x + 0.5, y + 0.5], dtype=F64)
+    true_dir = cam.view_to_pixel(o + 1e-3 * d, dim=-1) - P0   # the ray's first millimetre on screen
+    naive = cam.view_to_pixel(o + d, dim=-1) - P0             # FidelityFX's ProjectDirection(o + d)
+    assert float(o[2] + d[2]) > 0 and float(naive @ true_dir) < 0   # behind the eye, flipped
+    ours = r.debug["ray_end"][0, :, y, x] - P0
+    assert float(ours @ true_dir) > 0.99 * float(ours.norm() * true_dir.norm())
+    assert int(r.termination[0, 0, y, x]) in (OFF_SCREEN, 5)   # leaves the screen or reaches the near plane
+
+
+def test_relative_thickness_grows_with_depth():
+    """HDRP's thickness is relative, ``(1 + t)·linZ``: 0.01 is a centimetre at z = −1 and a metre at z = −100."""
+    p_rel = HiZSSRParams(thickness_mode="relative", depth_buffer_thickness=0.01, reject_backfaces=False)
+    p_abs = HiZSSRParams(depth_buffer_thickness=0.01, reject_backfaces=False)
+    for surface, ok_rel in ((-1.0, False), (-100.0, True)):
+        ray = surface - 0.5                                    # half a unit behind the surface
+        assert validate_hit(surface, None, (0, 0, 1), ray, (0, 0, -1), p_rel) is ok_rel
+        assert validate_hit(surface, None, (0, 0, 1), ray, (0, 0, -1), p_abs) is False
+
+
+def test_thin_bar_stops_the_ray_unless_it_traces_behind():
+    """FidelityFX ends a ray at the first texel it passes behind; HDRP-style ``trace_behind`` crosses it."""
+    g = room(slat=True)
+    stop = ssr_hiz(g, HiZSSRParams(max_ray_distance=50.0, depth_buffer_thickness=0.05))
+    go = ssr_hiz(g, HiZSSRParams(max_ray_distance=50.0, depth_buffer_thickness=0.05, trace_behind=True))
+    stopped = stop.termination == BEHIND_SURFACE
+    assert int(stopped.sum()) > 20 and not bool((go.termination == BEHIND_SURFACE).any())
+    assert int((stopped & go.hit).sum()) >= 10                 # crossed behind the bar, then hit something
+    assert bool(go.hit[stop.hit].all()) and torch.equal(go.hit_pixel[:, :, stop.hit[0, 0]],
+                                                        stop.hit_pixel[:, :, stop.hit[0, 0]])   # same walk until then
+    assert bool((go.steps >= stop.steps).all())
+
+
+# ----------------------------------------------------------------------------- contract
+def test_batch_dtype_and_module():
+    g = room(24, 18)
+    p = HiZSSRParams(max_ray_distance=30.0, depth_buffer_thickness=0.3)
+    a = ssr_hiz(g, p)
+    b = ssr_hiz(GBuffer.cat([g, g]), p)
+    assert torch.equal(b.termination[1:], a.termination) and torch.equal(b.hit_pixel[1:], a.hit_pixel)
+    f = ssr_hiz(g.to(torch.float32), p)
+    assert float((f.hit == a.hit).double().mean()) > 0.98
+    assert torch.equal(HiZSSR(p)(g).termination, a.termination)
+    assert all(bool(torch.isfinite(t).all()) for t in (a.color, a.hit_view, a.hit_pixel, f.color))
+
+
+@pytest.mark.parametrize("kw,name", [
+    (dict(max_traversal_intersections=0), "max_traversal_intersections"),
+    (dict(depth_buffer_thickness=-1.0), "depth_buffer_thickness"), (dict(max_ray_distance=math.inf), "max_ray_distance"),
+    (dict(max_mip=-1), "max_mip"), (dict(thickness_mode="hdrp"), "thickness_mode"),
+    (dict(trace_behind=1), "trace_behind"), (dict(fade_distance=0.0), "fade_distance")])
+def test_bad_params(kw, name):
+    with pytest.raises(ValueError, match=name):
+        HiZSSRParams(**kw)
+
+
+def test_bad_gbuffer():
+    g = room(8, 6)
+    with pytest.raises(ValueError, match="back_z"):
+        ssr_hiz(g, HiZSSRParams(use_back_face_depth=True))
+    with pytest.raises(TypeError, match="params"):
+        ssr_hiz(g, DDASSRParams())

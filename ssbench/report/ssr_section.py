@@ -18,7 +18,8 @@ G-buffer (the report's own render when it has one, else a fresh one), traces the
 * ``fig11.png`` (first scene only) — one ray's reads per marcher against the pixels it crosses
   (:mod:`.ssr_fig11`, SSR article Fig. 11), when the linear march and both DDAs ran;
 
-plus the class-fraction table with times and a table mapping one physical thickness onto each anchor's
+plus the class-fraction table with times, the equal-reads tables (every marcher with 8, 32 and 128 depth reads per
+ray, :mod:`.ssr_reads`) and a table mapping one physical thickness onto each anchor's
 "thickness" knob (:mod:`ssbench.metrics.thickness`). Nothing here may crash the report: a missing reference
 or pass, or a failing run, becomes a visible note.
 """
@@ -34,6 +35,7 @@ import torch
 from ..passes import declared, ssr_method
 from .ao_section import fmt, write_png
 from .ssr_images import color_rgb, scored_error_rgb, visits_rgb
+from .ssr_reads import reads_rows, reads_tables
 from .summary import unavailable_md
 
 if TYPE_CHECKING:
@@ -150,6 +152,7 @@ def build_ssr_section(run_dir: str, scenes: Optional[Iterable["str | Scene"]] = 
     return {"available": bool(out_scenes), "note": "" if out_scenes else "SSR section: every scene failed.",
             "notes": notes, "methods": methods, "scenes": out_scenes, "rows": rows,
             "columns": [(k, label) for k, label, _ in TABLE], "overview": overview, "equal": equal,
+            "reads": reads_tables(rows),
             "equal_rule": {"ray_length": evaluate.EQUAL_RAY_LENGTH, "thickness": evaluate.EQUAL_THICKNESS},
             "legend": legend_entries(),
             "thickness": thickness_rows(cam) if cam is not None else None, "spp": spp, "k_px": k_px,
@@ -217,6 +220,7 @@ def _scene(run_dir, name, methods, channels, width, height, spp, seed, k_px, use
             rows.append({**ev.row, "setting": "equal"})
         except Exception as e:
             notes.append(f"{m} at equal settings: {type(e).__name__}: {e}")
+    rows += reads_rows(sc, g, truth, notes, seed=seed, spp=spp, k_px=k_px, use_cache=use_cache)
     fig11 = _fig11(d, rel, g, results, notes) if fig11 else None
     if fig11:
         images["fig11"] = fig11.pop("image")

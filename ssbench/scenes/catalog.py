@@ -119,6 +119,30 @@ def grazing_floor() -> dict:
             "lights": LIGHTS}
 
 
+#: the roughness ramp of ``glossy_ramp``'s floor strips (left to right) and of its metal spheres
+FLOOR_ROUGHNESS = (0.0, 0.05, 0.1, 0.2, 0.35, 0.5)
+SPHERE_ROUGHNESS = (0.0, 0.1, 0.2, 0.35, 0.5)
+
+
+def glossy_ramp() -> dict:
+    strips = [{"type": "rectangle", "id": f"strip_{k}", "size": [1.0, 20.0], "rotate": [-90, 0, 0],
+               "translate": [-3.0 + 1.0 * k + 0.5, 0.0, 0.0],
+               "material": {"albedo": [0.85, 0.85, 0.85], "roughness": r, "metallic": 1.0}}
+              for k, r in enumerate(FLOOR_ROUGHNESS)]
+    balls = [{"type": "sphere", "id": f"metal_{k}", "center": [-2.0 + 1.0 * k, 0.35 + _LIFT, -0.6], "radius": 0.35,
+              "material": {"albedo": [0.95, 0.75, 0.35], "roughness": r, "metallic": 1.0}}
+             for k, r in enumerate(SPHERE_ROUGHNESS)]
+    posts = [_box("red_post", [0.4, 1.6, 0.4], (-1.5, -2.2), RED), _box("green_post", [0.4, 1.0, 0.4], (0.0, -2.6), GREEN),
+             _box("blue_post", [0.4, 2.0, 0.4], (1.5, -2.2), BLUE)]
+    return {"name": "glossy_ramp",
+            "description": "A metal floor in strips of rising roughness (0 to 0.5) and metal spheres likewise: "
+                           "mirror vs glossy reflections, and where screen-space rays miss.",
+            "camera": _cam([0.0, 1.3, 4.5], [0.0, 0.4, -1.0]),
+            "shapes": strips + balls + posts + [{"type": "rectangle", "id": "wall", "size": [20, 10],
+                                                   "translate": [0, 5, -4], "material": WHITE}],
+            "lights": LIGHTS}
+
+
 WOOD = {"albedo": [0.42, 0.27, 0.15]}
 VARNISH = {"albedo": [0.35, 0.2, 0.1], "roughness": 0.25}
 PAPER = [{"albedo": [0.6, 0.15, 0.1]}, {"albedo": [0.15, 0.3, 0.55]}, {"albedo": [0.75, 0.7, 0.55]},
@@ -219,6 +243,7 @@ CATALOG: dict[str, Callable[[], dict]] = {
     "stairs": stairs,
     "reflective_floor": reflective_floor,
     "grazing_floor": grazing_floor,
+    "glossy_ramp": glossy_ramp,
     "furnished_room": furnished_room,
     "sphere_on_plane_small": _scaled(sphere_on_plane, 0.01, "sphere_on_plane_small",
                                      "sphere_on_plane scaled by 0.01: a scale-invariant pass gives the same image."),

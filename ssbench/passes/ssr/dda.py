@@ -274,3 +274,7 @@ SPEED_PANELS = (SpeedPanel("hits", "max_steps", (("jitter", 0.0), ("z_thickness"
                 SpeedPanel("hits", "pixel_stride", (("jitter", 0.0), ("z_thickness", 0.1), ("max_steps", 128))),
                 SpeedPanel("hits", "z_thickness", (("max_steps", 128), ("pixel_stride", 1.0))),
                 SpeedPanel("hits", "jitter", (("max_steps", 128), ("pixel_stride", 4.0), ("z_thickness", 0.1))))
+#: the depth-read budget of an equal-reads comparison (ssbench.analysis.equal_reads): the parameter that caps
+#: reads, and the settings that make every read count:
+#: the stride is fitted so the budget spans the whole ray; no refinement probes
+READ_BUDGET = ("max_steps", {"fit_stride_to_steps": True, "refinement": "none"})

@@ -234,3 +234,7 @@ DEBUG_VIEWS = {"visits": "depth fetches per texel"}
 #: the report's speed sweeps (``grids:`` purposes of ssbench/report/sweeps/*.yaml) and artifact plots
 SPEED_GRIDS = {"cost": [{"max_steps": [32, 128]}]}
 SPEED_PANELS = (SpeedPanel("hits", "max_steps", (("z_thickness", 0.1),)),)
+#: the depth-read budget of an equal-reads comparison (ssbench.analysis.equal_reads): the parameter that caps
+#: reads, and the settings that make every read count:
+#: one read per crossed pixel
+READ_BUDGET = ("max_steps", {})

@@ -163,9 +163,13 @@ class HiZSSR(nn.Module):
 
 
 #: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)
-METHOD = Method("hiz", ssr_hiz, HiZSSRParams, HiZSSR, order=25,
+METHOD = Method("hiz", ssr_hiz, HiZSSRParams, HiZSSR, order=35,
                 title="hierarchical-depth (Hi-Z) traversal (FidelityFX SSSR / HDRP)")
 DEBUG_VIEWS = {"visits": "level-0 pyramid reads per texel"}
 SPEED_GRIDS = {"cost": [{"max_traversal_intersections": [16, 32, 64, 128]},
                         {"max_traversal_intersections": 128, "trace_behind": True}]}
 SPEED_PANELS = (SpeedPanel("hits", "max_traversal_intersections", (("trace_behind", False),)),)
+#: the depth-read budget of an equal-reads comparison (ssbench.analysis.equal_reads): the parameter that caps
+#: reads, and the settings that make every read count:
+#: one pyramid read per iteration; back faces accepted like the other marchers
+READ_BUDGET = ("max_traversal_intersections", {"reject_backfaces": False})

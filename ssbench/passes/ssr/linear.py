@@ -234,3 +234,7 @@ SPEED_GRIDS = {"cost": [{"iterations": [16, 64], "thickness": 0.1}, {"iterations
 SPEED_PANELS = (SpeedPanel("hits", "iterations", (("jitter", 0.0), ("thickness", 0.1))),
                 SpeedPanel("hits", "thickness", (("jitter", 0.0), ("iterations", 64))),
                 SpeedPanel("hits", "jitter", (("iterations", 64), ("thickness", 0.1))))
+#: the depth-read budget of an equal-reads comparison (ssbench.analysis.equal_reads): the parameter that caps
+#: reads, and the settings that make every read count:
+#: one depth read per step; no bisection, whose probes would be reads beyond the budget
+READ_BUDGET = ("iterations", {"binary_search_iterations": 0})

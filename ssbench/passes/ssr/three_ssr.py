@@ -220,3 +220,7 @@ METHOD = Method("three_ssr", ssr_three, ThreeSSRParams, ThreeSSR, order=40,
                 title="three.js SSRPass shader (pixel DDA, distance-to-line thickness)")
 SPEED_GRIDS = {"cost": [{"thickness": [0.018, 0.1]}]}
 SPEED_PANELS = (SpeedPanel("hits", "thickness", ()),)
+#: the depth-read budget of an equal-reads comparison (ssbench.analysis.equal_reads): the parameter that caps
+#: reads, and the settings that make every read count:
+#: one read per pixel step
+READ_BUDGET = ("max_step", {})

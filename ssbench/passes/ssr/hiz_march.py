@@ -34,45 +34,56 @@ import torch
 from ...gbuffer import GBuffer
 from .common import (BEHIND_CAMERA, BEHIND_SURFACE, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS, clip_ray_length,
                      reflection_rays)
-from .dda_state import MarchOutput, select_rows
+from .dda_state import MarchOutput
 from .hiz_pyramid import DepthPyramid
 
-__all__ = ["HiZRays", "HiZTexels", "EPSILON", "hiz_rays", "hiz_march", "cell_exit"]
+__all__ = ["HiZRays", "HiZTexels", "EPSILON", "BIG", "RAY_CHUNK", "hiz_rays", "hiz_march", "cell_exit", "inverse"]
 
 #: how far past a cell border a crossing lands, in pixels (FidelityFX: ``0.005 · 2^most_detailed_mip`` texels)
 EPSILON = 0.005
 
 
+#: rays marched at once: ~130 bytes of state per ray, so a chunk holds ~35 MB; larger than the DDA's chunk because
+#: every chunk pays the long tail of the few rays that need the most iterations
+RAY_CHUNK = 1 << 18
+#: ``1/v`` of an axis the ray does not move along: ``t`` of its borders is then huge, never the minimum
+#: (FidelityFX uses ``FLT_MAX`` in uv units; in pixels that would overflow)
+BIG = 1e30
+#: the per-ray constants, rows of :attr:`HiZRays.c`
+COLUMNS = ("ox", "oy", "oz", "vx", "vy", "vz", "invx", "invy", "invz", "offx", "offy", "epsx", "epsy")
+OX, OY, OZ, VX, VY, VZ, INVX, INVY, INVZ, OFFX, OFFY, EPSX, EPSY = range(len(COLUMNS))
+
+
 @dataclass
 class HiZRays:
-    """Per-ray Hi-Z state, each field :math:`(N,)`.
+    """The live rays of a Hi-Z march, :math:`(N,)` per field.
 
     Attributes:
         i, b: the ray's row in the outputs and its image.
-        ox, oy, oz: the origin in ``(px, py, rz)``; ``vx, vy, vz``: the segment per unit of ``t``.
-        dx, dy, dz: the unit view-space direction (the back-face test).
         t: the ray's parameter; ``mip``: its current level (long).
-        clipped: the near plane shortened the segment.
+        c: :math:`(13, N)` per-ray constants, rows :data:`COLUMNS` (each row contiguous): the origin ``o`` in ``(px, py, rz)``, the
+            segment ``v`` per unit of ``t``, ``inv = 1/v`` (:data:`BIG` for ``v.xy = 0``; ``invz`` only for rays
+            moving away, ``v.z < 0``, else 0), ``off = (v ≥ 0)`` (FidelityFX's ``floor_offset``) and the signed
+            crossing ``eps = EPSILON·sign(v)`` per screen axis.
     """
 
     i: torch.Tensor
     b: torch.Tensor
-    ox: torch.Tensor
-    oy: torch.Tensor
-    oz: torch.Tensor
-    vx: torch.Tensor
-    vy: torch.Tensor
-    vz: torch.Tensor
-    dx: torch.Tensor
-    dy: torch.Tensor
-    dz: torch.Tensor
     t: torch.Tensor
     mip: torch.Tensor
+    c: torch.Tensor
+    ray_dir: torch.Tensor
     clipped: torch.Tensor
 
     @property
     def count(self) -> int:
         return self.i.numel()
+
+    def select(self, index: torch.Tensor) -> "HiZRays":
+        """The live rays at ``index``; ``ray_dir`` :math:`(N_0, 3)` and ``clipped`` :math:`(N_0,)` stay whole
+        (every ray of the chunk, read by ``i``: the unit view-space direction, the near plane shortened it)."""
+        return HiZRays(i=self.i[index], b=self.b[index], t=self.t[index], mip=self.mip[index], c=self.c[:, index],
+                       ray_dir=self.ray_dir, clipped=self.clipped)
 
 
 @dataclass(frozen=True)
@@ -85,17 +96,21 @@ class HiZTexels:
     back_z: Optional[torch.Tensor] = None
 
 
+def inverse(v: torch.Tensor) -> torch.Tensor:
+    """``1/v``, :data:`BIG` where ``v == 0``."""
+    return torch.where(v == 0, BIG, 1.0 / torch.where(v == 0, torch.ones_like(v), v))
+
+
 def cell_exit(o: torch.Tensor, v: torch.Tensor, cell: torch.Tensor, scale: torch.Tensor) -> torch.Tensor:
     """``t`` where ``o + t·v`` crosses the far border of ``cell`` (cells ``scale`` pixels wide) by
-    :data:`EPSILON`; ``inf`` where ``v == 0``.
+    :data:`EPSILON` (``≥ BIG/…``, never the nearest border, where ``v == 0``).
 
     Example:
         >>> cell_exit(torch.tensor([2.5, 2.5]), torch.tensor([2.0, -1.0]), torch.tensor([1, 1]), torch.tensor([2.0, 2.0]))
         tensor([0.7525, 0.5050])
     """
     border = (cell + (v >= 0).to(cell.dtype)).to(o.dtype) * scale + EPSILON * torch.sign(v)
-    safe = torch.where(v == 0, torch.ones_like(v), v)
-    return torch.where(v == 0, torch.full_like(o, torch.inf), (border - o) / safe)
+    return (border - o) * inverse(v)
 
 
 def hiz_rays(gbuffer: GBuffer, max_ray_distance: float, sel: torch.Tensor):
@@ -115,89 +130,95 @@ def hiz_rays(gbuffer: GBuffer, max_ray_distance: float, sel: torch.Tensor):
     P0 = torch.stack([(px % W).to(dt) + 0.5, (px // W).to(dt) + 0.5], 1)          # the origin pixel's centre
     P1 = cam.view_to_pixel(end, dim=1)
     rz0, rz1 = cam.near / -o[:, 2], cam.near / -end[:, 2]
-    v = P1 - P0
-    zero = torch.zeros_like(rz0)
-    t0 = torch.minimum(cell_exit(P0[:, 0], v[:, 0], P0[:, 0].floor(), zero + 1.0),
-                       cell_exit(P0[:, 1], v[:, 1], P0[:, 1].floor(), zero + 1.0))   # InitialAdvanceRay
-    rays = HiZRays(i=torch.arange(sel.numel(), device=dev), b=b, ox=P0[:, 0], oy=P0[:, 1], oz=rz0,
-                   vx=v[:, 0], vy=v[:, 1], vz=rz1 - rz0, dx=d[:, 0], dy=d[:, 1], dz=d[:, 2],
-                   t=torch.minimum(t0, zero + 1.0), mip=torch.zeros_like(b),
-                   clipped=o[:, 2] + d[:, 2] * max_ray_distance > -cam.near)
+    v = torch.cat([P1 - P0, (rz1 - rz0)[:, None]], 1)
+    away = v[:, 2] < 0
+    c = torch.stack([P0[:, 0], P0[:, 1], rz0, v[:, 0], v[:, 1], v[:, 2], inverse(v[:, 0]), inverse(v[:, 1]),
+                     torch.where(away, 1.0 / torch.where(away, v[:, 2], -1.0), 0.0),
+                     (v[:, 0] >= 0).to(dt), (v[:, 1] >= 0).to(dt), EPSILON * torch.sign(v[:, 0]),
+                     EPSILON * torch.sign(v[:, 1])], 0)
+    one = torch.ones_like(rz0)
+    t0 = torch.minimum(cell_exit(P0[:, 0], v[:, 0], P0[:, 0].floor(), one),
+                       cell_exit(P0[:, 1], v[:, 1], P0[:, 1].floor(), one))        # InitialAdvanceRay
+    rays = HiZRays(i=torch.arange(sel.numel(), device=dev), b=b, t=torch.minimum(t0, one), mip=torch.zeros_like(b),
+                   c=c, ray_dir=d, clipped=o[:, 2] + d[:, 2] * max_ray_distance > -cam.near)
     return rays, sel, P0, P1
 
 
-def _validate(r: HiZRays, texel: torch.Tensor, z: torch.Tensor, near: float, tex: HiZTexels, params) -> torch.Tensor:
+def _validate(ray_dir: torch.Tensor, texel: torch.Tensor, z: torch.Tensor, near: float, tex: HiZTexels,
+              params) -> torch.Tensor:
     """Which candidates hit: the ray within the thickness behind ``texel`` (flat index), facing it if asked."""
     zs = tex.view_z[texel]
     thick = params.depth_buffer_thickness * (zs.abs() if params.thickness_mode == "relative" else 1.0)
     bottom = (tex.back_z[texel] if tex.back_z is not None else zs) - thick
     ok = -near / z.clamp_min(torch.finfo(z.dtype).tiny) >= bottom
     if params.reject_backfaces:
-        n = tex.normal[texel]
-        ok = ok & (r.dx * n[:, 0] + r.dy * n[:, 1] + r.dz * n[:, 2] <= 0)
+        ok = ok & ((ray_dir * tex.normal[texel]).sum(1) <= 0)
     return ok
 
 
 def hiz_march(r: HiZRays, pyr: DepthPyramid, tex: HiZTexels, params, gbuffer: GBuffer,
               visits: Optional[torch.Tensor] = None, level_reads: Optional[torch.Tensor] = None) -> MarchOutput:
-    """March ``r`` (owned: advanced in place) to termination; one pyramid read per iteration, at most
-    ``params.max_traversal_intersections``. ``visits`` :math:`(BHW,)` counts level-0 reads per texel and
-    ``level_reads`` :math:`(L,)` reads per level, when given."""
+    """March ``r`` to termination; one pyramid read per iteration, at most ``params.max_traversal_intersections``.
+    ``visits`` :math:`(BHW,)` counts level-0 reads per texel and ``level_reads`` :math:`(L,)` reads per level,
+    when given."""
     cam = gbuffer.camera
     B, _, H, W = gbuffer.view_z.shape
-    dt, dev = r.ox.dtype, r.ox.device
+    dt, dev = r.c.dtype, r.c.device
     out = MarchOutput.empty(r.count, dt, dev, OUT_OF_STEPS)
     scales = torch.pow(2.0, torch.arange(pyr.count, device=dev, dtype=dt))
+    inv_scales = 1.0 / scales
     top = min(params.max_mip, pyr.count - 1)
+    total = pyr.flat.shape[1]
+    flat = pyr.flat.reshape(-1)
+    ended = torch.where(r.clipped, BEHIND_CAMERA, MAX_DISTANCE).to(torch.int8)      # the segment's end, per ray
 
-    def finish(done: torch.Tensor, code) -> HiZRays:
-        out.term[r.i[done]] = code if isinstance(code, int) else code[done]
-        return select_rows(r, (~done).nonzero().squeeze(1))
+    def finish(done: torch.Tensor, code: torch.Tensor) -> HiZRays:
+        out.term[r.i[done]] = code[done]
+        return r.select((~done).nonzero().squeeze(1))
 
-    r = finish(r.t >= 1.0, torch.where(r.clipped, BEHIND_CAMERA, MAX_DISTANCE).to(torch.int8))
+    r = finish(r.t >= 1.0, ended[r.i])
     for _ in range(params.max_traversal_intersections):
         if r.count == 0:
             break
-        x, y, z = r.ox + r.t * r.vx, r.oy + r.t * r.vy, r.oz + r.t * r.vz
-        r = finish((x < 0) | (x >= W) | (y < 0) | (y >= H), OFF_SCREEN)
-        if r.count == 0:
-            break
-        x, y, z = r.ox + r.t * r.vx, r.oy + r.t * r.vy, r.oz + r.t * r.vz
-        scale = scales[r.mip]
-        cx, cy = torch.div(x, scale).floor().long(), torch.div(y, scale).floor().long()
-        surface = pyr.cell(r.b, r.mip, cx, cy)
-        out.steps.index_add_(0, r.i, torch.ones_like(r.i, dtype=torch.int32))
+        c, t = r.c, r.t
+        x, y, z = c[OX] + t * c[VX], c[OY] + t * c[VY], c[OZ] + t * c[VZ]
+        off = (x < 0) | (x >= W) | (y < 0) | (y >= H)
+        inv_s, scale = inv_scales[r.mip], scales[r.mip]
+        cx, cy = (x * inv_s).long(), (y * inv_s).long()                           # x, y ≥ 0 on screen: trunc = floor
+        index = (r.b * total + pyr.offsets[r.mip] + cy * pyr.widths[r.mip] + cx).clamp(0, flat.numel() - 1)
+        surface = flat[index]                                                     # garbage only for `off` rays
+        on = ~off
+        out.steps.index_add_(0, r.i, on.int())
         if level_reads is not None:
-            level_reads += torch.bincount(r.mip, minlength=level_reads.numel())
+            level_reads += torch.bincount(r.mip[on], minlength=level_reads.numel())
         if visits is not None:
-            at0 = r.mip == 0
+            at0 = on & (r.mip == 0)
             visits.index_add_(0, (r.b * H * W + cy * W + cx)[at0], torch.ones_like(cx[at0], dtype=visits.dtype))
-        tx, ty = cell_exit(r.ox, r.vx, cx, scale), cell_exit(r.oy, r.vy, cy, scale)
-        neg = r.vz < 0
-        tz = torch.where(neg, (surface - r.oz) / torch.where(neg, r.vz, -1.0), torch.inf)
+        tx = ((cx.to(dt) + c[OFFX]) * scale + c[EPSX] - c[OX]) * c[INVX]   # AdvanceRay: the borders
+        ty = ((cy.to(dt) + c[OFFY]) * scale + c[EPSY] - c[OY]) * c[INVY]
+        tz = torch.where(c[INVZ] != 0, (surface - c[OZ]) * c[INVZ], torch.inf)   # the cell's closest depth
         side = torch.minimum(tx, ty)
         above = z > surface
         skipped = above & (side < tz)
-        t_new = torch.where(above, torch.minimum(side, tz), r.t)
+        t_new = torch.where(above, torch.minimum(side, tz), t)
         mip = torch.where(skipped, (r.mip + 1).clamp_max(top), r.mip - 1)
-        cand = (mip < 0).nonzero().squeeze(1)
         hit = torch.zeros_like(above)
+        cand = (on & (mip < 0)).nonzero().squeeze(1)
         if cand.numel():
-            texel = r.b[cand] * H * W + cy[cand] * W + cx[cand]
-            ok = _validate(select_rows(r, cand), texel, z[cand], cam.near, tex, params)
+            ok = _validate(r.ray_dir[r.i[cand]], r.b[cand] * H * W + cy[cand] * W + cx[cand], z[cand], cam.near,
+                           tex, params)
             hit[cand] = ok
             h = cand[ok]
             out.P[r.i[h]] = torch.stack([x[h], y[h]], 1)
-            zv = -cam.near / z[h]
             uv = torch.stack([x[h] / W, 1.0 - y[h] / H], 0)
-            out.Q[r.i[h]] = cam.uv_to_view(uv, zv, dim=0).T.to(dt)
+            out.Q[r.i[h]] = cam.uv_to_view(uv, -cam.near / z[h], dim=0).T.to(dt)
             if params.trace_behind:                                               # cross the texel, stay at level 0
                 t_new[cand] = torch.where(ok, t_new[cand], side[cand])
-                mip[cand] = 0
+                mip[cand] = torch.where(ok, mip[cand], 0)
         r.t, r.mip = t_new, mip
-        ended = ~hit & (r.t >= 1.0) & (mip >= 0)
-        rejected = ~hit & (mip < 0)
-        code = torch.where(hit, HIT, torch.where(rejected, BEHIND_SURFACE,
-                                                 torch.where(r.clipped, BEHIND_CAMERA, MAX_DISTANCE))).to(torch.int8)
-        r = finish(hit | ended | rejected, code)
+        done = off | hit | (mip < 0) | (t_new >= 1.0)
+        if bool(done.any()):
+            code = torch.where(off, OFF_SCREEN, torch.where(hit, HIT, torch.where(
+                mip < 0, BEHIND_SURFACE, ended[r.i].int()))).to(torch.int8)
+            r = finish(done, code)
     return out

@@ -20,7 +20,7 @@ from ..ssr.common import BEHIND_CAMERA, BEHIND_SURFACE, HIT, MAX_DISTANCE, NO_RA
 from ..ssr.dda_assemble import assemble
 from ..ssr.dda_state import MarchOutput
 from ..ssr.hiz import HiZSSRParams, check_inputs
-from ..ssr.hiz_march import EPSILON
+from ..ssr.hiz_march import BIG, EPSILON
 
 INF = math.inf
 
@@ -36,13 +36,16 @@ def build_pyramid(rz):
     return levels
 
 
+def inverse(d):
+    """``inv_direction``: ``1/d``, or :data:`BIG` for an axis the ray does not move along."""
+    return 1.0 / d if d != 0 else BIG
+
+
 def boundary_t(o, d, cell, size):
     """``t`` where ``o + t·d`` leaves ``cell`` (``size`` px wide) through its far side, ``EPSILON`` past it."""
-    if d == 0:
-        return INF
-    floor_offset = 1 if d >= 0 else 0
-    plane = (cell + floor_offset) * size + EPSILON * (1 if d > 0 else -1)
-    return (plane - o) / d
+    floor_offset = 1.0 if d >= 0 else 0.0
+    plane = (cell + floor_offset) * size + EPSILON * (1.0 if d > 0 else -1.0 if d < 0 else 0.0)
+    return (plane - o) * inverse(d)
 
 
 def InitialAdvanceRay(origin, direction):
@@ -57,7 +60,7 @@ def AdvanceRay(origin, direction, current_t, current_mip, surface_z, cell):
     size = 2.0 ** current_mip
     t_x = boundary_t(origin[0], direction[0], cell[0], size)
     t_y = boundary_t(origin[1], direction[1], cell[1], size)
-    t_z = (surface_z - origin[2]) / direction[2] if direction[2] < 0 else INF   # only rays moving away
+    t_z = (surface_z - origin[2]) * (1.0 / direction[2]) if direction[2] < 0 else INF   # only rays moving away
     position_z = origin[2] + current_t * direction[2]
     above_surface = position_z > surface_z                     # in front of the cell's closest depth
     side_t = min(t_x, t_y)

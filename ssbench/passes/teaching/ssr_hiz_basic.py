@@ -113,6 +113,54 @@ def trace_ray(levels, texel, origin, direction, ray_dir, clipped, params, near, 
     return OUT_OF_STEPS, params.max_traversal_intersections, None   # FIX: never a hit (FidelityFX: valid_hit)
 
 
+def setup_ray(cam, W, H, view_z, normal, i, j, max_ray_distance):
+    """The ray of pixel ``(i, j)`` (view z ``view_z``, unit ``normal``): ``(origin, direction, d, clipped, P1)``
+    with ``origin`` the pixel centre in ``(px, py, rz)``, ``direction`` the clipped segment per unit ``t``, ``d``
+    the unit view-space mirror direction and ``P1`` the segment's end in pixels."""
+    near = cam.near
+    a0, a1, b0, b1 = cam.uv_to_view_params()
+    u, v = (i + 0.5) / W, 1.0 - (j + 0.5) / H
+    o = ((a0 * u + b0) * view_z, (a1 * v + b1) * view_z, view_z)                      # rayOrg
+    length = math.sqrt(sum(c * c for c in o))
+    inc = [c / length for c in o]
+    dn = sum(inc[c] * normal[c] for c in range(3))
+    d = [inc[c] - 2.0 * dn * normal[c] for c in range(3)]                              # reflect(I, N)
+    dl = math.sqrt(sum(c * c for c in d))
+    d = [c / dl for c in d]
+    clipped = o[2] + d[2] * max_ray_distance > -near                                   # FIX: clip before projecting
+    L = min(max((-near - o[2]) / d[2], 0.0), max_ray_distance) if clipped else max_ray_distance
+    e = [o[c] + d[c] * L for c in range(3)]
+    M = cam.projection_matrix().tolist()
+    clip = [sum(M[r][c] * e[c] for c in range(3)) + M[r][3] for r in (0, 1, 3)]
+    P1 = ((clip[0] / clip[2] + 1.0) * 0.5 * W, (1.0 - (clip[1] / clip[2] + 1.0) * 0.5) * H)
+    origin = (i + 0.5, j + 0.5, near / -o[2])
+    direction = (P1[0] - origin[0], P1[1] - origin[1], near / -e[2] - origin[2])
+    return origin, direction, d, clipped, P1
+
+
+def trace_pixel(gbuffer: GBuffer, params: HiZSSRParams = HiZSSRParams(), pixel=(0, 0)) -> dict:
+    """One ray of batch item 0, for the lesson: ``{"termination", "steps", "position", "path", "levels",
+    "origin", "direction", "p1"}``; ``path`` as :func:`trace_ray` collects it, ``levels`` the pyramid."""
+    check_inputs(gbuffer, params)
+    cam = gbuffer.camera
+    B, _, H, W = gbuffer.view_z.shape
+    i, j = pixel
+    if not (0 <= i < W and 0 <= j < H) or not bool(gbuffer.mask[0, 0, j, i]):
+        raise ValueError(f"pixel: must be a mask pixel inside the {W}x{H} image, got {pixel!r}")
+    z, mask = gbuffer.view_z[0, 0].double().tolist(), gbuffer.mask[0, 0].tolist()
+    normal = gbuffer.normal[0].double()
+    back = gbuffer.back_z[0, 0].double().tolist() if params.use_back_face_depth else None
+    levels = build_pyramid([[cam.near / -z[y][x] if mask[y][x] else 0.0 for x in range(W)] for y in range(H)])
+    origin, direction, d, clipped, P1 = setup_ray(cam, W, H, z[j][i], normal[:, j, i].tolist(), i, j,
+                                                  params.max_ray_distance)
+    path = []
+    term, steps, pos = trace_ray(levels, lambda x, y: (z[y][x], back[y][x] if back else None,
+                                                      normal[:, y, x].tolist()),
+                                 origin, direction, d, clipped, params, cam.near, path)
+    return {"termination": term, "steps": steps, "position": pos, "path": path, "levels": levels,
+            "origin": origin, "direction": direction, "p1": P1}
+
+
 def ssr_hiz_basic(gbuffer: GBuffer, params: HiZSSRParams = HiZSSRParams(),
                   generator: Optional[torch.Generator] = None):
     """Per-pixel Hi-Z SSR; the same :class:`~ssbench.passes.ssr.common.SSRResult` as :func:`ssr_hiz`."""
@@ -123,7 +171,6 @@ def ssr_hiz_basic(gbuffer: GBuffer, params: HiZSSRParams = HiZSSRParams(),
     z = gbuffer.view_z.double().tolist()
     mask, normal = gbuffer.mask.tolist(), gbuffer.normal.double().tolist()
     back = gbuffer.back_z.double().tolist() if params.use_back_face_depth else None
-    M = cam.projection_matrix().tolist()
     a0, a1, b0, b1 = cam.uv_to_view_params()
     rows, outs, ends = [], [], []
     for b in range(B):
@@ -137,22 +184,9 @@ def ssr_hiz_basic(gbuffer: GBuffer, params: HiZSSRParams = HiZSSRParams(),
             for i in range(W):
                 if not mask[b][0][j][i] or z[b][0][j][i] > -near:
                     continue
-                u, v, vz = (i + 0.5) / W, 1.0 - (j + 0.5) / H, z[b][0][j][i]
-                o = ((a0 * u + b0) * vz, (a1 * v + b1) * vz, vz)                   # rayOrg
                 n = [normal[b][c][j][i] for c in range(3)]
-                length = math.sqrt(sum(c * c for c in o))
-                inc = [c / length for c in o]
-                dn = sum(inc[c] * n[c] for c in range(3))
-                d = [inc[c] - 2.0 * dn * n[c] for c in range(3)]                   # reflect(I, N)
-                dl = math.sqrt(sum(c * c for c in d))
-                d = [c / dl for c in d]
-                clipped = o[2] + d[2] * params.max_ray_distance > -near           # FIX: clip before projecting
-                L = min(max((-near - o[2]) / d[2], 0.0), params.max_ray_distance) if clipped else params.max_ray_distance
-                e = [o[c] + d[c] * L for c in range(3)]
-                clip = [sum(M[r][c] * e[c] for c in range(3)) + M[r][3] for r in (0, 1, 3)]
-                P1 = ((clip[0] / clip[2] + 1.0) * 0.5 * W, (1.0 - (clip[1] / clip[2] + 1.0) * 0.5) * H)
-                origin = (i + 0.5, j + 0.5, near / -o[2])
-                direction = (P1[0] - origin[0], P1[1] - origin[1], near / -e[2] - origin[2])
+                origin, direction, d, clipped, P1 = setup_ray(cam, W, H, z[b][0][j][i], n, i, j,
+                                                              params.max_ray_distance)
                 term, steps, pos = trace_ray(levels, texel, origin, direction, d, clipped, params, near)
                 out = MarchOutput.empty(1, torch.float64, "cpu", term)
                 out.steps[0] = steps

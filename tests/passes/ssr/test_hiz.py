@@ -11,7 +11,7 @@ from ssbench.passes.ssr.common import BEHIND_SURFACE, HIT, OFF_SCREEN, OUT_OF_ST
 from ssbench.passes.ssr.dda import DDASSRParams, ssr_dda
 from ssbench.passes.ssr.hiz import HiZSSR, HiZSSRParams, ssr_hiz
 from ssbench.passes.ssr.hiz_pyramid import depth_pyramid, reversed_depth
-from ssbench.passes.teaching.ssr_hiz_basic import build_pyramid, ssr_hiz_basic, trace_ray, validate_hit
+from ssbench.passes.teaching.ssr_hiz_basic import build_pyramid, ssr_hiz_basic, trace_pixel, validate_hit
 from tests.passes.ssr_scenes import FLOOR, WALL, analytic, one_ray, room
 
 F64 = torch.float64
@@ -95,28 +95,21 @@ def test_teaching_twin_equals_vectorised(size, kw):
         assert torch.allclose(a.hit_view, b.hit_view, atol=1e-9) and torch.allclose(a.color, b.color, atol=1e-9)
 
 
-def test_trace_ray_path_climbs_and_descends():
+def test_trace_pixel_climbs_and_descends():
     g = room(32, 24)
-    cam, near = g.camera, g.camera.near
-    z = g.view_z[0, 0].tolist()
-    levels = build_pyramid([[near / -v if v > -cam.far else 0.0 for v in row] for row in z])
-    r = ssr_hiz(g, HiZSSRParams(max_ray_distance=50.0, depth_buffer_thickness=0.5), debug=True)
+    p = HiZSSRParams(max_ray_distance=50.0, depth_buffer_thickness=0.5)
+    r = ssr_hiz(g, p, debug=True)
     steps = torch.where(r.hit, r.steps, 0)[0, 0]
     j, i = divmod(int(steps.argmax()), g.width)                # the hit that took the most reads
     assert bool(r.hit[0, 0, j, i]) and int(g.shape_id[0, 0, j, i]) == 0   # a floor pixel
-    o = r.debug["ray_end"][0, :, j, i]
-    P0 = (i + 0.5, j + 0.5)
-    path = []
-    view = g.position[0, :, j, i]
-    d = reflection_rays(g.position, g.normal)[0, :, j, i].tolist()
-    e = view + torch.tensor(d, dtype=F64) * 50.0
-    t = trace_ray(levels, lambda x, y: (z[y][x], None, g.normal[0, :, y, x].tolist()),
-                  (P0[0], P0[1], near / -float(view[2])),
-                  (float(o[0]) - P0[0], float(o[1]) - P0[1], near / -float(e[2]) - near / -float(view[2])),
-                  d, False, HiZSSRParams(max_ray_distance=50.0, depth_buffer_thickness=0.5), near, path)
-    assert t[0] == HIT and t[1] == int(r.steps[0, 0, j, i]) == len(path)
-    mips = [p[0] for p in path]
-    assert max(mips) >= 2 and mips[-1] == 0 and any(p[4] for p in path)   # skipped tiles, then down to level 0
+    t = trace_pixel(g, p, (i, j))
+    assert t["termination"] == HIT and t["steps"] == int(r.steps[0, 0, j, i]) == len(t["path"])
+    assert t["position"][:2] == pytest.approx(r.hit_pixel[0, :, j, i].tolist(), abs=1e-9)
+    assert list(t["p1"]) == pytest.approx(r.debug["ray_end"][0, :, j, i].tolist(), abs=1e-9)
+    mips = [step[0] for step in t["path"]]
+    assert max(mips) >= 2 and mips[-1] == 0 and any(step[4] for step in t["path"])   # skipped tiles, then level 0
+    with pytest.raises(ValueError, match="pixel"):
+        trace_pixel(g, p, (32, 0))                             # outside the image
 
 
 # ----------------------------------------------------------------------------- the anchors' bugs, pinned

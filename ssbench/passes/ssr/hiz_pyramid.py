@@ -4,9 +4,8 @@
 0 on the background). ``rz`` is ``near · k`` with McGuire & Mara's ``k = 1/w``, which is linear in screen space
 along a projected ray (SSR article, appendix A), so a ray in ``(px, py, rz)`` is a straight line — the property
 the traversal needs, exactly as FidelityFX SSSR relies on for hyperbolic depth. Reversed Z keeps float32
-precision far away (the reason HDRP uses it and Godot 4.6 traces parametric ``t``, after hacksoflife's "A Tip
-for HiZ SSR – Parametric 't' Tracing", 2014). The closest surface is then the *largest* ``rz``: the pyramid is a
-max pyramid (FidelityFX's min pyramid of standard depth, mirrored).
+precision far away (one reason HDRP stores it). The closest surface is then the *largest* ``rz``: the pyramid is
+a max pyramid (FidelityFX's min pyramid of standard depth, mirrored).
 
 **Cells align with texels at every size.** Level ``m`` cell ``(cx, cy)`` holds the largest ``rz`` of the texels
 ``[cx·2^m, (cx + 1)·2^m) × [cy·2^m, (cy + 1)·2^m)`` that exist (``max_pool2d`` with ``ceil_mode``: a partial

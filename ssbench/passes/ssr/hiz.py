@@ -136,6 +136,13 @@ def ssr_hiz(gbuffer: GBuffer, params: HiZSSRParams = HiZSSRParams(), *, generato
         (False, [2])
     """
     check_inputs(gbuffer, params)
+    return march_hiz(gbuffer, params, None, debug)
+
+
+def march_hiz(gbuffer: GBuffer, params: HiZSSRParams, directions: Optional[torch.Tensor] = None,
+              debug: bool = False) -> SSRResult:
+    """The Hi-Z march of :func:`ssr_hiz` along ``directions`` :math:`(B, 3, H, W)` (unit, view space; ``None``:
+    the mirror rays), inputs already checked. Glossy SSR (:mod:`.glossy_stochastic`) marches sampled rays."""
     B, _, H, W = gbuffer.view_z.shape
     dev = gbuffer.view_z.device
     pyr = depth_pyramid(reversed_depth(gbuffer.view_z, gbuffer.mask, gbuffer.camera.near))
@@ -143,7 +150,7 @@ def ssr_hiz(gbuffer: GBuffer, params: HiZSSRParams = HiZSSRParams(), *, generato
     sel = ray_pixels(gbuffer)
     visits = torch.zeros(B * H * W, dtype=torch.int32, device=dev) if debug else None
     level_reads = torch.zeros(pyr.count, dtype=torch.long, device=dev) if debug else None
-    o, P1 = march_in_chunks(sel, lambda part: hiz_rays(gbuffer, params.max_ray_distance, part),
+    o, P1 = march_in_chunks(sel, lambda part: hiz_rays(gbuffer, params.max_ray_distance, part, directions),
                             lambda rays: hiz_march(rays, pyr, tex, params, gbuffer, visits, level_reads),
                             chunk=RAY_CHUNK)
     result = assemble(gbuffer, params, sel, P1, o, visits)

@@ -113,9 +113,10 @@ def cell_exit(o: torch.Tensor, v: torch.Tensor, cell: torch.Tensor, scale: torch
     return (border - o) * inverse(v)
 
 
-def hiz_rays(gbuffer: GBuffer, max_ray_distance: float, sel: torch.Tensor):
+def hiz_rays(gbuffer: GBuffer, max_ray_distance: float, sel: torch.Tensor, directions: Optional[torch.Tensor] = None):
     """Set-up of the rays of the pixels ``sel`` (flat ``b·H·W + j·W + i``): ``(HiZRays, sel, P0, P1)`` with the
-    initial advance done; ``P0``, ``P1`` :math:`(N, 2)` the segment's ends in pixels."""
+    initial advance done; ``P0``, ``P1`` :math:`(N, 2)` the segment's ends in pixels. The rays follow
+    ``directions`` :math:`(B, 3, H, W)` (unit, view space) when given, else the mirror reflections."""
     cam, vz = gbuffer.camera, gbuffer.view_z
     B, _, H, W = vz.shape
     dt, dev = vz.dtype, vz.device
@@ -123,7 +124,7 @@ def hiz_rays(gbuffer: GBuffer, max_ray_distance: float, sel: torch.Tensor):
     col = lambda x: x.reshape(x.shape[0], x.shape[1], -1)[b, :, px].T[None, :, :, None]   # noqa: E731  (1, C, N, 1)
     uv = cam.uv_grid(dt, dev).reshape(2, -1)[:, px][None, :, :, None]
     pos = cam.uv_to_view(uv, col(vz))                                             # (1, 3, N, 1)
-    R = reflection_rays(pos, col(gbuffer.normal).to(dt))
+    R = reflection_rays(pos, col(gbuffer.normal).to(dt)) if directions is None else col(directions).to(dt)
     o, d = pos[0, :, :, 0].T, R[0, :, :, 0].T                                     # (N, 3)
     length = clip_ray_length(o[:, 2], d[:, 2], max_ray_distance, cam.near)
     end = o + d * length[:, None]

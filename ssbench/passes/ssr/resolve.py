@@ -73,6 +73,19 @@ def roughness_blur(reflection: torch.Tensor, roughness: torch.Tensor, max_sigma:
     return a + (b - a) * frac
 
 
+def specular_weight(gbuffer: GBuffer, params: ResolveParams = ResolveParams()) -> torch.Tensor:
+    """The blend weight of the reflection, ``F · (1 − roughness)`` :math:`(B, 3, H, W)`: Schlick's Fresnel at the
+    viewing angle, ``F0 = lerp(f0_dielectric, albedo, metallic)``, times the article demo's roughness fade.
+    Applied to a glossy reflection (the lobe-averaged radiance), it is this resolve's estimate of the specular
+    radiance (``ssbench.reference.glossy``'s ``specular``)."""
+    gbuffer.require("position", "normal", "albedo", "roughness", "metallic")
+    p = gbuffer.position
+    v = -p / length(p).clamp_min(torch.finfo(p.dtype).tiny)
+    cos_theta = (gbuffer.normal * v).sum(1, keepdim=True)
+    f0 = params.f0_dielectric + (gbuffer.albedo - params.f0_dielectric) * gbuffer.metallic
+    return schlick_fresnel(cos_theta, f0) * (1.0 - gbuffer.roughness)
+
+
 def resolve(gbuffer: GBuffer, reflection: torch.Tensor, params: ResolveParams = ResolveParams(),
             base: torch.Tensor | None = None) -> torch.Tensor:
     """Scene colour plus the Fresnel-weighted, roughness-blurred reflection.
@@ -96,17 +109,12 @@ def resolve(gbuffer: GBuffer, reflection: torch.Tensor, params: ResolveParams = 
     """
     gbuffer.require(*REQUIRES)
     checks.check_shape(reflection, ["B", "3", str(gbuffer.height), str(gbuffer.width)], "reflection")
-    p = gbuffer.position
-    v = -p / length(p).clamp_min(torch.finfo(p.dtype).tiny)
-    cos_theta = (gbuffer.normal * v).sum(1, keepdim=True)
-    f0 = params.f0_dielectric + (gbuffer.albedo - params.f0_dielectric) * gbuffer.metallic
-    fresnel = schlick_fresnel(cos_theta, f0)                                          # (B, 3, H, W)
     blurred = roughness_blur(reflection, gbuffer.roughness, params.max_sigma, params.levels)
     if base is None:
         base = gbuffer.color * (1.0 - gbuffer.metallic)
     checks.check_shape(base, ["B", "3", str(gbuffer.height), str(gbuffer.width)], "base")
-    out = base + fresnel * (1.0 - gbuffer.roughness) * blurred
-    mask = gbuffer.mask if gbuffer.mask is not None else torch.ones_like(cos_theta, dtype=torch.bool)
+    out = base + specular_weight(gbuffer, params) * blurred
+    mask = gbuffer.mask if gbuffer.mask is not None else torch.ones_like(blurred[:, :1], dtype=torch.bool)
     return torch.where(mask, out, gbuffer.color)
 
 

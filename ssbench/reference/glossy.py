@@ -6,7 +6,8 @@ primary hit at the pixel centre with the shading normal turned toward the viewer
 
 1. ``rays`` microfacet normals ``m`` drawn from the GGX distribution of normals visible from ``v`` (Mitsuba's
    ``MicrofacetDistribution``, ``sample_visible=True``; ``α = max(10⁻³, roughness²)`` as Mitsuba's
-   ``principled``), reflected: ``l = 2(v·m)m − v``; a direction below the surface contributes 0;
+   ``principled``; at roughness 0 exactly ``m = n``, the mirror), reflected: ``l = 2(v·m)m − v``; a direction
+   below the surface contributes 0;
 2. along each ``l`` one path (the scene's own integrator) gives the incident radiance ``L(l)``;
 3. per pixel, the means over the ``rays`` samples and their standard errors ``σ/√rays``:
 
@@ -40,7 +41,7 @@ from .color import pass_seed
 
 __all__ = ["GlossyReference", "glossy_reflections", "GLOSSY_CHANNELS"]
 
-_KERNEL_VERSION = 1
+_KERNEL_VERSION = 2
 #: the G-buffer channels the truth reads
 GLOSSY_CHANNELS = ("roughness", "metallic", "albedo", "color", "mask")
 
@@ -121,8 +122,10 @@ def glossy_reflections(scene, gbuffer: GBuffer, *, rays: int = 32, seed: int = 0
     valid = hit.torch().bool()
     sums = {k: torch.zeros(3, N, dtype=torch.float64) for k in ("lobe", "lobe2", "spec", "spec2", "orc", "orc2")}
     reach = torch.zeros(N, dtype=torch.float64)
+    mirror = mi.Bool(torch.as_tensor(rough.numpy() == 0))
     for k in range(rays):
         m, _ = distr.sample(wi, mi.Point2f(rng.next_float32(), rng.next_float32()))
+        m = dr.select(mirror, mi.Vector3f(0.0, 0.0, 1.0), m)                  # roughness 0: the mirror itself
         lo = 2.0 * dr.dot(wi, m) * m - wi
         above = hit & (mi.Frame3f.cos_theta(lo) > 0)
         ray = si.spawn_ray(frame.to_world(lo))

@@ -143,6 +143,8 @@ def _parser() -> Parser:
     q.add_argument("--no-tuning", action="store_true", help="leave out the tuning section")
     q.add_argument("--no-time", action="store_true",
                    help="leave out the time section (flicker, ghosting and error over frames, raw and accumulated)")
+    q.add_argument("--no-glossy", action="store_true",
+                   help="skip the glossy-reflections section (every SSR method on rough surfaces vs the path-traced lobe)")
     q.add_argument("--no-calibration", action="store_true",
                    help="leave out the metric calibration section (each metric against its artifact's knob)")
     q.add_argument("--screenshots", action="store_true",

@@ -125,7 +125,8 @@ def cmd_report(args) -> int:
                          seed=args.seed, use_cache=not args.fresh_previews, gt_cache=not args.no_gt_cache, ao=not args.no_ao,
                          ao_radius=args.ao_radius, ao_rays=args.ao_rays, ssr=not args.no_ssr, ssr_spp=args.ssr_spp,
                          implicit=off(args.no_implicit), speed=off(args.no_speed), tuning=off(args.no_tuning),
-                         calibration=off(args.no_calibration), time_axis=off(args.no_time))
+                         calibration=off(args.no_calibration), time_axis=off(args.no_time),
+                         glossy=off(args.no_glossy))
     print(f"report: {index}")
     print(f"latest: {os.path.join(os.path.abspath(args.out), 'latest', 'index.html')}")
     return _screenshots(index) if args.screenshots else 0

@@ -21,6 +21,10 @@ primary hit at the pixel centre with the shading normal turned toward the viewer
      method can return. ``lobe − oracle`` is the information the G-buffer does not hold;
    * ``reachable``: the share of directions whose hit the oracle could use.
 
+   Every mean comes with its standard error (``*_se``; ``gap_se`` for ``lobe − oracle``, whose samples are
+   paired). A score against a noisy truth is inflated by it: ``E[(x − t̂)²] = (x − t)² + se²``, so
+   :mod:`ssbench.evaluate._glossy` reports RMSEs with the truth's variance removed next to the raw ones.
+
 Directions come from a PCG32 stream per pixel, paths from Mitsuba's ``independent`` sampler seeded per pass:
 same seed, same bits.
 """
@@ -41,7 +45,7 @@ from .color import pass_seed
 
 __all__ = ["GlossyReference", "glossy_reflections", "GLOSSY_CHANNELS"]
 
-_KERNEL_VERSION = 2
+_KERNEL_VERSION = 3
 #: the G-buffer channels the truth reads
 GLOSSY_CHANNELS = ("roughness", "metallic", "albedo", "color", "mask")
 
@@ -52,7 +56,8 @@ class GlossyReference:
 
     Attributes:
         valid: bool, pixels with a surface. lobe, lobe_se: (3). specular, specular_se: (3). oracle,
-        oracle_se: (3). reachable: (1) share of directions whose hit a screen-space pass could read.
+        oracle_se: (3). gap_se: (3) the standard error of ``lobe − oracle`` (the two share their directions).
+        reachable: (1) share of directions whose hit a screen-space pass could read.
         rays: directions per pixel; seconds: tracing time.
     """
 
@@ -63,12 +68,13 @@ class GlossyReference:
     specular_se: torch.Tensor
     oracle: torch.Tensor
     oracle_se: torch.Tensor
+    gap_se: torch.Tensor
     reachable: torch.Tensor
     rays: int
     seconds: float = 0.0
 
 
-_FIELDS = ("valid", "lobe", "lobe_se", "specular", "specular_se", "oracle", "oracle_se", "reachable")
+_FIELDS = ("valid", "lobe", "lobe_se", "specular", "specular_se", "oracle", "oracle_se", "gap_se", "reachable")
 
 
 def _digest(gbuffer: GBuffer) -> str:
@@ -120,7 +126,8 @@ def glossy_reflections(scene, gbuffer: GBuffer, *, rays: int = 32, seed: int = 0
     integrator = mscene.integrator()
     eye = mi.Point3f(*[float(v) for v in cam.eye])
     valid = hit.torch().bool()
-    sums = {k: torch.zeros(3, N, dtype=torch.float64) for k in ("lobe", "lobe2", "spec", "spec2", "orc", "orc2")}
+    sums = {k: torch.zeros(3, N, dtype=torch.float64) for k in ("lobe", "lobe2", "spec", "spec2", "orc", "orc2",
+                                                                 "gap", "gap2")}
     reach = torch.zeros(N, dtype=torch.float64)
     mirror = mi.Bool(torch.as_tensor(rough.numpy() == 0))
     for k in range(rays):
@@ -151,16 +158,17 @@ def glossy_reflections(scene, gbuffer: GBuffer, *, rays: int = 32, seed: int = 0
         ok &= (px[:, 0] >= 0) & (px[:, 0] < W) & (px[:, 1] >= 0) & (px[:, 1] < H)
         at = (px[:, 1].floor().clamp(0, H - 1) * W + px[:, 0].floor().clamp(0, W - 1)).long()
         orc = torch.where(ok[None], colour[:, at], 0.0)
-        for name, x in (("lobe", Lt), ("spec", spec), ("orc", orc)):
+        for name, x in (("lobe", Lt), ("spec", spec), ("orc", orc), ("gap", Lt - orc)):
             sums[name] += x
             sums[name + "2"] += x * x
         reach += ok.double()
     out = {"valid": valid.reshape(1, 1, H, W).clone()}
     img = lambda x: torch.where(valid, x, 0.0).reshape(-1, H, W)[None].float().contiguous()   # noqa: E731
-    for name, key_ in (("lobe", "lobe"), ("specular", "spec"), ("oracle", "orc")):
+    for name, key_ in (("lobe", "lobe"), ("specular", "spec"), ("oracle", "orc"), ("gap", "gap")):
         mean = sums[key_] / rays
         var = ((sums[key_ + "2"] - rays * mean * mean) / (rays - 1)).clamp_min(0.0)
         out[name], out[name + "_se"] = img(mean), img((var / rays).sqrt())
+    del out["gap"]                                                               # lobe − oracle: only its error
     out["reachable"] = img((reach / rays)[None])
     secs = time.perf_counter() - t0
     if use_cache:

@@ -180,7 +180,7 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
                  progress: Optional[bool] = None, ao: bool = True, ao_radius: float = 0.5,
                  ao_rays: int = 128, ssr: bool = True, ssr_spp: int = 16, implicit: Optional[bool] = None,
                  speed: Optional[bool] = None, tuning: Optional[bool] = None, calibration: Optional[bool] = None,
-                 time_axis: Optional[bool] = None,
+                 time_axis: Optional[bool] = None, glossy: Optional[bool] = None,
                  gt_cache: bool = True, extra_scenes: Iterable = ()) -> str:
     """Render every catalog scene (or ``scenes``) and write a report run; returns the run's ``index.html``.
 
@@ -201,7 +201,8 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
     (:mod:`ssbench.report.speed_section`, :mod:`ssbench.report.tuning_section`; defaults like ``implicit``);
     ``calibration`` the metric calibration section (:mod:`ssbench.report.calibration_section`; likewise);
     ``time_axis`` the time section (:mod:`ssbench.report.time_section`: flicker, ghosting and error over frames,
-    raw and accumulated; likewise).
+    raw and accumulated; likewise); ``glossy`` the glossy-reflections section (:mod:`ssbench.report.glossy_section`:
+    every SSR method on rough surfaces against the path-traced lobe; likewise).
     No section ever fails the report (problems show as notes in the page). Each section's evaluation rows
     also go to ``rows/<section>.jsonl`` (see reports/README.md).
     """
@@ -260,6 +261,8 @@ def build_report(out_root: str = "reports", scenes: Optional[Iterable[str]] = No
     meta["ssr"] = _ssr_section(run_dir, ssr_scenes, width, height, ssr, ssr_spp, seed, sc_cache, gbuffers,
                                progress)
     del gbuffers
+    meta["glossy"] = _optional_section("glossy", "Glossy reflections", glossy, scenes, lambda m: m.build_glossy_section(
+        run_dir, min(width, 160), min(height, 120), seed=seed, use_cache=sc_cache, progress=progress))
     meta["implicit"] = _implicit_section(run_dir, scenes, width, height, implicit, seed, sc_cache)
     meta["speed"] = _speed_section(run_dir, scenes, width, height, speed, seed, sc_cache, progress)
     meta["tuning"] = _tuning_section(run_dir, scenes, width, height, tuning, seed, sc_cache, progress)

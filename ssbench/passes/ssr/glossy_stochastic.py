@@ -89,6 +89,11 @@ class StochasticSSRParams(FadeParams):
                             reject_backfaces=self.reject_backfaces, **fades)
 
 
+def required_channels(params: StochasticSSRParams) -> tuple[str, ...]:
+    """The channels :func:`ssr_glossy_stochastic` reads (``reject_backfaces`` reads normals, not ``back_z``)."""
+    return REQUIRES
+
+
 def _shift(x: torch.Tensor, dy: int, dx: int, fill=0.0) -> torch.Tensor:
     """``x`` moved so that pixel ``(y, x)`` holds the value of ``(y + dy, x + dx)`` (``fill`` past the border)."""
     H, W = x.shape[-2:]

@@ -15,8 +15,8 @@ F64 = torch.float64
 def raycast(cam: Camera, planes, dtype=F64) -> GBuffer:
     """First hit of each pixel-centre ray with world planes ``(point, normal, keep(world) -> bool)``.
 
-    Fills view_z, normal (facing the camera), position, mask, shape_id (plane index) and a smooth colour of
-    the world position; background: view_z = −far, normal 0, colour 0.
+    Fills view_z, normal (facing the camera), position, mask, shape_id (plane index), roughness 0 (mirrors) and
+    a smooth colour of the world position; background: view_z = −far, normal 0, colour 0.
     """
     ray = cam.pixel_rays(F64)                                             # (3, H, W), view z = −1
     H, W = ray.shape[1:]
@@ -38,7 +38,8 @@ def raycast(cam: Camera, planes, dtype=F64) -> GBuffer:
     w = cam.view_to_world(pos)
     color = torch.stack([0.5 + 0.5 * torch.sin(3 * w[0]), 0.5 + 0.5 * torch.cos(2 * w[1]), 0.5 + 0.5 * torch.sin(w[2])])
     return GBuffer(cam, view_z=view_z[None, None].to(dtype), normal=nrm[None].to(dtype), position=pos[None].to(dtype),
-                   mask=mask[None, None], color=(color * mask)[None].to(dtype), shape_id=sid[None, None].int())
+                   mask=mask[None, None], color=(color * mask)[None].to(dtype), shape_id=sid[None, None].int(),
+                   roughness=torch.zeros(1, 1, H, W, dtype=dtype))
 
 
 FLOOR = ((0.0, 0.0, 0.0), (0.0, 1.0, 0.0))

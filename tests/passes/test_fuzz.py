@@ -24,13 +24,13 @@ from hypothesis import strategies as st
 
 from ssbench.camera import Camera
 from ssbench.gbuffer import CHANNELS, GBuffer
-from ssbench.passes import ao_method, ssr_method
+from ssbench.passes import AO_METHODS, SSR_METHODS, ao_method, ssr_method
 from ssbench.passes.gbuffer_checks import normal_tolerance
 from ssbench.passes.ssr.common import HIT
 
 EXAMPLES = 500
-AO = ("crytek", "ssao", "hbao", "gtao", "three_gtao")
-SSR = ("linear", "dda", "dda_supercover", "three_ssr")
+AO = tuple(AO_METHODS)                                            # every declared method
+SSR = tuple(SSR_METHODS)
 DTYPES = (torch.float16, torch.bfloat16, torch.float32, torch.float64)
 Z_BAD = ("nan", "inf", "-inf", "zero", "positive")
 Z_ODD = ("beyond_far", "huge", "before_near", "tiny")          # legal: finite and < 0
@@ -89,7 +89,10 @@ def frames(draw):
         n = torch.where(sel, alt, n)
     if draw(st.integers(0, 4)) == 4:                              # (hypothesis leans to small integers)
         color = torch.where(where(0.2), math.nan, color)
-    chans = {"view_z": z, "normal": n, "mask": mask, "color": color,
+    rough = torch.rand(B, 1, H, W, generator=g, dtype=torch.float64) * draw(st.sampled_from((0.0, 0.3, 1.0)))
+    if draw(st.integers(0, 6)) == 6:
+        rough = torch.where(where(0.2), math.nan, rough)
+    chans = {"view_z": z, "normal": n, "mask": mask, "color": color, "roughness": rough * mask,
              "position": cam.uv_to_view(cam.uv_grid(torch.float64)[None], z.nan_to_num(-far, -far, -far)),
              "back_z": torch.where(mask, z - 0.1 * scale, -math.inf)}
     chans = {k: (v if k == "mask" else v.to(dtype)) for k, v in chans.items()}
@@ -122,6 +125,7 @@ def _names_a_channel(e: Exception) -> bool:
 
 def _run(method, fn, P, g, desc, requires, finite, check_output):
     g = g.select(tuple(sorted(set(requires) | {"mask"})))
+    finite = tuple(c for c in finite if c in requires)
     try:
         out = fn(g, P())
     except (ValueError, TypeError) as e:
@@ -158,7 +162,8 @@ def _ssr_output(out, g, desc):
     assert bool(g.mask[b, 0, row, col].all()), (desc, "a hit on the cleared background")
 
 
-CASES = [(m, ao_method, (), _ao_output) for m in AO] + [(m, ssr_method, ("color",), _ssr_output) for m in SSR]
+CASES = [(m, ao_method, (), _ao_output) for m in AO] + [(m, ssr_method, ("color", "roughness"), _ssr_output)
+                                                        for m in SSR]
 
 
 @pytest.mark.slow

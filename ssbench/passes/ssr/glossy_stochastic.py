@@ -45,6 +45,8 @@ DEFAULTS_SOURCE = ("Stachowiak 2015 / FidelityFX SSSR: one GGX (VNDF) ray per pi
                    "defaults, ray reuse over the 3×3 neighbourhood")
 EQUAL_SETTINGS = {"thickness": "depth_buffer_thickness", "ray_length": "max_ray_distance"}
 REUSE = ("none", "neighbours")
+#: the largest reuse weight ``p_i / p_j``: at grazing views both densities overflow (``G1·D / 4 cos θ_v``)
+MAX_WEIGHT = 1e8
 
 
 @dataclass(frozen=True)
@@ -169,8 +171,8 @@ def ssr_glossy_stochastic(gbuffer: GBuffer, params: StochasticSSRParams = Stocha
                     h = h / h.norm(dim=1, keepdim=True).clamp_min(torch.finfo(dt).tiny)
                     p_i = reflection_pdf(v_loc[:, 2], (h * n).sum(1), alpha)[:, None]
                     p_i = torch.where((l_ij * n).sum(1, keepdim=True) > 0, p_i, 0.0)
-                    w = torch.where(sh(gbuffer.mask, False) & gbuffer.mask,
-                                    p_i / sh(pdf, 1.0).clamp_min(torch.finfo(dt).tiny), 0.0)
+                    w = torch.where(sh(gbuffer.mask, False) & gbuffer.mask, p_i / sh(pdf, 1.0).clamp_min(1e-12), 0.0)
+                    w = torch.nan_to_num(w, nan=0.0, posinf=MAX_WEIGHT).clamp(0.0, MAX_WEIGHT)   # grazing: pdfs overflow
                 num_raw += w * sh(raw)
                 num_fade += w * sh(faded)
                 den += w

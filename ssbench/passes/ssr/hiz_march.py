@@ -197,9 +197,9 @@ def hiz_march(r: HiZRays, pyr: DepthPyramid, tex: HiZTexels, params, gbuffer: GB
             visits.index_add_(0, (r.b * H * W + cy * W + cx)[at0], torch.ones_like(cx[at0], dtype=visits.dtype))
         tx = ((cx.to(dt) + c[OFFX]) * scale + c[EPSX] - c[OX]) * c[INVX]   # AdvanceRay: the borders
         ty = ((cy.to(dt) + c[OFFY]) * scale + c[EPSY] - c[OY]) * c[INVY]
-        tz = torch.where(c[INVZ] != 0, (surface - c[OZ]) * c[INVZ], torch.inf)   # the cell's closest depth
+        tz = torch.where((c[INVZ] != 0) & (surface > 0), (surface - c[OZ]) * c[INVZ], torch.inf)   # its closest depth
         side = torch.minimum(tx, ty)
-        above = z > surface
+        above = (z > surface) | (surface <= 0)                                    # a cell of background: skip it
         skipped = above & (side < tz)
         t_new = torch.where(above, torch.minimum(side, tz), t)
         mip = torch.where(skipped, (r.mip + 1).clamp_max(top), r.mip - 1)

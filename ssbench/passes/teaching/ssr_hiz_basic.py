@@ -60,9 +60,9 @@ def AdvanceRay(origin, direction, current_t, current_mip, surface_z, cell):
     size = 2.0 ** current_mip
     t_x = boundary_t(origin[0], direction[0], cell[0], size)
     t_y = boundary_t(origin[1], direction[1], cell[1], size)
-    t_z = (surface_z - origin[2]) * (1.0 / direction[2]) if direction[2] < 0 else INF   # only rays moving away
+    t_z = (surface_z - origin[2]) * (1.0 / direction[2]) if direction[2] < 0 and surface_z > 0 else INF   # sky: never
     position_z = origin[2] + current_t * direction[2]
-    above_surface = position_z > surface_z                     # in front of the cell's closest depth
+    above_surface = position_z > surface_z or surface_z <= 0   # in front of the cell's closest depth (0: sky)
     side_t = min(t_x, t_y)
     skipped_tile = above_surface and side_t < t_z
     if above_surface:

@@ -86,7 +86,7 @@ def test_bad_blur_params(kw, name):
 
 
 def test_roughness_is_required():
-    g = room(8, 6)
+    g = room(8, 6).select(["view_z", "normal", "mask", "color"])
     with pytest.raises(ValueError, match="roughness"):
         ssr_glossy_stochastic(g)
     with pytest.raises(ValueError, match="roughness"):

@@ -183,7 +183,7 @@ def hiz_march(r: HiZRays, pyr: DepthPyramid, tex: HiZTexels, params, gbuffer: GB
             break
         c, t = r.c, r.t
         x, y, z = c[OX] + t * c[VX], c[OY] + t * c[VY], c[OZ] + t * c[VZ]
-        off = (x < 0) | (x >= W) | (y < 0) | (y >= H)
+        off = ~((x >= 0) & (x < W) & (y >= 0) & (y < H))                        # NaN (degenerate input) too
         inv_s, scale = inv_scales[r.mip], scales[r.mip]
         cx, cy = (x * inv_s).long(), (y * inv_s).long()                           # x, y ≥ 0 on screen: trunc = floor
         index = (r.b * total + pyr.offsets[r.mip] + cy * pyr.widths[r.mip] + cx).clamp(0, flat.numel() - 1)

@@ -187,6 +187,7 @@ def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
         op = op * (1.0 - plane / p.max_distance) ** 2
     if p.fresnel:
         op = op * ((inc[h] * refl[h]).sum(1) + 1.0) / 2.0
+    op = op.clamp(0.0, 1.0)                     # the blend's alpha: a hit behind the reflecting plane gives ratio > 1
     pixel = torch.stack([hit_xy[h, 0], H - hit_xy[h, 1]], -1)                   # ssbench pixels (y down)
     flat = b * HW + k
 

@@ -9,7 +9,7 @@
 # ---
 
 # %% [markdown]
-# # Lesson 10 — Hi-Z: reflections that skip empty space
+# # Lesson 10 — Hi-Z and glossy reflections
 #
 # ## Overview
 #
@@ -22,14 +22,18 @@
 #
 # This lesson builds the pyramid, walks one ray through it with the per-pixel teaching twin
 # (`ssbench.passes.teaching.ssr_hiz_basic`), then runs the vectorised pass (`ssbench.passes.ssr.hiz`) and compares
-# the three traversals at equal numbers of depth reads (`ssbench.analysis.equal_reads`).
+# the three traversals at equal numbers of depth reads (`ssbench.analysis.equal_reads`). Then the surfaces get
+# rough: a glossy reflection averages a *lobe* of directions. We sample it the way engines do (GGX visible
+# normals), trace it with Hi-Z, and score two glossy methods against a path-traced lobe.
 #
 # > **You will learn**
 # > 1. why a ray is a straight line in screen space *and* depth when depth is stored as 1/z (reversed Z);
 # > 2. how the closest-depth pyramid is built, at any image size;
 # > 3. the two moves of the traversal — skip and climb, or descend — read by read;
 # > 4. how many reads Hi-Z spends compared with the DDA, and what it gets right for them;
-# > 5. three pitfalls of the shipped versions, and how the library avoids them.
+# > 5. three pitfalls of the shipped versions, and how the library avoids them;
+# > 6. how a glossy lobe is sampled, what its ground truth is, and which part of a glossy method's error is the
+# >    marcher, the G-buffer's missing information, and the resolve.
 
 # %% [markdown]
 # ## Setup
@@ -46,13 +50,15 @@ import torch
 
 import _setup
 from ssbench.analysis.equal_reads import equal_read_rows
-from ssbench.evaluate import SSR_GT_CHANNELS
+from ssbench.evaluate import GLOSSY_GT_CHANNELS, SSR_GT_CHANNELS, run_glossy
 from ssbench.passes.ssr.common import BEHIND_SURFACE, HIT, OUT_OF_STEPS, reflection_rays
 from ssbench.passes.ssr.dda import DDASSRParams, ssr_dda
+from ssbench.passes.ssr.ggx import alpha_of, sample_vndf
 from ssbench.passes.ssr.hiz import HiZSSRParams, ssr_hiz
 from ssbench.passes.ssr.hiz_pyramid import depth_pyramid, reversed_depth
 from ssbench.passes.teaching.ssr_hiz_basic import trace_pixel
 from ssbench.reference import gbuffer, reflections
+from ssbench.reference.glossy import glossy_reflections
 
 torch.set_num_threads(1)
 W, H = _setup.size()
@@ -202,6 +208,81 @@ print(f"stopped behind a surface: {int(stopped.sum())} px; with trace_behind, {i
       f"of them find a hit further on, at {float(behind.steps[stopped].float().mean()):.1f} reads on average")
 
 # %% [markdown]
+# ## Step 7 — Glossy rays: sampling the GGX lobe
+#
+# A rough surface reflects about *microfacet* normals `m` spread around `n` with the GGX distribution,
+# `α = roughness²`. Sampling only the normals the viewer can see (Heitz, "Sampling the GGX Distribution of Visible
+# Normals", JCGT 2018) wastes no ray on back-facing microfacets; each reflected direction `l = 2(v·m)m − v` is
+# then marched like a mirror ray. At roughness 0 the only normal is `n`: the mirror.
+
+# %%
+v = torch.tensor([[0.5, 0.0, math.sqrt(0.75)]], dtype=torch.float64)      # 30° from the normal, local frame
+u = torch.rand(2, 2000, generator=torch.Generator().manual_seed(0), dtype=torch.float64)
+fig, ax = plt.subplots(1, 3, figsize=(11, 3.4))
+spreads = {}
+for a, rough in zip(ax, (0.1, 0.3, 0.5)):
+    alpha = alpha_of(torch.full((2000,), rough, dtype=torch.float64))
+    m = sample_vndf(v.expand(2000, 3), alpha, u[0], u[1])
+    l = 2.0 * (v * m).sum(1, keepdim=True) * m - v
+    spreads[rough] = float(torch.acos((l * torch.tensor([-0.5, 0.0, math.sqrt(0.75)], dtype=torch.float64)).sum(1)
+                                      .clamp(-1, 1)).median())
+    a.scatter(l[:, 0], l[:, 1], s=1, alpha=0.3)
+    a.plot([-0.5], [0.0], "r+", ms=12)
+    a.set_xlim(-1, 1), a.set_ylim(-1, 1), a.set_aspect("equal")
+    a.set_title(f"roughness {rough}: median {math.degrees(spreads[rough]):.1f}° off the mirror")
+plt.show()
+mirror = sample_vndf(v, torch.zeros(1, dtype=torch.float64), u[0, :1], u[1, :1])
+
+# %% [markdown]
+# ## Step 8 — The glossy truth, and what screen space cannot see
+#
+# `ssbench.reference.glossy` traces each pixel's lobe in Mitsuba: many directions per pixel, one path each. The
+# **lobe** is the radiance arriving along them, averaged (what a glossy reflection buffer should hold). The
+# **oracle** uses the same directions but reads the G-buffer colour where each first hit lands, if the camera sees
+# it — the best any screen-space method could do. Their difference is information the G-buffer does not have:
+# the sky, what is off screen, what is hidden. The scene `glossy_ramp` has floor strips and spheres of rising
+# roughness.
+
+# %%
+GW, GH = _setup.size((160, 120))
+gg = gbuffer("glossy_ramp", GW // 2, GH // 2, channels=tuple(dict.fromkeys(chans + GLOSSY_GT_CHANNELS)), spp=8)
+truth_g = glossy_reflections("glossy_ramp", gg, rays=_setup.pick(64, 32))
+fig, ax = plt.subplots(1, 3, figsize=(11, 3))
+show = lambda x: (x[0].permute(1, 2, 0).clamp(0, 1) ** (1 / 2.2))       # noqa: E731
+ax[0].imshow(show(gg.color)), ax[0].set_title("the image")
+ax[1].imshow(show(truth_g.lobe)), ax[1].set_title("lobe (path traced)")
+ax[2].imshow(show(truth_g.oracle)), ax[2].set_title("oracle (G-buffer only)")
+for a in ax:
+    a.axis("off")
+plt.show()
+
+# %% [markdown]
+# ## Step 9 — Three answers on rough surfaces, and where their error comes from
+#
+# The mirror DDA ignores roughness. `glossy_blur` is the article's way: the mirror march, then a blur that
+# widens with roughness. `glossy_stochastic` traces GGX rays with Hi-Z and reuses the neighbours' hits
+# (Stachowiak, "Stochastic Screen-Space Reflections", 2015). `run_glossy` splits each error: against the oracle
+# (the marcher and its filter) and against the lobe (everything); the article's resolve `F·(1 − roughness)` is
+# scored on its own with the true lobe.
+
+# %%
+evs, g_, t_ = {}, gg, truth_g
+for m in ("dda", "glossy_blur", "glossy_stochastic"):
+    evs[m] = run_glossy("glossy_ramp", m, gbuffer=g_, truth=t_, warmup=False)
+mids = [0.5 * (b["lo"] + b["hi"]) for b in evs["dda"].row["bins"]]
+plt.figure(figsize=(6, 3.5))
+for m, ev in evs.items():
+    plt.plot(mids, [b["mae_vs_oracle"] for b in ev.row["bins"]], "o-", label=m)
+plt.fill_between(mids, 0, [b["truth_se_mean"] for b in evs["dda"].row["bins"]], color="0.85", label="truth's error bar")
+plt.xlabel("roughness"), plt.ylabel("mean |reflection − oracle|")
+plt.legend()
+plt.show()
+for m, ev in evs.items():
+    r = ev.row
+    print(f"{m:>18}: vs oracle {r['mae_vs_oracle']:.3f}, vs lobe {r['mae_lobe']:.3f} "
+          f"(information loss alone {r['mae_oracle']:.3f}); resolve model alone {r['mae_resolve_only']:.3f}")
+
+# %% [markdown]
 # ## Checks
 
 # %%
@@ -216,6 +297,11 @@ mid = {r["method"]: r for r in rows if r["budget"] == 32}
 assert mid["hiz"]["frac_correct"] > mid["linear"]["frac_correct"]
 assert int(spent.sum()) > 0 and not bool(short.hit[spent].any())
 assert int((stopped & behind.hit).sum()) > 0
+assert torch.equal(mirror, torch.tensor([[0.0, 0.0, 1.0]], dtype=torch.float64))
+assert spreads[0.1] < spreads[0.3] < spreads[0.5]
+assert float(truth_g.lobe_se[truth_g.valid.expand(-1, 3, -1, -1)].mean()) < 0.1
+rough_err = {m: sum(b["mae_vs_oracle"] for b in ev.row["bins"] if b["lo"] >= 0.15 and b["n"] > 0) for m, ev in evs.items()}
+assert rough_err["glossy_blur"] < rough_err["dda"] and rough_err["glossy_stochastic"] < rough_err["dda"]
 print("all checks passed")
 
 # %% [markdown]
@@ -223,5 +309,7 @@ print("all checks passed")
 #
 # - `ssbench/passes/ssr/hiz.py`, `hiz_march.py`, `hiz_pyramid.py`: the pass, its traversal and the pyramid.
 # - `ssbench/passes/teaching/ssr_hiz_basic.py`: the per-pixel twin used in step 3.
+# - `ssbench/passes/ssr/ggx.py`, `glossy_stochastic.py`, `glossy_blur.py`, `ssbench/reference/glossy.py`: steps 7–9;
+#   the report's **Glossy reflections** section runs every SSR method on `glossy_ramp`.
 # - `benchmarks/bench_ssr_reads.py` and the report's SSR section: the equal-reads table on every scene.
 # - Lesson 6 (the DDA) and lesson 9 (reading a report).

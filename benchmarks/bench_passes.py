@@ -180,7 +180,7 @@ def main() -> int:
         for effect in a.effects.split(","):
             for w, h in sizes:
                 path = os.path.join(tmp, f"{effect}_{w}x{h}.pt")
-                chans = ("view_z", "normal", "position", "mask") + (("color",) if effect == "ssr" else ())
+                chans = ("view_z", "normal", "position", "mask") + (("color", "roughness") if effect == "ssr" else ())
                 torch.save(gbuffer(SCENES[effect], w, h, chans, spp=4, use_cache=True), path)
                 for method in _methods(effect):
                     if wanted and method not in wanted:

@@ -33,7 +33,7 @@ def check(scene: str, width: int, height: int, device: str, repeats: int) -> lis
 
     from ssbench import reference
     from ssbench.passes import AO_METHODS, SSR_METHODS, ao_method, ssr_method
-    g = reference.gbuffer(scene, width, height, channels=("view_z", "normal", "mask", "color", "position"))
+    g = reference.gbuffer(scene, width, height, channels=("view_z", "normal", "mask", "color", "position", "roughness"))
     g_dev = g.to(device=device)
     rows = []
     for effect, names, resolve, field in (("ao", AO_METHODS, ao_method, "ao"), ("ssr", SSR_METHODS, ssr_method,

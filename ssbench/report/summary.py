@@ -14,8 +14,8 @@ import statistics
 from typing import Any, Iterable, Optional
 
 #: (meta key, title) of every report section, in page order
-SECTIONS = (("ao", "Ambient occlusion"), ("ssr", "Screen-space reflections"), ("glossy", "Glossy reflections"),
-            ("implicit", "Implicit surfaces"),
+SECTIONS = (("ao", "Ambient occlusion"), ("ssr", "Screen-space reflections"), ("implicit", "Implicit surfaces"),
+            ("glossy", "Glossy reflections"),
             ("time", "Time"), ("speed", "Speed"), ("tuning", "Tuning"), ("calibration", "Metric calibration"))
 
 

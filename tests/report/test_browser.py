@@ -219,7 +219,8 @@ def test_report_in_headless_chromium(tmp_path, monkeypatch):
     assert screenshot(page, png, tmp_path) == (1280, 2000)
     from ssbench.report.screenshots import section_screenshots            # what `ssbench report --screenshots` does
     shots = section_screenshots(str(page), chromium=CHROMIUM)
-    assert list(shots) == ["glance", "scenes", "ao", "ssr", "implicit", "time", "speed", "tuning", "calibration"], shots
+    assert list(shots) == ["glance", "scenes", "ao", "ssr", "implicit", "glossy", "time", "speed", "tuning",
+                          "calibration"], shots
     import numpy as np
     from PIL import Image
     ao_shot = np.asarray(Image.open(shots["ao"]).convert("RGB"))

@@ -48,3 +48,13 @@ def test_rows_on_a_real_scene_more_reads_miss_less():
         assert many["frac_correct"] > few["frac_correct"], m
     table = equal_read_table(rows)
     assert all(m in table for m in BUDGETED) and "punch-through" in table.splitlines()[0]
+
+
+def test_back_faces_select_the_layered_marchers():
+    from ssbench.analysis.equal_reads import layered
+    assert {"linear", "dda", "hiz"} <= {m for m in BUDGETED if layered(m)}
+    assert not layered("three_ssr")
+    g = room(16, 12)
+    assert budget_params("dda", 8, g, back_faces=True)["use_back_face_depth"] is True
+    with pytest.raises(ValueError, match="layered"):
+        budget_params("three_ssr", 8, g, back_faces=True)

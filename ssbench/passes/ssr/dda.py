@@ -71,6 +71,7 @@ from .fade import FadeParams
 from ..registry import Method, SpeedPanel
 
 REQUIRES = ("view_z", "normal", "mask", "color")
+REQUIRES_BACKFACE = ("back_z",)
 #: where the defaults come from (shown by the report next to the parameters)
 DEFAULTS_SOURCE = ('McGuire & Mara, "Efficient GPU Screen-Space Ray Tracing", JCGT 3(4), 2014, as kode80 and '
                    'mebiusbox/ssr ship it (thickness 0.1, max distance 10, stride 1, 4 bisections)')
@@ -94,6 +95,8 @@ class DDASSRParams(FadeParams):
         jitter: the start moves ``jitter·U[0, 1)`` strides along the ray (0 = off); ``seed`` seeds it.
         binary_search_iterations, refinement: ``"binary"`` (article, that many probes), ``"remarch"`` (G3D) or
             ``"none"``.
+        use_back_face_depth: layered depth (kode80's back-face buffer): a texel is the slab from its depth down to
+            ``back_z − z_thickness`` (needs ``back_z``) instead of ``z_thickness`` deep.
         edge_distance, edge_exponent, edge_fade_mode, fade_distance, fade_exponent: the fades (§1.4–1.5),
             inherited keyword-only from :class:`~ssbench.passes.ssr.fade.FadeParams`.
     """
@@ -108,6 +111,7 @@ class DDASSRParams(FadeParams):
     binary_search_iterations: int = 4
     refinement: str = "binary"
     seed: int = 0
+    use_back_face_depth: bool = False
 
     def __post_init__(self) -> None:
         super().__post_init__()                                                   # the fades
@@ -117,6 +121,8 @@ class DDASSRParams(FadeParams):
             raise ValueError(f"binary_search_iterations: must be an integer >= 0, got {n!r}")
         if not isinstance(self.fit_stride_to_steps, bool):
             raise ValueError(f"fit_stride_to_steps: must be a bool, got {self.fit_stride_to_steps!r}")
+        if not isinstance(self.use_back_face_depth, bool):
+            raise ValueError(f"use_back_face_depth: must be a bool, got {self.use_back_face_depth!r}")
         for name, lo, strict in (("max_ray_distance", 0, 1), ("pixel_stride", 1, 0), ("pixel_stride_z_cutoff", 0, 1),
                                  ("z_thickness", 0, 0), ("jitter", 0, 0)):
             v = getattr(self, name)
@@ -143,7 +149,18 @@ def check_inputs(gbuffer: GBuffer, params: DDASSRParams) -> None:
     """Type checks of ``params`` and the shared G-buffer contract (:func:`~ssbench.passes.gbuffer_checks.check_gbuffer`)."""
     if not isinstance(params, DDASSRParams):
         raise TypeError(f"params: expected DDASSRParams, got {type(params).__name__}")
-    check_gbuffer(gbuffer, REQUIRES, finite=("color",), meta_ok=False)
+    check_gbuffer(gbuffer, required_channels(params), finite=("color",), meta_ok=False)
+
+
+def required_channels(params: DDASSRParams) -> tuple[str, ...]:
+    """The channels :func:`ssr_dda` reads with ``params`` (``back_z`` with ``use_back_face_depth``)."""
+    return REQUIRES + (REQUIRES_BACKFACE if params.use_back_face_depth else ())
+
+
+def depth_texels(gbuffer: GBuffer, params: DDASSRParams) -> tuple:
+    """``(view_z, mask[, back_z])`` flattened: what the march fetches per texel."""
+    tex = (gbuffer.view_z.reshape(-1), gbuffer.mask.reshape(-1))
+    return tex + ((gbuffer.back_z.to(gbuffer.view_z.dtype).reshape(-1),) if params.use_back_face_depth else ())
 
 
 def ray_pixels(gbuffer: GBuffer) -> torch.Tensor:
@@ -243,7 +260,7 @@ def ssr_dda(gbuffer: GBuffer, params: DDASSRParams = DDASSRParams(), *, generato
     jitter = jitter_fractions(params, (B, 1, H, W), make_generator(params.seed, generator))
     sel = ray_pixels(gbuffer)
     visits = torch.zeros(B * H * W, dtype=torch.int32, device=gbuffer.view_z.device) if debug else None
-    tex = (gbuffer.view_z.reshape(-1), gbuffer.mask.reshape(-1))
+    tex = depth_texels(gbuffer, params)
     o, P1 = march_in_chunks(sel, lambda part: dda_rays(gbuffer, params, jitter, part),
                             lambda rays: dda_march(rays, tex, params, H, W, visits))   # bounded working set
     return assemble(gbuffer, params, sel, P1, o, visits)

@@ -74,6 +74,8 @@ def ssr_dda_basic(gbuffer: GBuffer, params: DDASSRParams = DDASSRParams(),
     def toZ(Qz, k, zMin, zMax):                          # FIX: clamp (G3D), k ≤ 0 past the end stays finite
         return min(max(Qz / max(k, TINY), zMin), zMax)
 
+    backDepth = gbuffer.back_z.double().tolist() if params.use_back_face_depth else None
+
     def texelFetch(b, hitPixel):                         # (sceneZMax, mask) at int2(hitPixel), or None off screen
         x, y = hitPixel
         if not (0.0 <= x < W and 0.0 <= y < H):
@@ -158,7 +160,9 @@ def ssr_dda_basic(gbuffer: GBuffer, params: DDASSRParams = DDASSRParams(),
             if rayZMin > rayZMax:                        # swapGEQ
                 rayZMin, rayZMax = rayZMax, rayZMin
             sceneZMax, geometry = scene
-            if geometry and rayZMax >= sceneZMax - zThickness and rayZMin <= sceneZMax:
+            # layered depth (kode80): the texel reaches down to its back face
+            sceneZBack = backDepth[b][0][math.floor(hitPixel[1])][math.floor(hitPixel[0])] if backDepth else sceneZMax
+            if geometry and rayZMax >= sceneZBack - zThickness and rayZMin <= sceneZMax:
                 intersect = True
                 break
             if last:                                     # reason as the full step's centre says

@@ -385,3 +385,26 @@ def test_marching_in_chunks_of_rays_changes_no_bit(method, monkeypatch):
         if isinstance(v, torch.Tensor):
             assert torch.equal(v, getattr(chunked, f.name)), f.name
     assert torch.equal(whole.debug["visits"], chunked.debug["visits"])
+
+
+def _slabs(g, depth):
+    """``g`` with ``back_z`` a slab ``depth`` behind every surface (−inf on the background)."""
+    import dataclasses
+    return dataclasses.replace(g, back_z=torch.where(g.mask, g.view_z - depth, -math.inf))
+
+
+@pytest.mark.parametrize("kw", [dict(), dict(pixel_stride=3.0, jitter=1.0, refinement="remarch")])
+def test_back_face_depth_is_a_per_texel_thickness(kw):
+    """Layered depth: a slab down to ``back_z`` with no extra thickness is the constant thickness of that depth,
+    exactly; a thinner slab misses where the constant model hits, and the twin agrees."""
+    g = _slabs(room(32, 24, slat=True), 0.3)
+    layered = ssr_dda(g, DDASSRParams(max_ray_distance=30.0, use_back_face_depth=True, z_thickness=0.0, **kw))
+    constant = ssr_dda(g, DDASSRParams(max_ray_distance=30.0, z_thickness=0.3, **kw))
+    assert torch.equal(layered.termination, constant.termination) and torch.equal(layered.hit_pixel, constant.hit_pixel)
+    thin = ssr_dda(_slabs(g, 0.01), DDASSRParams(max_ray_distance=30.0, use_back_face_depth=True, z_thickness=0.0,
+                                                 **kw))
+    assert int((constant.hit & ~thin.hit).sum()) > 0
+    twin = ssr_dda_basic(g, DDASSRParams(max_ray_distance=30.0, use_back_face_depth=True, z_thickness=0.0, **kw))
+    assert torch.equal(twin.termination, layered.termination)
+    with pytest.raises(ValueError, match="back_z"):
+        ssr_dda(room(8, 6), DDASSRParams(use_back_face_depth=True))

@@ -194,3 +194,16 @@ def test_bad_gbuffer():
         ssr_hiz(g, HiZSSRParams(use_back_face_depth=True))
     with pytest.raises(TypeError, match="params"):
         ssr_hiz(g, DDASSRParams())
+
+
+def test_back_face_depth_is_a_per_texel_thickness():
+    """As for the DDA: slabs down to ``back_z`` equal the constant thickness of their depth; the twin agrees."""
+    import dataclasses
+    g = room(32, 24, slat=True)
+    g = dataclasses.replace(g, back_z=torch.where(g.mask, g.view_z - 0.3, -math.inf))
+    layered = ssr_hiz(g, HiZSSRParams(max_ray_distance=30.0, use_back_face_depth=True, depth_buffer_thickness=0.0))
+    constant = ssr_hiz(g, HiZSSRParams(max_ray_distance=30.0, depth_buffer_thickness=0.3))
+    assert torch.equal(layered.termination, constant.termination) and torch.equal(layered.hit_pixel, constant.hit_pixel)
+    assert int(layered.hit.sum()) > 100
+    twin = ssr_hiz_basic(g, HiZSSRParams(max_ray_distance=30.0, use_back_face_depth=True, depth_buffer_thickness=0.0))
+    assert torch.equal(twin.termination, layered.termination)

@@ -98,5 +98,3 @@ METHOD = Method("glossy_blur", ssr_glossy_blur, BlurSSRParams, BlurSSR, order=55
 GLOSSY = True
 SPEED_GRIDS = {"cost": [{"max_sigma": [4.0, 8.0, 16.0]}]}
 SPEED_PANELS = (SpeedPanel("hits", "max_sigma", ()),)
-#: the depth-read budget of an equal-reads comparison (ssbench.analysis.equal_reads): reads per ray
-READ_BUDGET = ("iterations", {"binary_search_iterations": 0})

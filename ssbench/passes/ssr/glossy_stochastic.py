@@ -201,5 +201,3 @@ GLOSSY = True
 DEBUG_VIEWS = {"visits": "level-0 pyramid reads per texel (first ray)"}
 SPEED_GRIDS = {"cost": [{"rays_per_pixel": [1, 4], "reuse": "neighbours"}, {"rays_per_pixel": 1, "reuse": "none"}]}
 SPEED_PANELS = (SpeedPanel("hits", "rays_per_pixel", (("reuse", "neighbours"),)),)
-#: the depth-read budget of an equal-reads comparison (ssbench.analysis.equal_reads): reads per ray
-READ_BUDGET = ("max_traversal_intersections", {"reject_backfaces": False})

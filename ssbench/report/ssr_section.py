@@ -18,8 +18,8 @@ G-buffer (the report's own render when it has one, else a fresh one), traces the
 * ``fig11.png`` (first scene only) — one ray's reads per marcher against the pixels it crosses
   (:mod:`.ssr_fig11`, SSR article Fig. 11), when the linear march and both DDAs ran;
 
-plus the class-fraction table with times, the equal-reads tables (every marcher with 8, 32 and 128 depth reads per
-ray, :mod:`.ssr_reads`) and a table mapping one physical thickness onto each anchor's
+plus the class-fraction table with times, the equal-reads table of the first scene (every marcher with 8, 32 and
+128 depth reads per ray, :mod:`.ssr_reads`; ``benchmarks/bench_ssr_reads.py`` runs every scene) and a table mapping one physical thickness onto each anchor's
 "thickness" knob (:mod:`ssbench.metrics.thickness`). Nothing here may crash the report: a missing reference
 or pass, or a failing run, becomes a visible note.
 """
@@ -220,7 +220,8 @@ def _scene(run_dir, name, methods, channels, width, height, spp, seed, k_px, use
             rows.append({**ev.row, "setting": "equal"})
         except Exception as e:
             notes.append(f"{m} at equal settings: {type(e).__name__}: {e}")
-    rows += reads_rows(sc, g, truth, notes, seed=seed, spp=spp, k_px=k_px, use_cache=use_cache)
+    if fig11:                                            # the first scene (benchmarks/bench_ssr_reads.py: all)
+        rows += reads_rows(sc, g, truth, notes, seed=seed, spp=spp, k_px=k_px, use_cache=use_cache)
     fig11 = _fig11(d, rel, g, results, notes) if fig11 else None
     if fig11:
         images["fig11"] = fig11.pop("image")

@@ -4,7 +4,7 @@ Every SSR method that declares ``READ_BUDGET`` runs with ``N`` reads per ray at 
 length and thickness scaled to the scene); the table gives the share of reflective pixels that are correct,
 missed, false hits and punch-through against the exact mirror hit. A benchmark, not a test:
 ``.venv/bin/python benchmarks/bench_ssr_reads.py [--scenes reflective_floor,fence,glossy_ramp --size 320x240
---budgets 8,32,128 --back-faces --json rows.json]`` (``--back-faces``: the marchers with layered depth as well).
+--budgets 8,32,128 --layers front,back_faces,second_layer --json rows.json]`` (``--layers``: the depth models).
 """
 from __future__ import annotations
 
@@ -25,21 +25,21 @@ def main() -> None:
     ap.add_argument("--size", default="320x240")
     ap.add_argument("--budgets", default=",".join(map(str, READ_BUDGETS)))
     ap.add_argument("--spp", type=int, default=16)
-    ap.add_argument("--back-faces", action="store_true",
-                    help="also run the marchers with layered depth (each texel a slab down to its back face)")
+    ap.add_argument("--layers", default="front",
+                    help="comma-separated depth models: front (the depth buffer), back_faces (each texel a slab down to "
+                         "its back face), second_layer (also the surface behind the first)")
     ap.add_argument("--json", metavar="FILE", help="also write the rows as JSON")
     a = ap.parse_args()
     torch.set_num_threads(1)
     w, h = (int(v) for v in a.size.split("x"))
-    chans = ("view_z", "normal", "mask", "color", "metallic", "roughness", "back_z") + tuple(SSR_GT_CHANNELS)
+    chans = ("view_z", "normal", "mask", "color", "metallic", "roughness", "back_z", "second_z") + tuple(SSR_GT_CHANNELS)
     rows = []
     for scene in a.scenes.split(","):
         g = gbuffer(scene, w, h, channels=tuple(dict.fromkeys(chans)), spp=a.spp, use_cache=True)
         truth = reflections_module()(scene, g, spp=a.spp, seed=0, use_cache=True)
         budgets = [int(b) for b in a.budgets.split(",")]
-        rows += equal_read_rows(scene, g, truth, budgets=budgets)
-        if a.back_faces:
-            rows += equal_read_rows(scene, g, truth, budgets=budgets, back_faces=True)
+        for layers in a.layers.split(","):
+            rows += equal_read_rows(scene, g, truth, budgets=budgets, layers=layers)
     print(f"{a.size}, reads = mean depth reads per reflective pixel; classes as shares of reflective pixels")
     print(equal_read_table(rows))
     if a.json:

@@ -17,7 +17,8 @@ from .camera import Camera
 
 #: channel name → number of channels
 CHANNELS: dict[str, int] = {"view_z": 1, "normal": 3, "position": 3, "albedo": 3, "roughness": 1,
-                            "metallic": 1, "shape_id": 1, "mask": 1, "back_z": 1, "color": 3}
+                            "metallic": 1, "shape_id": 1, "mask": 1, "back_z": 1, "color": 3,
+                            "second_z": 1}
 
 #: fill values on background pixels (``view_z``/``position`` fill is the far plane: GL depth 1).
 FILL: dict[str, str] = {
@@ -31,6 +32,7 @@ FILL: dict[str, str] = {
     "mask": "False",
     "back_z": "-inf (also on hits whose exit through the object was not found, e.g. open rectangles)",
     "color": "the radiance of the environment seen through the pixel",
+    "second_z": "-inf (also where nothing lies behind the first object, or behind an open surface)",
 }
 
 
@@ -50,6 +52,8 @@ class GBuffer:
         mask: :math:`(B, 1, H, W)` bool, True where the pixel-centre ray hits geometry.
         back_z: :math:`(B, 1, H, W)` view z where the ray leaves the first object it entered.
         color: :math:`(B, 3, H, W)` path-traced linear RGB.
+        second_z: :math:`(B, 1, H, W)` view z of the second depth layer: the first surface the eye ray meets
+            behind the first object (after its exit, ``back_z``; after the hit itself for an open surface).
 
     Background fill values are listed in :data:`FILL`.
     """
@@ -65,6 +69,7 @@ class GBuffer:
     mask: Optional[torch.Tensor] = None
     back_z: Optional[torch.Tensor] = None
     color: Optional[torch.Tensor] = None
+    second_z: Optional[torch.Tensor] = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.camera, Camera):

@@ -7,7 +7,7 @@ display needed).
 Preview encodings (:func:`preview_png`), background pixels black unless noted:
 
 * ``color``: linear RGB × exposure, clamped to [0, 1], sRGB transfer curve;
-* ``view_z``/``back_z``: linear distance ``−z`` normalised over the foreground (near = bright), viridis;
+* ``view_z``/``back_z``/``second_z``: linear distance ``−z`` normalised over the foreground (near = bright), viridis;
 * ``normal``: ``(n + 1) / 2``; ``position``: each axis normalised over the foreground;
 * ``albedo``: as is; ``roughness``/``metallic``: grey, as is (background keeps its fill value);
 * ``shape_id``: categorical tab20; ``mask``: white on black.
@@ -182,7 +182,7 @@ def preview_rgb(name: str, x, mask=None, camera=None, exposure: float = 1.0) -> 
 
     if name == "color":
         rgb = _srgb(v[..., :3] * exposure)
-    elif name in ("view_z", "back_z"):
+    elif name in ("view_z", "back_z", "second_z"):
         z = v[..., 0]
         if camera is not None:
             fg = fg & (z > -camera.far * (1 - 1e-6))

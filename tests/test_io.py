@@ -65,7 +65,8 @@ def _gbuffer_like(h=12, w=16):
             "position": torch.randn(1, 3, h, w), "albedo": torch.rand(1, 3, h, w),
             "roughness": torch.rand(1, 1, h, w), "metallic": torch.rand(1, 1, h, w),
             "shape_id": torch.where(mask, torch.tensor(3, dtype=torch.int32), torch.tensor(-1, dtype=torch.int32)),
-            "mask": mask, "color": torch.rand(1, 3, h, w) * 3}
+            "mask": mask, "color": torch.rand(1, 3, h, w) * 3,
+            "second_z": torch.where(mask & (torch.rand(1, 1, h, w) < 0.5), z - 2.0, torch.tensor(-float("inf")))}
     return cam, mask, data
 
 

@@ -7,7 +7,8 @@ measured from the near-plane origin, never used as an eye distance; ``si.p`` is 
 coordinates and can stray ~1e-6 relative off the ray), mapped to GL view space by :meth:`Camera.view_matrix`.
 
 Only the requested channels are evaluated; Dr.Jit is lazy, so unrequested expressions cost nothing, and the
-back-face search (``back_z``, up to :data:`EXIT_SEARCH` extra traces) runs only when asked for.
+back-face search (``back_z``, up to :data:`EXIT_SEARCH` extra traces) and the second depth layer (``second_z``:
+one more trace from the exit, or from the hit of an open surface) run only when asked for.
 """
 from __future__ import annotations
 
@@ -26,7 +27,7 @@ from . import backend, cache, convert
 DEFAULT_CHANNELS = ("view_z", "normal", "position", "albedo", "roughness", "metallic", "shape_id", "mask")
 #: maximum number of surfaces crossed while looking for the exit through the first object
 EXIT_SEARCH = 8
-_KERNEL_VERSION = 5        # bump when the kernel's output changes, to invalidate caches
+_KERNEL_VERSION = 6        # bump when the kernel's output changes, to invalidate caches
 
 
 def _channels(channels: Optional[Iterable[str]]) -> tuple[str, ...]:
@@ -56,7 +57,7 @@ def _albedo_at_hit(sc: Scene) -> list[bool]:
     return [bool(dict(s.params).get("albedo_at_hit", False)) for s in sc.shapes]
 
 
-def _trace(mi, dr, mscene, cam: Camera, want_back: bool, want_albedo: bool = False) -> dict:
+def _trace(mi, dr, mscene, cam: Camera, want_back: bool, want_albedo: bool = False, want_second: bool = False) -> dict:
     """The kernel: arrays of length H·W (row-major, row 0 at the top)."""
     W, H = cam.width, cam.height
     sensor = mscene.sensors()[0]
@@ -84,12 +85,13 @@ def _trace(mi, dr, mscene, cam: Camera, want_back: bool, want_albedo: bool = Fal
     if want_albedo:                             # textured albedo, looked up at the hit (Mitsuba-file scenes)
         out["albedo"] = si.bsdf().eval_diffuse_reflectance(si, hit)
 
-    if want_back:                               # ------------ exit through the first object entered
+    if want_back or want_second:                # ------------ exit through the first object entered
         # Step along the *same* line (o + t·d): spawn_ray() would push the origin off it along the normal by
         # ~1e-4·|p|, which moves the exit of short chords by up to 1e-3 relative.
         back = dr.full(mi.Float, -dr.inf, W * H)
         active = mi.Bool(hit)
         t_acc = mi.Float(si.t)
+        t_exit = dr.full(mi.Float, dr.inf, W * H)
         for _ in range(EXIT_SEARCH):
             step = 1e-4 * (t_acc + cam.near)                                  # scale-invariant nudge
             nxt = mscene.ray_intersect(mi.Ray3f(ray.o + (t_acc + step) * ray.d, ray.d), active)
@@ -100,7 +102,14 @@ def _trace(mi, dr, mscene, cam: Camera, want_back: bool, want_albedo: bool = Fal
             back = dr.select(exits, (V @ mi.Point3f(ray.o + t_new * ray.d)).z, back)
             active &= nxt.is_valid() & ~exits
             t_acc = dr.select(active, t_new, t_acc)
+            t_exit = dr.select(exits, t_new, t_exit)
         out["back_z"] = back
+        if want_second:                         # ------------ the next surface behind it: the second layer
+            start = dr.select(dr.isfinite(t_exit), t_exit, si.t)
+            step = 1e-4 * (start + cam.near)
+            nxt = mscene.ray_intersect(mi.Ray3f(ray.o + (start + step) * ray.d, ray.d), hit)
+            out["second_z"] = dr.select(hit & nxt.is_valid(),
+                                        (V @ mi.Point3f(ray.o + (start + step + nxt.t) * ray.d)).z, -dr.inf)
     return out
 
 
@@ -108,7 +117,8 @@ def _render_jit(sc: Scene, cam: Camera, chans: tuple[str, ...]) -> dict[str, np.
     mi = backend.mitsuba()
     import drjit as dr
     mscene = convert.load(sc, cam)
-    r = _trace(mi, dr, mscene, cam, "back_z" in chans, "albedo" in chans and any(_albedo_at_hit(sc)))
+    r = _trace(mi, dr, mscene, cam, "back_z" in chans, "albedo" in chans and any(_albedo_at_hit(sc)),
+               "second_z" in chans)
     H, W = cam.height, cam.width
     # Dr.Jit -> torch by DLPack (.torch(): zero-copy for flat arrays); numpy views of those for the cache
     img = lambda a: a.torch().reshape(1, 1, H, W).numpy()                        # noqa: E731
@@ -130,8 +140,9 @@ def _render_jit(sc: Scene, cam: Camera, chans: tuple[str, ...]) -> dict[str, np.
         out["normal"] = vec(r["n_view"])
     if {"shape_id", "albedo", "roughness", "metallic"} & set(chans):
         out["shape_id"] = r["sid"].torch().reshape(1, 1, H, W).numpy()
-    if "back_z" in chans:
-        out["back_z"] = img(r["back_z"])
+    for name in ("back_z", "second_z"):
+        if name in chans:
+            out[name] = img(r[name])
     if "albedo" in r:
         out["albedo_hit"] = vec(r["albedo"])
     return out
@@ -149,6 +160,7 @@ def _render_scalar(sc: Scene, cam: Camera, chans: tuple[str, ...]) -> dict[str, 
     hit = np.zeros((H, W), bool)
     pos, nrm = np.zeros((3, H, W), np.float32), np.zeros((3, H, W), np.float32)
     sid, back = np.full((H, W), -1, np.int32), np.full((H, W), -np.inf, np.float32)
+    second = np.full((H, W), -np.inf, np.float32)
     for j in tqdm(range(H), desc="gbuffer (scalar)", disable=H * W < 20000, leave=False):
         for i in range(W):
             ray, _ = sensor.sample_ray(0.0, 0.0, mi.Point2f((i + 0.5) / W, (j + 0.5) / H), mi.Point2f(0.5, 0.5))
@@ -161,8 +173,8 @@ def _render_scalar(sc: Scene, cam: Camera, chans: tuple[str, ...]) -> dict[str, 
             n = -n if dr.dot(n, mi.Vector3f(p)) > 0 else n
             pos[:, j, i], nrm[:, j, i] = [p.x, p.y, p.z], [n.x, n.y, n.z]
             sid[j, i] = convert.scene_index(si.shape.id())
-            if "back_z" in chans:
-                t_acc = si.t
+            if "back_z" in chans or "second_z" in chans:
+                t_acc, start = si.t, si.t
                 for _ in range(EXIT_SEARCH):
                     step = 1e-4 * (t_acc + cam.near)
                     nxt = mscene.ray_intersect(mi.Ray3f(ray.o + (t_acc + step) * ray.d, ray.d))
@@ -171,9 +183,14 @@ def _render_scalar(sc: Scene, cam: Camera, chans: tuple[str, ...]) -> dict[str, 
                     t_acc = t_acc + step + nxt.t
                     if dr.dot(nxt.n, ray.d) > 0 and convert.scene_index(nxt.shape.id()) == sid[j, i]:
                         back[j, i] = (V @ mi.Point3f(ray.o + t_acc * ray.d)).z
+                        start = t_acc
                         break
+                step = 1e-4 * (start + cam.near)
+                nxt = mscene.ray_intersect(mi.Ray3f(ray.o + (start + step) * ray.d, ray.d))
+                if nxt.is_valid():
+                    second[j, i] = (V @ mi.Point3f(ray.o + (start + step + nxt.t) * ray.d)).z
     return {"mask": hit[None, None], "position": pos[None], "view_z": pos[None, 2:3], "normal": nrm[None],
-            "shape_id": sid[None, None], "back_z": back[None, None]}
+            "shape_id": sid[None, None], "back_z": back[None, None], "second_z": second[None, None]}
 
 
 def _fill(sc: Scene, cam: Camera, raw: dict[str, np.ndarray], chans: tuple[str, ...]) -> GBuffer:
@@ -190,8 +207,9 @@ def _fill(sc: Scene, cam: Camera, raw: dict[str, np.ndarray], chans: tuple[str, 
         out["position"] = torch.where(mask, torch.from_numpy(raw["position"].copy()), far_pt)
     if "normal" in chans:
         out["normal"] = torch.where(mask, torch.from_numpy(raw["normal"].copy()), torch.tensor(0.0))
-    if "back_z" in chans:
-        out["back_z"] = torch.where(mask, torch.from_numpy(raw["back_z"].copy()), torch.tensor(-float("inf")))
+    for name in ("back_z", "second_z"):
+        if name in chans:
+            out[name] = torch.where(mask, torch.from_numpy(raw[name].copy()), torch.tensor(-float("inf")))
     if "shape_id" in raw:
         sid = torch.from_numpy(raw["shape_id"].copy()).to(torch.int32)
         idx = sid.clamp_min(0).long()

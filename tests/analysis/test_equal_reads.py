@@ -50,11 +50,15 @@ def test_rows_on_a_real_scene_more_reads_miss_less():
     assert all(m in table for m in BUDGETED) and "punch-through" in table.splitlines()[0]
 
 
-def test_back_faces_select_the_layered_marchers():
+def test_layers_select_the_marchers_that_have_them():
     from ssbench.analysis.equal_reads import layered
-    assert {"linear", "dda", "hiz"} <= {m for m in BUDGETED if layered(m)}
-    assert not layered("three_ssr")
+    assert {"linear", "dda", "hiz"} <= {m for m in BUDGETED if layered(m, "back_faces")}
+    assert {"dda", "hiz"} <= {m for m in BUDGETED if layered(m, "second_layer")} and not layered("linear", "second_layer")
+    assert not layered("three_ssr") and layered("three_ssr", "front")
     g = room(16, 12)
-    assert budget_params("dda", 8, g, back_faces=True)["use_back_face_depth"] is True
+    assert budget_params("dda", 8, g, "back_faces")["use_back_face_depth"] is True
+    assert budget_params("hiz", 8, g, "second_layer")["use_second_layer"] is True
     with pytest.raises(ValueError, match="layered"):
-        budget_params("three_ssr", 8, g, back_faces=True)
+        budget_params("three_ssr", 8, g, "back_faces")
+    with pytest.raises(ValueError, match="layers"):
+        budget_params("dda", 8, g, "three")

@@ -56,6 +56,16 @@ def room(w=48, h=36, dtype=F64, slat=False) -> GBuffer:
     return raycast(cam, [(*FLOOR, None), ((0.0, 0.0, -6.0), (0.0, 0.0, 1.0), None), (*WALL, bar)], dtype)
 
 
+def with_second_layer(g: GBuffer) -> GBuffer:
+    """``room(slat=True)``'s G-buffer with ``second_z``: the wall behind the bar where the bar is in front, −inf
+    elsewhere (the planes are open surfaces with nothing behind them)."""
+    import dataclasses
+    cam = g.camera
+    behind = raycast(cam, [(*FLOOR, None), ((0.0, 0.0, -6.0), (0.0, 0.0, 1.0), None)], g.view_z.dtype)
+    bar = g.shape_id == 2
+    return dataclasses.replace(g, second_z=torch.where(bar & behind.mask, behind.view_z, -math.inf))
+
+
 def analytic(g: GBuffer, planes) -> tuple[torch.Tensor, torch.Tensor]:
     """View-space first hit of every pixel's exact mirror ray with ``planes`` (world ``(point, normal)``)."""
     cam, pos = g.camera, g.position

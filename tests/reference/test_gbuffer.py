@@ -166,3 +166,21 @@ def test_every_catalog_scene_renders_with_ids_from_the_scene():
         assert ids <= set(range(len(load(name).shapes))), name
     g = gbuffer("cornell_box", channels=["shape_id", "mask"])            # shapes sharing one material
     assert set(g.shape_id.unique().tolist()) == {-1} | set(range(len(load("cornell_box").shapes)))
+
+
+def test_second_layer_is_what_the_first_object_hides():
+    """``second_z`` on the fence's slats is the depth the scene without them shows there (the sphere, the wall);
+    everywhere it lies behind the first hit (the floor runs on behind the wall), −inf on the background."""
+    from ssbench.scenes import catalog
+    d = catalog.fence()
+    d["camera"] = dict(d["camera"], width=48, height=36)
+    g = gbuffer(d, channels=["view_z", "second_z", "shape_id", "mask"], use_cache=False)
+    bare = dict(d, shapes=[s for s in d["shapes"] if not s["id"].startswith("slat")], name="fence_bare")
+    h = gbuffer(bare, channels=["view_z", "mask"], use_cache=False)
+    slat = (g.shape_id[0, 0] >= 3) & h.mask[0, 0]
+    assert int(slat.sum()) > 20
+    rel = ((g.second_z[0, 0] - h.view_z[0, 0]).abs() / h.view_z[0, 0].abs())[slat]
+    assert float(rel.max()) < 1e-3
+    found = torch.isfinite(g.second_z[0, 0])
+    assert bool((g.second_z[0, 0][found] < g.view_z[0, 0][found]).all()) and not bool(found[~g.mask[0, 0]].any())
+    assert 0 < int(found.sum()) < int(g.mask.sum())             # the wall's upper part: nothing behind

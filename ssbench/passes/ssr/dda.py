@@ -72,6 +72,7 @@ from ..registry import Method, SpeedPanel
 
 REQUIRES = ("view_z", "normal", "mask", "color")
 REQUIRES_BACKFACE = ("back_z",)
+REQUIRES_SECOND_LAYER = ("second_z",)
 #: where the defaults come from (shown by the report next to the parameters)
 DEFAULTS_SOURCE = ('McGuire & Mara, "Efficient GPU Screen-Space Ray Tracing", JCGT 3(4), 2014, as kode80 and '
                    'mebiusbox/ssr ship it (thickness 0.1, max distance 10, stride 1, 4 bisections)')
@@ -97,6 +98,9 @@ class DDASSRParams(FadeParams):
             ``"none"``.
         use_back_face_depth: layered depth (kode80's back-face buffer): a texel is the slab from its depth down to
             ``back_z − z_thickness`` (needs ``back_z``) instead of ``z_thickness`` deep.
+        use_second_layer: also test the second depth layer (``second_z``, the surface behind the first object,
+            ``z_thickness`` deep; G3D's ``traceScreenSpaceRay2``): rays pass behind a thin object and still hit
+            what it hides.
         edge_distance, edge_exponent, edge_fade_mode, fade_distance, fade_exponent: the fades (§1.4–1.5),
             inherited keyword-only from :class:`~ssbench.passes.ssr.fade.FadeParams`.
     """
@@ -112,6 +116,7 @@ class DDASSRParams(FadeParams):
     refinement: str = "binary"
     seed: int = 0
     use_back_face_depth: bool = False
+    use_second_layer: bool = False
 
     def __post_init__(self) -> None:
         super().__post_init__()                                                   # the fades
@@ -121,8 +126,9 @@ class DDASSRParams(FadeParams):
             raise ValueError(f"binary_search_iterations: must be an integer >= 0, got {n!r}")
         if not isinstance(self.fit_stride_to_steps, bool):
             raise ValueError(f"fit_stride_to_steps: must be a bool, got {self.fit_stride_to_steps!r}")
-        if not isinstance(self.use_back_face_depth, bool):
-            raise ValueError(f"use_back_face_depth: must be a bool, got {self.use_back_face_depth!r}")
+        for name in ("use_back_face_depth", "use_second_layer"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"{name}: must be a bool, got {getattr(self, name)!r}")
         for name, lo, strict in (("max_ray_distance", 0, 1), ("pixel_stride", 1, 0), ("pixel_stride_z_cutoff", 0, 1),
                                  ("z_thickness", 0, 0), ("jitter", 0, 0)):
             v = getattr(self, name)
@@ -153,14 +159,17 @@ def check_inputs(gbuffer: GBuffer, params: DDASSRParams) -> None:
 
 
 def required_channels(params: DDASSRParams) -> tuple[str, ...]:
-    """The channels :func:`ssr_dda` reads with ``params`` (``back_z`` with ``use_back_face_depth``)."""
-    return REQUIRES + (REQUIRES_BACKFACE if params.use_back_face_depth else ())
+    """The channels :func:`ssr_dda` reads with ``params`` (``back_z`` with ``use_back_face_depth``, ``second_z``
+    with ``use_second_layer``)."""
+    return REQUIRES + (REQUIRES_BACKFACE if params.use_back_face_depth else ()) + \
+        (REQUIRES_SECOND_LAYER if params.use_second_layer else ())
 
 
 def depth_texels(gbuffer: GBuffer, params: DDASSRParams) -> tuple:
-    """``(view_z, mask[, back_z])`` flattened: what the march fetches per texel."""
-    tex = (gbuffer.view_z.reshape(-1), gbuffer.mask.reshape(-1))
-    return tex + ((gbuffer.back_z.to(gbuffer.view_z.dtype).reshape(-1),) if params.use_back_face_depth else ())
+    """``(view_z, mask, back_z or None, second_z or None)`` flattened: what the march fetches per texel."""
+    flat = lambda x, on: x.to(gbuffer.view_z.dtype).reshape(-1) if on else None   # noqa: E731
+    return (gbuffer.view_z.reshape(-1), gbuffer.mask.reshape(-1), flat(gbuffer.back_z, params.use_back_face_depth),
+            flat(gbuffer.second_z, params.use_second_layer))
 
 
 def ray_pixels(gbuffer: GBuffer) -> torch.Tensor:

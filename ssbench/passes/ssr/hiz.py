@@ -45,6 +45,7 @@ from .hiz_pyramid import depth_pyramid, reversed_depth
 
 REQUIRES = ("view_z", "normal", "mask", "color")
 REQUIRES_BACKFACE = ("back_z",)
+REQUIRES_SECOND_LAYER = ("second_z",)
 DEFAULTS_SOURCE = ("FidelityFX SSSR (AMD, 2020): 128 traversal iterations, depth-buffer thickness 0.015, "
                    "back faces rejected, no ray-length limit (here 1000 view units); the article's fades")
 EQUAL_SETTINGS = {"thickness": "depth_buffer_thickness", "ray_length": "max_ray_distance"}
@@ -64,6 +65,10 @@ class HiZSSRParams(FadeParams):
         reject_backfaces: a texel facing away from the ray is not a hit (FidelityFX ``dot(n, d) > 0``).
         trace_behind: a rejected candidate does not end the ray; it crosses the texel and goes on (HDRP).
         use_back_face_depth: a surface extends from its depth down to ``back_z`` (needs ``back_z``).
+        use_second_layer: a ray behind a level-0 texel but in front of the second depth layer (``second_z``: the
+            surface the first object hides; −inf, nothing behind it) crosses the texel and goes on, and hits that
+            layer where it reaches it inside the texel or within the thickness behind it (G3D's multi-layer
+            tracing; needs ``second_z``).
         edge_distance, edge_exponent, edge_fade_mode, fade_distance, fade_exponent: the article's fades, inherited
             keyword-only from :class:`~ssbench.passes.ssr.fade.FadeParams`.
     """
@@ -76,6 +81,7 @@ class HiZSSRParams(FadeParams):
     reject_backfaces: bool = True
     trace_behind: bool = False
     use_back_face_depth: bool = False
+    use_second_layer: bool = False
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -89,14 +95,16 @@ class HiZSSRParams(FadeParams):
             raise ValueError(f"max_mip: must be an integer >= 0, got {self.max_mip!r}")
         if self.thickness_mode not in THICKNESS_MODES:
             raise ValueError(f"thickness_mode: expected one of {THICKNESS_MODES}, got {self.thickness_mode!r}")
-        for name in ("reject_backfaces", "trace_behind", "use_back_face_depth"):
+        for name in ("reject_backfaces", "trace_behind", "use_back_face_depth", "use_second_layer"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name}: expected True or False, got {getattr(self, name)!r}")
 
 
 def required_channels(params: HiZSSRParams) -> tuple[str, ...]:
-    """The channels :func:`ssr_hiz` reads with ``params`` (``back_z`` only with ``use_back_face_depth``)."""
-    return REQUIRES + (REQUIRES_BACKFACE if params.use_back_face_depth else ())
+    """The channels :func:`ssr_hiz` reads with ``params`` (``back_z`` only with ``use_back_face_depth``,
+    ``second_z`` only with ``use_second_layer``)."""
+    return REQUIRES + (REQUIRES_BACKFACE if params.use_back_face_depth else ()) + \
+        (REQUIRES_SECOND_LAYER if params.use_second_layer else ())
 
 
 def check_inputs(gbuffer: GBuffer, params: HiZSSRParams) -> None:
@@ -110,8 +118,9 @@ def texels(gbuffer: GBuffer, params: HiZSSRParams) -> HiZTexels:
     """The flat per-texel buffers candidates are validated against."""
     dt = gbuffer.view_z.dtype
     back = gbuffer.back_z.to(dt).reshape(-1) if params.use_back_face_depth else None
+    second = gbuffer.second_z.to(dt).reshape(-1) if params.use_second_layer else None
     return HiZTexels(view_z=gbuffer.view_z.reshape(-1), normal=gbuffer.normal.to(dt).permute(0, 2, 3, 1).reshape(-1, 3),
-                     back_z=back)
+                     back_z=back, second_z=second)
 
 
 @half_in_float32

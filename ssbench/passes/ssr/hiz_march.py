@@ -16,9 +16,10 @@ reversed-depth max pyramid of :mod:`.hiz_pyramid`:
 3. **Candidates** are validated at the texel: the ray's view z must lie within the thickness behind the surface
    (``depth_buffer_thickness`` view units, or ``× |z|`` in HDRP's ``"relative"`` mode, or down to ``back_z``
    with layered depth), and with ``reject_backfaces`` the texel must face the ray (FidelityFX's
-   ``dot(n_hit, d) > 0`` rejection). A failed candidate ends the ray (``BEHIND_SURFACE``, FidelityFX) or, with
+   ``dot(n_hit, d) > 0`` rejection), or — with the second depth layer — within the thickness behind the surface
+   the first one hides. A failed candidate ends the ray (``BEHIND_SURFACE``, FidelityFX) or, with
    ``trace_behind``, the ray crosses that texel at level 0 and goes on (HDRP's "tracing behind objects has linear
-   rather than logarithmic complexity").
+   rather than logarithmic complexity"); with the second layer, a ray still in front of it goes on too.
 
 Exits: ``OFF_SCREEN``; ``MAX_DISTANCE`` when the segment ends inside a cell it is in front of (``BEHIND_CAMERA`` if
 the near plane clipped it); ``OUT_OF_STEPS`` when the budget runs out — FidelityFX's ``valid_hit = i ≤
@@ -89,11 +90,12 @@ class HiZRays:
 @dataclass(frozen=True)
 class HiZTexels:
     """What a candidate is validated against, flat over ``B·H·W``: ``view_z``, ``normal`` :math:`(BHW, 3)`,
-    ``back_z`` (``None`` without layered depth)."""
+    ``back_z`` (``None`` without layered depth), ``second_z`` (``None`` without the second layer)."""
 
     view_z: torch.Tensor
     normal: torch.Tensor
     back_z: Optional[torch.Tensor] = None
+    second_z: Optional[torch.Tensor] = None
 
 
 def inverse(v: torch.Tensor) -> torch.Tensor:
@@ -145,16 +147,26 @@ def hiz_rays(gbuffer: GBuffer, max_ray_distance: float, sel: torch.Tensor, direc
     return rays, sel, P0, P1
 
 
+def _thickness(params, z: torch.Tensor) -> torch.Tensor:
+    return params.depth_buffer_thickness * (z.abs() if params.thickness_mode == "relative" else 1.0)
+
+
 def _validate(ray_dir: torch.Tensor, texel: torch.Tensor, z: torch.Tensor, near: float, tex: HiZTexels,
-              params) -> torch.Tensor:
-    """Which candidates hit: the ray within the thickness behind ``texel`` (flat index), facing it if asked."""
+              params) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Which candidates hit: the ray within the thickness behind ``texel`` (flat index), facing it if asked, or
+    within the second layer's; which are in front of the second layer (they go on), and that layer's ``rz``."""
     zs = tex.view_z[texel]
-    thick = params.depth_buffer_thickness * (zs.abs() if params.thickness_mode == "relative" else 1.0)
-    bottom = (tex.back_z[texel] if tex.back_z is not None else zs) - thick
-    ok = -near / z.clamp_min(torch.finfo(z.dtype).tiny) >= bottom
+    bottom = (tex.back_z[texel] if tex.back_z is not None else zs) - _thickness(params, zs)
+    zr = -near / z.clamp_min(torch.finfo(z.dtype).tiny)
+    ok = zr >= bottom
     if params.reject_backfaces:
         ok = ok & ((ray_dir * tex.normal[texel]).sum(1) <= 0)
-    return ok
+    if tex.second_z is None:
+        return ok, torch.zeros_like(ok), torch.zeros_like(z)
+    z2 = tex.second_z[texel]
+    in2 = (zr <= z2) & (zr >= z2 - _thickness(params, z2))
+    front2 = ~ok & (zr > z2)
+    return ok | in2, front2, torch.where(front2, near / -z2.clamp_max(-torch.finfo(z.dtype).tiny), 0.0)
 
 
 def hiz_march(r: HiZRays, pyr: DepthPyramid, tex: HiZTexels, params, gbuffer: GBuffer,
@@ -206,16 +218,24 @@ def hiz_march(r: HiZRays, pyr: DepthPyramid, tex: HiZTexels, params, gbuffer: GB
         hit = torch.zeros_like(above)
         cand = (on & (mip < 0)).nonzero().squeeze(1)
         if cand.numel():
-            ok = _validate(r.ray_dir[r.i[cand]], r.b[cand] * H * W + cy[cand] * W + cx[cand], z[cand], cam.near,
-                           tex, params)
+            ok, front2, rz2 = _validate(r.ray_dir[r.i[cand]], r.b[cand] * H * W + cy[cand] * W + cx[cand],
+                                        z[cand], cam.near, tex, params)
+            cc = c[:, cand]                                   # the second layer, reached inside this texel
+            t2 = torch.where(front2 & (cc[INVZ] != 0), (rz2 - cc[OZ]) * cc[INVZ], torch.inf)
+            reach = front2 & (rz2 > 0) & (t2 <= side[cand])                       # (no layer behind: rz2 = 0)
+            t_hit = torch.where(reach, t2, t[cand])
+            px_, py_, pz_ = cc[OX] + t_hit * cc[VX], cc[OY] + t_hit * cc[VY], cc[OZ] + t_hit * cc[VZ]
+            px_, py_, pz_ = (torch.where(reach, a, b) for a, b in ((px_, x[cand]), (py_, y[cand]), (pz_, z[cand])))
+            ok = ok | reach
+            front2 = front2 & ~reach
             hit[cand] = ok
-            h = cand[ok]
-            out.P[r.i[h]] = torch.stack([x[h], y[h]], 1)
-            uv = torch.stack([x[h] / W, 1.0 - y[h] / H], 0)
-            out.Q[r.i[h]] = cam.uv_to_view(uv, -cam.near / z[h], dim=0).T.to(dt)
-            if params.trace_behind:                                               # cross the texel, stay at level 0
-                t_new[cand] = torch.where(ok, t_new[cand], side[cand])
-                mip[cand] = torch.where(ok, mip[cand], 0)
+            h = ok.nonzero().squeeze(1)
+            out.P[r.i[cand[h]]] = torch.stack([px_[h], py_[h]], 1)
+            uv = torch.stack([px_[h] / W, 1.0 - py_[h] / H], 0)
+            out.Q[r.i[cand[h]]] = cam.uv_to_view(uv, -cam.near / pz_[h], dim=0).T.to(dt)
+            go = ~ok if params.trace_behind else front2                           # cross the texel at level 0
+            t_new[cand] = torch.where(go, side[cand], t_new[cand])
+            mip[cand] = torch.where(go, 0, mip[cand])
         r.t, r.mip = t_new, mip
         done = off | hit | (mip < 0) | (t_new >= 1.0)
         if bool(done.any()):

@@ -75,6 +75,7 @@ def ssr_dda_basic(gbuffer: GBuffer, params: DDASSRParams = DDASSRParams(),
         return min(max(Qz / max(k, TINY), zMin), zMax)
 
     backDepth = gbuffer.back_z.double().tolist() if params.use_back_face_depth else None
+    secondDepth = gbuffer.second_z.double().tolist() if params.use_second_layer else None
 
     def texelFetch(b, hitPixel):                         # (sceneZMax, mask) at int2(hitPixel), or None off screen
         x, y = hitPixel
@@ -162,7 +163,11 @@ def ssr_dda_basic(gbuffer: GBuffer, params: DDASSRParams = DDASSRParams(),
             sceneZMax, geometry = scene
             # layered depth (kode80): the texel reaches down to its back face
             sceneZBack = backDepth[b][0][math.floor(hitPixel[1])][math.floor(hitPixel[0])] if backDepth else sceneZMax
-            if geometry and rayZMax >= sceneZBack - zThickness and rayZMin <= sceneZMax:
+            layer2 = False
+            if secondDepth:                              # G3D traceScreenSpaceRay2: the layer behind, too
+                z2 = secondDepth[b][0][math.floor(hitPixel[1])][math.floor(hitPixel[0])]
+                layer2 = rayZMax >= z2 - zThickness and rayZMin <= z2
+            if geometry and ((rayZMax >= sceneZBack - zThickness and rayZMin <= sceneZMax) or layer2):
                 intersect = True
                 break
             if last:                                     # reason as the full step's centre says

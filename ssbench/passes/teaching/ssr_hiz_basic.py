@@ -70,14 +70,24 @@ def AdvanceRay(origin, direction, current_t, current_mip, surface_z, cell):
     return current_t, skipped_tile, above_surface, side_t
 
 
+def thickness_at(z, params):
+    return params.depth_buffer_thickness * (abs(z) if params.thickness_mode == "relative" else 1.0)
+
+
 def validate_hit(view_z, back_z, normal, ray_z_view, ray_dir, params):
     """Within the thickness behind the texel (and facing the ray, with ``reject_backfaces``)?"""
-    thickness = params.depth_buffer_thickness * (abs(view_z) if params.thickness_mode == "relative" else 1.0)
-    bottom = (back_z if params.use_back_face_depth else view_z) - thickness
+    bottom = (back_z if params.use_back_face_depth else view_z) - thickness_at(view_z, params)
     ok = ray_z_view >= bottom
     if params.reject_backfaces and sum(ray_dir[c] * normal[c] for c in range(3)) > 0:
         ok = False
     return ok
+
+
+def second_layer(second_z, ray_z_view, params):
+    """``(hit, in_front)`` against the second depth layer: within its thickness, or still in front of it."""
+    if second_z is None:
+        return False, False
+    return second_z - thickness_at(second_z, params) <= ray_z_view <= second_z, ray_z_view > second_z
 
 
 def trace_ray(levels, texel, origin, direction, ray_dir, clipped, params, near, path=None):
@@ -101,13 +111,19 @@ def trace_ray(levels, texel, origin, direction, ray_dir, clipped, params, near, 
             path.append((current_mip, cell, current_t, above, skipped_tile))
         current_mip = min(current_mip + 1, top) if skipped_tile else current_mip - 1
         if current_mip < 0:                                    # behind a level-0 texel: a candidate
-            view_z, back_z, normal = texel(cell[0], cell[1])
+            view_z, back_z, normal, second_z = texel(cell[0], cell[1])
             ray_z_view = -near / position[2]
-            if validate_hit(view_z, back_z, normal, ray_z_view, ray_dir, params):
+            first = validate_hit(view_z, back_z, normal, ray_z_view, ray_dir, params)
+            hit2, in_front2 = second_layer(second_z, ray_z_view, params)
+            if first or hit2:
                 return HIT, i + 1, position
-            if not params.trace_behind:                        # FidelityFX: the ray ends behind the surface
+            if in_front2 and direction[2] < 0 and second_z > -INF:   # the second layer, reached inside this texel?
+                t2 = (near / -second_z - origin[2]) * (1.0 / direction[2])
+                if t2 <= side_t:
+                    return HIT, i + 1, [origin[c] + t2 * direction[c] for c in range(3)]
+            if not (params.trace_behind or in_front2):         # FidelityFX: the ray ends behind the surface
                 return BEHIND_SURFACE, i + 1, None
-            current_t, current_mip = side_t, 0                 # HDRP: cross this texel and go on
+            current_t, current_mip = side_t, 0                 # HDRP / second layer: cross this texel, go on
         if current_t >= 1.0:
             return ended, i + 1, None
     return OUT_OF_STEPS, params.max_traversal_intersections, None   # FIX: never a hit (FidelityFX: valid_hit)
@@ -150,12 +166,13 @@ def trace_pixel(gbuffer: GBuffer, params: HiZSSRParams = HiZSSRParams(), pixel=(
     z, mask = gbuffer.view_z[0, 0].double().tolist(), gbuffer.mask[0, 0].tolist()
     normal = gbuffer.normal[0].double()
     back = gbuffer.back_z[0, 0].double().tolist() if params.use_back_face_depth else None
+    second = gbuffer.second_z[0, 0].double().tolist() if params.use_second_layer else None
     levels = build_pyramid([[cam.near / -z[y][x] if mask[y][x] else 0.0 for x in range(W)] for y in range(H)])
     origin, direction, d, clipped, P1 = setup_ray(cam, W, H, z[j][i], normal[:, j, i].tolist(), i, j,
                                                   params.max_ray_distance)
     path = []
     term, steps, pos = trace_ray(levels, lambda x, y: (z[y][x], back[y][x] if back else None,
-                                                      normal[:, y, x].tolist()),
+                                                      normal[:, y, x].tolist(), second[y][x] if second else None),
                                  origin, direction, d, clipped, params, cam.near, path)
     return {"termination": term, "steps": steps, "position": pos, "path": path, "levels": levels,
             "origin": origin, "direction": direction, "p1": P1}
@@ -171,6 +188,7 @@ def ssr_hiz_basic(gbuffer: GBuffer, params: HiZSSRParams = HiZSSRParams(),
     z = gbuffer.view_z.double().tolist()
     mask, normal = gbuffer.mask.tolist(), gbuffer.normal.double().tolist()
     back = gbuffer.back_z.double().tolist() if params.use_back_face_depth else None
+    second = gbuffer.second_z.double().tolist() if params.use_second_layer else None
     a0, a1, b0, b1 = cam.uv_to_view_params()
     rows, outs, ends = [], [], []
     for b in range(B):
@@ -178,7 +196,8 @@ def ssr_hiz_basic(gbuffer: GBuffer, params: HiZSSRParams = HiZSSRParams(),
         levels = build_pyramid(rz)
 
         def texel(x, y, b=b):
-            return z[b][0][y][x], (back[b][0][y][x] if back else None), [normal[b][c][y][x] for c in range(3)]
+            return (z[b][0][y][x], (back[b][0][y][x] if back else None), [normal[b][c][y][x] for c in range(3)],
+                    second[b][0][y][x] if second else None)
 
         for j in range(H):
             for i in range(W):

@@ -408,3 +408,25 @@ def test_back_face_depth_is_a_per_texel_thickness(kw):
     assert torch.equal(twin.termination, layered.termination)
     with pytest.raises(ValueError, match="back_z"):
         ssr_dda(room(8, 6), DDASSRParams(use_back_face_depth=True))
+
+
+def test_second_layer_sees_behind_the_bar():
+    """G3D's two-layer trace: with ``second_z`` a ray passing behind the thin bar hits the wall the bar hides;
+    with one layer it cannot (that wall is not in the depth buffer). The twin agrees."""
+    from tests.passes.ssr_scenes import with_second_layer
+    W, H = 96, 72                                           # the bar is two pixels tall
+    g = with_second_layer(room(W, H, slat=True))
+    bar = (g.shape_id == 2)[0, 0]
+    one = ssr_dda(g, DDASSRParams(max_ray_distance=30.0, z_thickness=0.05))
+    two = ssr_dda(g, DDASSRParams(max_ray_distance=30.0, z_thickness=0.05, use_second_layer=True))
+
+    def hidden_hits(r):                                     # hits on a bar texel, at the wall's depth
+        px = r.hit_pixel[0].floor().long().clamp_min(0)
+        on_bar = r.hit[0, 0] & bar[px[1].clamp(max=H - 1), px[0].clamp(max=W - 1)]
+        behind = r.hit_view[0, 2] < g.view_z[0, 0][px[1].clamp(max=H - 1), px[0].clamp(max=W - 1)] - 1.0
+        return int((on_bar & behind).sum())                 # a unit farther than the bar: the wall it hides
+    assert hidden_hits(one) == 0 and hidden_hits(two) > 5
+    twin = ssr_dda_basic(g, DDASSRParams(max_ray_distance=30.0, z_thickness=0.05, use_second_layer=True))
+    assert torch.equal(twin.termination, two.termination)
+    with pytest.raises(ValueError, match="second_z"):
+        ssr_dda(room(8, 6), DDASSRParams(use_second_layer=True))

@@ -207,3 +207,26 @@ def test_back_face_depth_is_a_per_texel_thickness():
     assert int(layered.hit.sum()) > 100
     twin = ssr_hiz_basic(g, HiZSSRParams(max_ray_distance=30.0, use_back_face_depth=True, depth_buffer_thickness=0.0))
     assert torch.equal(twin.termination, layered.termination)
+
+
+def test_second_layer_sees_behind_the_bar():
+    """As for the DDA: behind the bar, a ray in front of the second layer goes on (even in FidelityFX mode) and hits
+    the wall the bar hides; the twin agrees."""
+    from tests.passes.ssr_scenes import with_second_layer
+    W, H = 96, 72                                           # the bar is two pixels tall
+    g = with_second_layer(room(W, H, slat=True))
+    bar = (g.shape_id == 2)[0, 0]
+    p = dict(max_ray_distance=30.0, depth_buffer_thickness=0.05)
+    one, two = ssr_hiz(g, HiZSSRParams(**p)), ssr_hiz(g, HiZSSRParams(use_second_layer=True, **p))
+
+    def hidden_hits(r):
+        px = r.hit_pixel[0].floor().long().clamp_min(0)
+        on_bar = r.hit[0, 0] & bar[px[1].clamp(max=H - 1), px[0].clamp(max=W - 1)]
+        behind = r.hit_view[0, 2] < g.view_z[0, 0][px[1].clamp(max=H - 1), px[0].clamp(max=W - 1)] - 1.0
+        return int((on_bar & behind).sum())                 # a unit farther than the bar: the wall it hides
+    assert hidden_hits(one) == 0 and hidden_hits(two) > 5
+    assert int((two.termination == BEHIND_SURFACE).sum()) < int((one.termination == BEHIND_SURFACE).sum())
+    twin = ssr_hiz_basic(g, HiZSSRParams(use_second_layer=True, **p))
+    assert torch.equal(twin.termination, two.termination) and torch.equal(twin.steps, two.steps)
+    with pytest.raises(ValueError, match="second_z"):
+        ssr_hiz(room(8, 6), HiZSSRParams(use_second_layer=True))

@@ -84,6 +84,25 @@ def clip_ray_length(origin_z: torch.Tensor, dir_z: torch.Tensor, max_distance: f
                        torch.full_like(clipped, max_distance))
 
 
+def ray_segments(gbuffer, sel: torch.Tensor, max_ray_distance: float, directions: Optional[torch.Tensor] = None):
+    """The view-space rays of the pixels ``sel`` (flat ``b·H·W + j·W + i``), clipped at the near plane:
+    ``(b, px, o, d, end)`` — each ray's image and pixel index, origin ``rayOrg`` :math:`(N, 3)` (``uv_to_view``
+    of its depth), unit direction (the mirror ray ``reflection_rays``, or ``directions`` :math:`(B, 3, H, W)`
+    when given) and clipped end ``rayOrg + rayDir · clip_ray_length`` (SSR article §1.1–1.2). Shared by the
+    marchers' set-ups (``dda_rays``, ``hiz_rays``)."""
+    cam, vz = gbuffer.camera, gbuffer.view_z
+    B, _, H, W = vz.shape
+    dt, dev = vz.dtype, vz.device
+    b, px = sel // (H * W), sel % (H * W)                                         # image and pixel of each ray
+    col = lambda x: x.reshape(x.shape[0], x.shape[1], -1)[b, :, px].T[None, :, :, None]   # noqa: E731  (1, C, N, 1)
+    uv = cam.uv_grid(dt, dev).reshape(2, -1)[:, px][None, :, :, None]
+    pos = cam.uv_to_view(uv, col(vz))                                             # (1, 3, N, 1) rayOrg
+    R = reflection_rays(pos, col(gbuffer.normal).to(dt)) if directions is None else col(directions).to(dt)
+    o, d = pos[0, :, :, 0].T, R[0, :, :, 0].T                                     # (N, 3)
+    end = o + d * clip_ray_length(o[:, 2], d[:, 2], max_ray_distance, cam.near)[:, None]   # rayEnd
+    return b, px, o, d, end
+
+
 def empty_result(like: torch.Tensor, debug: Optional[dict] = None) -> SSRResult:
     """An all-miss result shaped like ``like`` :math:`(B, *, H, W)` (for tests and degenerate inputs)."""
     B, _, H, W = like.shape

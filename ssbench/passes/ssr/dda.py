@@ -63,7 +63,7 @@ from ...camera import Camera
 from ...gbuffer import GBuffer
 from ..common import check_count, make_generator
 from ..gbuffer_checks import check_gbuffer, half_in_float32
-from .common import SSRResult, clip_ray_length, reflection_rays
+from .common import SSRResult, ray_segments
 from .dda_assemble import assemble
 from .dda_march import dda_march, ray_view_z
 from .dda_state import DDARays, march_in_chunks
@@ -187,13 +187,7 @@ def dda_rays(gbuffer: GBuffer, params: DDASSRParams, jitter: torch.Tensor, sel: 
     B, _, H, W = vz.shape
     dt, dev = vz.dtype, vz.device
     sel = ray_pixels(gbuffer) if sel is None else sel
-    b, px = sel // (H * W), sel % (H * W)                                         # image and pixel of each ray
-    col = lambda x: x.reshape(x.shape[0], x.shape[1], -1)[b, :, px].T[None, :, :, None]   # noqa: E731  (1, C, N, 1)
-    uv = cam.uv_grid(dt, dev).reshape(2, -1)[:, px][None, :, :, None]
-    pos = cam.uv_to_view(uv, col(vz))                                             # (1, 3, N, 1) rayOrg
-    R = reflection_rays(pos, col(gbuffer.normal).to(dt))                          # (1, 3, N, 1) rayDir
-    o, d = pos[0, :, :, 0].T, R[0, :, :, 0].T                                     # (N, 3)
-    end = o + d * clip_ray_length(o[:, 2], d[:, 2], params.max_ray_distance, cam.near)[:, None]   # rayEnd
+    b, _, o, d, end = ray_segments(gbuffer, sel, params.max_ray_distance)          # rayOrg, rayDir, rayEnd
     M = project_to_pixel_matrix(cam, dt, dev)
     hom = lambda c: c[:, :1] * M[:, 0] + c[:, 1:2] * M[:, 1] + c[:, 2:3] * M[:, 2] + M[:, 3]   # noqa: E731  M·(c, 1)
     H0, H1 = hom(o), hom(end)                                                     # (N, 4) homogeneous

@@ -33,8 +33,7 @@ from typing import Optional
 import torch
 
 from ...gbuffer import GBuffer
-from .common import (BEHIND_CAMERA, BEHIND_SURFACE, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS, clip_ray_length,
-                     reflection_rays)
+from .common import BEHIND_CAMERA, BEHIND_SURFACE, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS, ray_segments
 from .dda_state import MarchOutput
 from .hiz_pyramid import DepthPyramid
 
@@ -120,16 +119,9 @@ def hiz_rays(gbuffer: GBuffer, max_ray_distance: float, sel: torch.Tensor, direc
     initial advance done; ``P0``, ``P1`` :math:`(N, 2)` the segment's ends in pixels. The rays follow
     ``directions`` :math:`(B, 3, H, W)` (unit, view space) when given, else the mirror reflections."""
     cam, vz = gbuffer.camera, gbuffer.view_z
-    B, _, H, W = vz.shape
+    W = vz.shape[-1]
     dt, dev = vz.dtype, vz.device
-    b, px = sel // (H * W), sel % (H * W)
-    col = lambda x: x.reshape(x.shape[0], x.shape[1], -1)[b, :, px].T[None, :, :, None]   # noqa: E731  (1, C, N, 1)
-    uv = cam.uv_grid(dt, dev).reshape(2, -1)[:, px][None, :, :, None]
-    pos = cam.uv_to_view(uv, col(vz))                                             # (1, 3, N, 1)
-    R = reflection_rays(pos, col(gbuffer.normal).to(dt)) if directions is None else col(directions).to(dt)
-    o, d = pos[0, :, :, 0].T, R[0, :, :, 0].T                                     # (N, 3)
-    length = clip_ray_length(o[:, 2], d[:, 2], max_ray_distance, cam.near)
-    end = o + d * length[:, None]
+    b, px, o, d, end = ray_segments(gbuffer, sel, max_ray_distance, directions)
     P0 = torch.stack([(px % W).to(dt) + 0.5, (px // W).to(dt) + 0.5], 1)          # the origin pixel's centre
     P1 = cam.view_to_pixel(end, dim=1)
     rz0, rz1 = cam.near / -o[:, 2], cam.near / -end[:, 2]

@@ -102,16 +102,20 @@ def inverse(v: torch.Tensor) -> torch.Tensor:
     return torch.where(v == 0, BIG, 1.0 / torch.where(v == 0, torch.ones_like(v), v))
 
 
-def cell_exit(o: torch.Tensor, v: torch.Tensor, cell: torch.Tensor, scale: torch.Tensor) -> torch.Tensor:
-    """``t`` where ``o + t·v`` crosses the far border of ``cell`` (cells ``scale`` pixels wide) by
-    :data:`EPSILON` (``≥ BIG/…``, never the nearest border, where ``v == 0``).
+def cell_exit(o: torch.Tensor, inv: torch.Tensor, off: torch.Tensor, eps: torch.Tensor, cell: torch.Tensor,
+              scale: torch.Tensor) -> torch.Tensor:
+    """``AdvanceRay``'s border time: ``t`` where ``o + t·v`` crosses the far border of ``cell`` (cells ``scale``
+    pixels wide) by :data:`EPSILON`, from the ray's constants along that axis (:data:`COLUMNS`): ``inv = 1/v``
+    (:func:`inverse`: huge, never the nearest border, where ``v == 0``), ``off = (v ≥ 0)``, ``eps =
+    EPSILON·sign(v)``.
 
     Example:
-        >>> cell_exit(torch.tensor([2.5, 2.5]), torch.tensor([2.0, -1.0]), torch.tensor([1, 1]), torch.tensor([2.0, 2.0]))
+        >>> v = torch.tensor([2.0, -1.0])
+        >>> cell_exit(torch.tensor([2.5, 2.5]), inverse(v), (v >= 0).float(), EPSILON * torch.sign(v),
+        ...           torch.tensor([1, 1]), torch.tensor([2.0, 2.0]))
         tensor([0.7525, 0.5050])
     """
-    border = (cell + (v >= 0).to(cell.dtype)).to(o.dtype) * scale + EPSILON * torch.sign(v)
-    return (border - o) * inverse(v)
+    return ((cell.to(o.dtype) + off) * scale + eps - o) * inv
 
 
 def hiz_rays(gbuffer: GBuffer, max_ray_distance: float, sel: torch.Tensor, directions: Optional[torch.Tensor] = None):
@@ -132,8 +136,8 @@ def hiz_rays(gbuffer: GBuffer, max_ray_distance: float, sel: torch.Tensor, direc
                      (v[:, 0] >= 0).to(dt), (v[:, 1] >= 0).to(dt), EPSILON * torch.sign(v[:, 0]),
                      EPSILON * torch.sign(v[:, 1])], 0)
     one = torch.ones_like(rz0)
-    t0 = torch.minimum(cell_exit(P0[:, 0], v[:, 0], P0[:, 0].floor(), one),
-                       cell_exit(P0[:, 1], v[:, 1], P0[:, 1].floor(), one))        # InitialAdvanceRay
+    t0 = torch.minimum(cell_exit(c[OX], c[INVX], c[OFFX], c[EPSX], P0[:, 0].floor(), one),
+                       cell_exit(c[OY], c[INVY], c[OFFY], c[EPSY], P0[:, 1].floor(), one))   # InitialAdvanceRay
     rays = HiZRays(i=torch.arange(sel.numel(), device=dev), b=b, t=torch.minimum(t0, one), mip=torch.zeros_like(b),
                    c=c, ray_dir=d, clipped=o[:, 2] + d[:, 2] * max_ray_distance > -cam.near)
     return rays, sel, P0, P1
@@ -199,8 +203,8 @@ def hiz_march(r: HiZRays, pyr: DepthPyramid, tex: HiZTexels, params, gbuffer: GB
         if visits is not None:
             at0 = on & (r.mip == 0)
             visits.index_add_(0, (r.b * H * W + cy * W + cx)[at0], torch.ones_like(cx[at0], dtype=visits.dtype))
-        tx = ((cx.to(dt) + c[OFFX]) * scale + c[EPSX] - c[OX]) * c[INVX]   # AdvanceRay: the borders
-        ty = ((cy.to(dt) + c[OFFY]) * scale + c[EPSY] - c[OY]) * c[INVY]
+        tx = cell_exit(c[OX], c[INVX], c[OFFX], c[EPSX], cx, scale)              # AdvanceRay: the borders
+        ty = cell_exit(c[OY], c[INVY], c[OFFY], c[EPSY], cy, scale)
         tz = torch.where((c[INVZ] != 0) & (surface > 0), (surface - c[OZ]) * c[INVZ], torch.inf)   # its closest depth
         side = torch.minimum(tx, ty)
         above = (z > surface) | (surface <= 0)                                    # a cell of background: skip it

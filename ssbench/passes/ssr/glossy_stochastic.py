@@ -146,10 +146,11 @@ def ssr_glossy_stochastic(gbuffer: GBuffer, params: StochasticSSRParams = Stocha
         m = sample_vndf(v_loc, alpha, u[0], u[1])
         cos_vm = (v_loc * m).sum(1, keepdim=True)
         l_loc = 2.0 * cos_vm * m - v_loc
-        r = march_hiz(gbuffer, march, from_local(l_loc, t, b, n), debug and first is None)
+        l_dir = from_local(l_loc, t, b, n)
+        r = march_hiz(gbuffer, march, l_dir, debug and first is None)
         above = l_loc[:, 2:] > 0
         pdf = reflection_pdf(v_loc[:, 2], m[:, 2], alpha)[:, None]
-        samples.append((r, above, pdf, from_local(l_loc, t, b, n)))
+        samples.append((r, above, pdf, l_dir))
         first = first or r
     num_raw = torch.zeros(B, 3, H, W, dtype=dt, device=dev)
     num_fade, den = torch.zeros_like(num_raw), torch.zeros(B, 1, H, W, dtype=dt, device=dev)

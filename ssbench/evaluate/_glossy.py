@@ -56,24 +56,20 @@ class GlossyEvaluation:
 
 
 def _rmse(a: torch.Tensor, b: torch.Tensor, m: torch.Tensor) -> float:
-    if not bool(m.any()):
-        return math.nan
-    return float(((a.double() - b.double()) ** 2).mean(1, keepdim=True)[m].mean().sqrt())
+    from ..metrics import rmse
+    return float(rmse(a.double(), b.double(), m))
 
 
 def _net(a: torch.Tensor, b: torch.Tensor, se: torch.Tensor, m: torch.Tensor) -> float:
     """The RMSE of ``a`` against a noisy truth ``b`` with the truth's variance (``se²``) taken out:
-    ``√max(0, mean((a − b)²) − mean(se²))`` (``E[(a − b̂)²] = (a − b)² + se²`` for an unbiased ``b̂``)."""
-    if not bool(m.any()):
-        return math.nan
-    mse = ((a.double() - b.double()) ** 2).mean(1, keepdim=True)[m].mean()
-    return float((mse - (se.double() ** 2).mean(1, keepdim=True)[m].mean()).clamp_min(0.0).sqrt())
+    ``√max(0, RMSE² − mean se²)`` (``E[(a − b̂)²] = (a − b)² + se²`` for an unbiased ``b̂``)."""
+    var = _rmse(se, torch.zeros_like(se), m) ** 2
+    return math.sqrt(max(0.0, _rmse(a, b, m) ** 2 - var)) if bool(m.any()) else math.nan
 
 
 def _mae(a: torch.Tensor, b: torch.Tensor, m: torch.Tensor) -> float:
-    if not bool(m.any()):
-        return math.nan
-    return float((a.double() - b.double()).abs().mean(1, keepdim=True)[m].mean())
+    from ..metrics import mae
+    return float(mae(a.double(), b.double(), m))
 
 
 def _scores(est: torch.Tensor, truth, m: torch.Tensor) -> dict:
@@ -107,7 +103,7 @@ def run_glossy(scene, method: str, params=None, *, width: int = 160, height: int
     from ..passes.ssr.resolve import specular_weight
     from ..reference.glossy import glossy_reflections
     from ..scenes import load as load_scene
-    from ._ssr import accepted_kwargs, pass_channels
+    from ._ssr import accepted_kwargs, on_cpu, pass_channels
     import importlib
     fn, params_cls, _ = ssr_method(method)
     p = resolve_params(params_cls, params, method)
@@ -129,9 +125,7 @@ def run_glossy(scene, method: str, params=None, *, width: int = 160, height: int
         return fn(g_pass, p, **accepted_kwargs(fn, generator=gen))
 
     result, times = timed_runs(run_pass, repeats, device, warmup)
-    result = dataclasses.replace(result, **{f.name: getattr(result, f.name).detach().cpu()
-                                            for f in dataclasses.fields(result)
-                                            if isinstance(getattr(result, f.name), torch.Tensor)})
+    result = on_cpu(result)
     if truth is None:
         truth = glossy_reflections(sc, gbuffer, rays=rays, seed=seed, use_cache=use_cache)
     g = gbuffer.to("cpu")

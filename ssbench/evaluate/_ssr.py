@@ -134,7 +134,7 @@ def accepted_kwargs(fn, **candidates) -> dict:
     return {k: v for k, v in candidates.items() if k in sig.parameters}
 
 
-def _cpu(result):
+def on_cpu(result):
     """``result`` with every tensor field detached and on the CPU."""
     if not dataclasses.is_dataclass(result):
         raise TypeError(f"method: expected the pass to return an SSRResult, got {type(result).__name__}")
@@ -214,13 +214,13 @@ def run_ssr(scene, method: str, params=None, *, width: int = 320, height: int = 
         return fn(g_pass, p, **extra)
 
     result, times = timed_runs(run_pass, repeats, device, warmup)
-    result = _cpu(result)
+    result = on_cpu(result)
     if tuple(result.hit.shape) != (1, 1, H, W):
         raise ValueError(f"method: {method!r} returned hit of shape {tuple(result.hit.shape)}, expected "
                          f"(1, 1, {H}, {W})")
     dbg = dict(getattr(result, "debug", None) or {})
     if debug and "debug" in accepted_kwargs(fn, debug=True):
-        dbg = dict(_cpu(run_pass(True)).debug or {})
+        dbg = dict(on_cpu(run_pass(True)).debug or {})
     dbg = {k: (v.detach().cpu() if isinstance(v, torch.Tensor) else v) for k, v in dbg.items()}
 
     if truth is None:

@@ -15,20 +15,14 @@ import os
 import time
 from typing import Optional
 
-import numpy as np
 import torch
 
+from ..pictures import color_rgb
 from .summary import fmt, unavailable_md
 
 SCENE = "glossy_ramp"
 TRUTH_RAYS = 64
 SPP = 16
-
-
-def _display(rgb: torch.Tensor) -> np.ndarray:
-    """Linear radiance (1, 3, H, W) → 8-bit sRGB-ish (clamped at 1, gamma 2.2)."""
-    x = rgb[0].permute(1, 2, 0).double().clamp(0, 1) ** (1 / 2.2)
-    return (x.numpy() * 255 + 0.5).astype(np.uint8)
 
 
 def _curves(path: str, rows: list[dict], glossy: set) -> None:
@@ -95,12 +89,12 @@ def build_glossy_section(run_dir: str, width: int = 160, height: int = 120, *, s
             continue
         if truth is None:
             for name, rgb in (("lobe", ev.truth.lobe), ("oracle", ev.truth.oracle)):
-                Image.fromarray(_display(rgb)).save(os.path.join(d, f"{name}.png"))
+                Image.fromarray(color_rgb(rgb)).save(os.path.join(d, f"{name}.png"))
                 images[name] = f"img/glossy/{name}.png"
         g, truth = ev.gbuffer, ev.truth
         rows.append({"kind": "glossy", **ev.row, "glossy": m in glossy})
         if m in glossy:
-            Image.fromarray(_display(ev.result.raw_color)).save(os.path.join(d, f"{m}.png"))
+            Image.fromarray(color_rgb(ev.result.raw_color)).save(os.path.join(d, f"{m}.png"))
             images[m] = f"img/glossy/{m}.png"
     if rows:
         _curves(os.path.join(d, "error.png"), rows, glossy)

@@ -18,7 +18,8 @@ if TYPE_CHECKING:                                        # (ssr_dda imports this
 
 def fetch_cell(permute: torch.Tensor, b: torch.Tensor, Px: torch.Tensor, Py: torch.Tensor, tex, H: int, W: int):
     """``(on_screen, flat texel, sceneZMax, mask)`` at ``hitPixel = permute ? P.yx : P`` (``texelFetch``) of the
-    rays in batch items ``b``; ``tex`` is ``(view_z, mask[, back_z, second_z])`` flattened (``None``: unused)."""
+    rays in batch items ``b``; ``tex`` is :func:`~ssbench.passes.ssr.dda.depth_texels`' ``(view_z, mask, back_z,
+    second_z)``, flattened (``None``: that layer is not used)."""
     px, py = torch.where(permute, Py, Px), torch.where(permute, Px, Py)
     on = (px >= 0) & (px < W) & (py >= 0) & (py < H)
     t = b * (H * W) + py.floor().clamp(0, H - 1).long() * W + px.floor().clamp(0, W - 1).long()
@@ -107,9 +108,9 @@ def dda_march(s: DDARays, tex, params: "DDASSRParams", H: int, W: int, visits: O
         rayZMax = ray_view_z(s.dQz * half + s.Qz, s.dk * half + s.k, s.zlo, s.zhi)   # footprint end
         s.prevZ = rayZMax
         rayZMin, rayZMax = torch.minimum(rayZMin, rayZMax), torch.maximum(rayZMin, rayZMax)   # swap
-        bottom = tex[2][t] if len(tex) > 2 and tex[2] is not None else sceneZMax  # layered depth: the back face
+        bottom = tex[2][t] if tex[2] is not None else sceneZMax                  # layered depth: the back face
         hit = live & m & (rayZMax >= bottom - params.z_thickness) & (rayZMin <= sceneZMax)
-        if len(tex) > 3 and tex[3] is not None:                                   # the second depth layer
+        if tex[3] is not None:                                                    # the second depth layer
             z2 = tex[3][t]
             hit = hit | (live & m & (rayZMax >= z2 - params.z_thickness) & (rayZMin <= z2))
         count_visits(out, visits, s.i, t, live)

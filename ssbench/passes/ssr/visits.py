@@ -64,7 +64,7 @@ def visit_map(gbuffer: GBuffer, params: Union[D.DDASSRParams, S.SupercoverDDASSR
     r = int((sel == y * W + x).nonzero()[0, 0])
     one = s.select(torch.tensor([r], device=s.i.device))
     one.i, visits = one.i * 0, torch.zeros(B * H * W, dtype=torch.int32, device=gbuffer.view_z.device)
-    tex = (gbuffer.view_z.reshape(-1), gbuffer.mask.reshape(-1))
+    tex = D.depth_texels(gbuffer, dda)
     o = S.supercover_march(one, tex, params.z_thickness, params.max_steps, H, W, visits) if supercover else \
         D.dda_march(one, tex, params, H, W, visits)
     return {"visits": visits[:H * W].reshape(H, W).cpu(), "crossed": crossed_pixels(P0[r], P1[r], H, W),

@@ -17,6 +17,7 @@ import math
 import torch
 
 from .. import checks
+from .image import bias, rmse
 
 __all__ = ["jimenez_multibounce", "multibounce_error"]
 
@@ -52,12 +53,12 @@ def multibounce_error(pred: torch.Tensor, truth: torch.Tensor, mask: torch.Tenso
     """
     checks.check_shape(pred, ["B", "3", "H", "W"], "pred")
     checks.check_same_size(pred, truth, "pred", "truth")
-    m = mask.bool().expand_as(pred)
-    d = (pred.double() - truth.double())[m]
-    n = int(d.numel())
+    m = mask.bool()
+    n = int(m.expand_as(pred[:, :1]).sum())
     se = math.nan
     if truth_stderr is not None and n:
-        se = float(truth_stderr.double()[m].pow(2).mean().sqrt())
+        se = float(rmse(truth_stderr.double(), torch.zeros_like(truth_stderr, dtype=torch.float64), m))
     if n == 0:
         return {"rmse": math.nan, "bias": math.nan, "pixels": 0, "truth_stderr": se}
-    return {"rmse": float(d.pow(2).mean().sqrt()), "bias": float(d.mean()), "pixels": n // 3, "truth_stderr": se}
+    return {"rmse": float(rmse(pred.double(), truth.double(), m)), "bias": float(bias(pred.double(), truth.double(), m)),
+            "pixels": n, "truth_stderr": se}

@@ -1,4 +1,6 @@
 """Frames of an AO method on a static scene: the noise advances as the method does it, the camera jitters."""
+import math
+
 import pytest
 import torch
 
@@ -72,3 +74,28 @@ def test_ghosting_responds_to_a_resolve_that_keeps_stale_history():
     assert tight.cameras[0].eye != tight.cameras[1].eye
     with pytest.raises(ValueError, match="truth_rays"):
         ao_frames("stairs", "ssao", truth_rays=8, **KW)
+
+
+def test_a_moving_object_leaves_a_trail_the_clamp_and_its_motion_vectors_shorten():
+    """The ball of ``sphere_on_plane`` slides 0.15 per frame under a still camera: its contact shadow moves over
+    the static floor (history the depth test trusts) and its own pixels move. Near the ball, the resolve's added
+    error must fall with the clamp and, at each clamp setting, with the ball's motion vectors (which also keep
+    more history: the ball's pixels reproject onto the ball)."""
+    from ssbench.passes.temporal import AccumulationParams
+    from ssbench.scenes.motion import Motion
+    m = Motion("ball", (0.15, 0.0, 0.0))
+    kw = {**KW, "width": 96, "height": 72, "frames": 8, "radius": 0.5, "truth_rays": 32, "moving": m}
+    runs = {(clamp, mv): ao_frames("sphere_on_plane", "gtao", accumulation=AccumulationParams(clamp=clamp),
+                                    motion_vectors=mv, **kw)
+            for clamp in ("minmax", "none") for mv in (True, False)}
+    g = {k: r.ghosting_moving for k, r in runs.items()}
+    assert g[("none", True)] > 1.5 * g[("minmax", True)] > 0, g
+    assert g[("none", False)] > g[("none", True)] and g[("minmax", False)] > g[("minmax", True)], g
+    kept = {mv: float(runs[("minmax", mv)].history_valid[1:].float().mean()) for mv in (True, False)}
+    assert kept[True] > kept[False] + 0.01, kept
+    assert math.isnan(runs[("minmax", True)].ghosting_moving * 0 + ao_frames("sphere_on_plane", "gtao", **{
+        **KW, "frames": 2}).ghosting_moving)                                 # no moving object: NaN
+    with pytest.raises(ValueError, match="shape"):
+        ao_frames("sphere_on_plane", "gtao", moving=Motion("nothing", (0.1, 0, 0)), **KW)
+    with pytest.raises(TypeError, match="moving"):
+        ao_frames("sphere_on_plane", "gtao", moving=("ball", (0.1, 0, 0)), **KW)

@@ -20,7 +20,9 @@ from ._ao import (BLUR_NAMES, GT_CHANNELS, RADIUS_NAMES, TARGET_METRICS, TARGETS
                   flavour, radius_param, run_ao, score)
 from ._common import resolve_params
 from ._glossy import GLOSSY_GT_CHANNELS, ROUGHNESS_EDGES, GlossyEvaluation, run_glossy, ssr_glossy
+from ._frames import MOVING_BAND, FramePlan
 from ._temporal import EDGE_BAND, EDGE_JUMP, AOFrames, ao_frames, orbit
+from ._temporal_ssr import SSRFrames, ssr_frames
 from ._implicit import ImplicitEvaluation, implicit, lipschitz_diagnostic, run_implicit, steps_param
 from ._ssr import (EQUAL_RAY_LENGTH, EQUAL_THICKNESS, SSR_GT_CHANNELS, SSREvaluation, equal_roles, equal_settings,
                    pass_channels, run_ssr, scene_scale, ssr)
@@ -30,5 +32,6 @@ __all__ = ["ao", "run_ao", "AOEvaluation", "resolve_params", "radius_param", "fl
            "ssr", "run_ssr", "SSREvaluation", "pass_channels", "SSR_GT_CHANNELS", "equal_settings", "equal_roles",
            "scene_scale", "EQUAL_RAY_LENGTH", "EQUAL_THICKNESS",
            "ssr_glossy", "run_glossy", "GlossyEvaluation", "GLOSSY_GT_CHANNELS", "ROUGHNESS_EDGES",
-           "ao_frames", "AOFrames", "orbit", "EDGE_BAND", "EDGE_JUMP",
+           "ao_frames", "AOFrames", "orbit", "EDGE_BAND", "EDGE_JUMP", "MOVING_BAND", "FramePlan",
+           "ssr_frames", "SSRFrames",
            "implicit", "run_implicit", "ImplicitEvaluation", "steps_param", "lipschitz_diagnostic"]

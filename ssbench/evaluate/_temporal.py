@@ -11,6 +11,8 @@ output changes from frame to frame.
   :meth:`ssbench.camera.Camera.jittered`; each frame's G-buffer is rendered by Mitsuba from the jittered camera;
 * ``orbit_deg`` turns the camera about its target's vertical axis by that many degrees per frame (a camera
   path: edges move, surfaces are disoccluded);
+* ``moving`` (:class:`~ssbench.scenes.motion.Motion`) moves one object frame by frame; the resolve gets its motion
+  vectors unless ``motion_vectors=False`` (the frame loop: :mod:`ssbench.evaluate._frames`);
 * ``accumulation`` (:class:`~ssbench.passes.temporal.AccumulationParams`) also resolves the frames temporally
   (reprojection, depth rejection, neighbourhood clamp, blend: :mod:`ssbench.passes.temporal`), so flicker is
   measured raw and accumulated side by side.
@@ -24,47 +26,13 @@ from typing import Optional
 
 import torch
 
-from ..camera import Camera
-from ..metrics.ao import edge_band
 from ..metrics.temporal import flicker, ghosting
-from ..passes.temporal import AccumulationParams, TemporalAccumulator
+from ..passes.temporal import AccumulationParams
+from ..scenes.motion import Motion
 from ._common import resolve_params
+from ._frames import EDGE_BAND, EDGE_JUMP, FramePlan, halton, orbit, run_frames
 
-__all__ = ["AOFrames", "ao_frames", "halton", "orbit"]
-
-#: ``ghosting_edges`` counts the pixels within this many pixels of a depth edge (a relative jump above
-#: :data:`EDGE_JUMP`; silhouettes against the background included): where trails show
-EDGE_BAND, EDGE_JUMP = 2, 0.05
-
-
-def orbit(camera: Camera, degrees: float) -> Camera:
-    """``camera`` turned about the vertical (world y) axis through its target by ``degrees`` (eye and up).
-
-    Example:
-        >>> cam = Camera.from_look_at((0, 0, 2), (0, 0, 0), (0, 1, 0), 60.0, 8, 6, 0.1, 10.0)
-        >>> [round(v, 6) for v in orbit(cam, 90.0).eye]
-        [2.0, 0.0, 0.0]
-    """
-    c, s = math.cos(math.radians(degrees)), math.sin(math.radians(degrees))
-    turn = lambda v: (c * v[0] + s * v[2], v[1], -s * v[0] + c * v[2])               # noqa: E731
-    t = camera.target
-    d = turn(tuple(e - q for e, q in zip(camera.eye, t)))
-    return dataclasses.replace(camera, eye=tuple(q + x for q, x in zip(t, d)), up=turn(camera.up))
-
-
-def halton(index: int, base: int) -> float:
-    """The radical inverse of ``index`` in ``base`` (Halton sequence), in [0, 1).
-
-    Example:
-        >>> [halton(i, 2) for i in range(1, 5)]
-        [0.5, 0.25, 0.75, 0.125]
-    """
-    f, r, i = 1.0, 0.0, index
-    while i > 0:
-        f /= base
-        r += f * (i % base)
-        i //= base
-    return r
+__all__ = ["AOFrames", "ao_frames", "halton", "orbit", "EDGE_BAND", "EDGE_JUMP", "check_truth_rays"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -84,6 +52,8 @@ class AOFrames:
         ghosting, ghosting_edges: :func:`ssbench.metrics.temporal.ghosting` against each frame's ray-traced truth
             of the method's flavour (``truth_rays > 0``), over every trusted pixel / those near depth edges.
         truth: :math:`(T, 1, 1, H, W)` that truth (``None`` without ``truth_rays``).
+        ghosting_moving: ghosting within :data:`~ssbench.evaluate._frames.MOVING_BAND` pixels of the moving object
+            (NaN without ``moving``).
     """
 
     ao: torch.Tensor
@@ -98,13 +68,22 @@ class AOFrames:
     ghosting: float = math.nan
     ghosting_edges: float = math.nan
     truth: Optional[torch.Tensor] = None
+    ghosting_moving: float = math.nan
+
+
+def check_truth_rays(truth_rays, accumulation) -> None:
+    if isinstance(truth_rays, bool) or not isinstance(truth_rays, int) or truth_rays < 0 or truth_rays == 1:
+        raise ValueError(f"truth_rays: must be 0 or an integer >= 2, got {truth_rays!r}")
+    if truth_rays and accumulation is None:
+        raise ValueError("truth_rays: ghosting needs accumulation")
 
 
 def ao_frames(scene, method: str, params=None, *, frames: int = 8, jitter: bool = True,
               advance_noise: bool = True, width: int = 160, height: int = 120, radius: Optional[float] = None,
               seed: int = 0, use_cache: bool = True, orbit_deg: float = 0.0,
-              accumulation: Optional[AccumulationParams] = None, truth_rays: int = 0) -> AOFrames:
-    """Run AO ``method`` on ``frames`` frames of a static ``scene`` (see the module docstring).
+              accumulation: Optional[AccumulationParams] = None, truth_rays: int = 0,
+              moving: Optional[Motion] = None, motion_vectors: bool = True) -> AOFrames:
+    """Run AO ``method`` on ``frames`` frames of ``scene`` (see the module docstring).
 
     Args:
         scene: catalog name, scene file, dict or :class:`~ssbench.scenes.Scene`.
@@ -121,13 +100,14 @@ def ao_frames(scene, method: str, params=None, *, frames: int = 8, jitter: bool 
         accumulation: temporal resolve settings (``None``: raw frames only).
         truth_rays: rays per pixel of each frame's ground truth (the method's flavour at its radius), for
             ghosting (0: none; needs ``accumulation``).
+        moving: an object moving frame by frame (``None``: a static scene).
+        motion_vectors: give the resolve the moving object's motion vectors (``False``: reproject by the
+            camera alone, as a renderer without a velocity buffer).
     """
     from .. import reference
     from ..passes import ao_method, declared
     from ..scenes import load as load_scene
     from ._ao import radius_param
-    if isinstance(frames, bool) or not isinstance(frames, int) or frames < 2:
-        raise ValueError(f"frames: must be an integer >= 2, got {frames!r}")
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise ValueError(f"seed: must be a non-negative integer, got {seed!r}")
     fn, params_cls, requires = ao_method(method)
@@ -138,48 +118,34 @@ def ao_frames(scene, method: str, params=None, *, frames: int = 8, jitter: bool 
         if rname is None:
             raise ValueError(f"radius: method {method!r} has no radius parameter")
         p = dataclasses.replace(p, **{rname: float(radius)})
-    if accumulation is not None and not isinstance(accumulation, AccumulationParams):
-        raise TypeError(f"accumulation: expected AccumulationParams or None, got {type(accumulation).__name__}")
-    if isinstance(orbit_deg, bool) or not isinstance(orbit_deg, (int, float)) or not math.isfinite(orbit_deg):
-        raise ValueError(f"orbit_deg: must be a finite number, got {orbit_deg!r}")
-    frame_param = declared(fn, "FRAME_PARAM")
+    check_truth_rays(truth_rays, accumulation)
     sc = load_scene(scene)
-    cam = sc.camera.with_resolution(width, height)
-    resolve = TemporalAccumulator(accumulation) if accumulation is not None else None
-    if isinstance(truth_rays, bool) or not isinstance(truth_rays, int) or truth_rays < 0 or truth_rays == 1:
-        raise ValueError(f"truth_rays: must be 0 or an integer >= 2, got {truth_rays!r}")
-    if truth_rays and resolve is None:
-        raise ValueError("truth_rays: ghosting needs accumulation")
+    plan = FramePlan(sc, sc.camera.with_resolution(width, height), frames, jitter, orbit_deg, moving,
+                     motion_vectors)
+    frame_param = declared(fn, "FRAME_PARAM")
     flavour = declared(fn, "FLAVOUR") or "cosine"
     truth_radius = float(getattr(p, rname)) if rname else 0.5
-    aos, masks, offsets, acc, trusted, cams, truths, edges = [], [], [], [], [], [], [], []
-    channels = tuple(dict.fromkeys(tuple(requires) + ("mask", "view_z")))
-    for t in range(frames):
-        dx, dy = (halton(t + 1, 2) - 0.5, halton(t + 1, 3) - 0.5) if jitter else (0.0, 0.0)
-        cams.append(orbit(cam, orbit_deg * t).jittered(dx, dy))
-        g = reference.gbuffer(sc.with_camera(cams[-1]), width, height, channels=channels, use_cache=use_cache)
+
+    def render(t, _scene, g):
         k = t if advance_noise else 0
         pt = dataclasses.replace(p, **{frame_param: k}) if frame_param else p
-        out = fn(g, pt, generator=torch.Generator().manual_seed(seed + k)).ao.detach().float().cpu()
-        aos.append(out)
-        masks.append(g.mask.cpu())
-        offsets.append((dx, dy))
-        if resolve is not None:
-            acc.append(resolve.step(out, g))
-            trusted.append(resolve.valid.cpu())
-            if truth_rays:
-                truths.append(reference.ambient_occlusion(sc.with_camera(cams[-1]), g, truth_radius, truth_rays,
-                                                          flavour, seed, use_cache=use_cache).ao.float())
-                edges.append(edge_band(g.view_z, g.mask, EDGE_BAND, EDGE_JUMP, silhouettes=True))
-    ao, mask = torch.stack(aos), torch.stack(masks)
-    if resolve is None:
-        return AOFrames(ao, mask, tuple(offsets), float(flicker(ao, mask)), p, cameras=tuple(cams))
-    accumulated, valid = torch.stack(acc), torch.stack(trusted)
-    ghost = ghost_edges = math.nan
-    truth = None
+        return fn(g, pt, generator=torch.Generator().manual_seed(seed + k)).ao
+
+    def truth(_t, scene_t, g):
+        return reference.ambient_occlusion(scene_t, g, truth_radius, truth_rays, flavour, seed,
+                                           use_cache=use_cache).ao
+
+    run = run_frames(plan, tuple(requires), render, accumulation=accumulation,
+                     truth=truth if truth_rays else None, use_cache=use_cache)
+    ao, mask = run.out, run.mask
+    if accumulation is None:
+        return AOFrames(ao, mask, run.offsets, float(flicker(ao, mask)), p, cameras=run.cameras)
+    ghost = ghost_edges = ghost_moving = math.nan
     if truth_rays:
-        truth = torch.stack(truths)
-        ghost = ghosting(accumulated, ao, truth, valid)
-        ghost_edges = ghosting(accumulated, ao, truth, valid, torch.stack(edges))
-    return AOFrames(ao, mask, tuple(offsets), float(flicker(ao, mask)), p, accumulated,
-                    float(flicker(accumulated, mask)), valid, tuple(cams), ghost, ghost_edges, truth)
+        ghost = ghosting(run.accumulated, ao, run.truth, run.history_valid)
+        ghost_edges = ghosting(run.accumulated, ao, run.truth, run.history_valid, run.edges)
+        if run.near_moving is not None:
+            ghost_moving = ghosting(run.accumulated, ao, run.truth, run.history_valid, run.near_moving)
+    return AOFrames(ao, mask, run.offsets, float(flicker(ao, mask)), p, run.accumulated,
+                    float(flicker(run.accumulated, mask)), run.history_valid, run.cameras, ghost, ghost_edges,
+                    run.truth, ghost_moving)

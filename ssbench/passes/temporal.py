@@ -5,7 +5,8 @@ https://advances.realtimerendering.com/s2014/).
 
 Per frame, with the current G-buffer and the previous frame's camera and view depth:
 
-1. **Reproject**: the pixel's view position → world → the previous camera's view → its pixel; the previous
+1. **Reproject**: the pixel's view position → world (minus the surface's own motion since the last frame, when
+   motion vectors are given: :func:`object_motion`) → the previous camera's view → its pixel; the previous
    output and view depth are read there (bilinear, ``grid_sample``, pixel centres at half-integers).
 2. **Reject** (disocclusion): the history is invalid off the previous screen, on its background, or where the
    previous depth there differs from the reprojected depth by more than ``depth_tolerance`` (relative).
@@ -26,7 +27,7 @@ import torch.nn.functional as F
 from ..camera import Camera
 from ..gbuffer import GBuffer
 
-__all__ = ["AccumulationParams", "reproject", "accumulate", "TemporalAccumulator", "CLAMPS"]
+__all__ = ["AccumulationParams", "reproject", "accumulate", "TemporalAccumulator", "CLAMPS", "object_motion"]
 
 CLAMPS = ("minmax", "none")
 
@@ -55,10 +56,35 @@ class AccumulationParams:
             raise ValueError(f"depth_tolerance: must be a finite number > 0, got {t!r}")
 
 
+def object_motion(gbuffer: GBuffer, shape: int, displacement) -> torch.Tensor:
+    """:math:`(B, 3, H, W)` motion vectors in world units (where each pixel's surface point is now minus where it
+    was last frame) for one rigidly translated shape: ``displacement`` on the pixels whose G-buffer ``shape_id``
+    is ``shape``, 0 elsewhere (static geometry and background).
+
+    Example:
+        >>> import torch
+        >>> from ssbench.camera import Camera
+        >>> cam = Camera.from_look_at((0, 0, 2), (0, 0, 0), (0, 1, 0), 60.0, 2, 1, 0.1, 10.0)
+        >>> g = GBuffer(camera=cam, view_z=-torch.ones(1, 1, 1, 2), shape_id=torch.tensor([[[[0, 1]]]]))
+        >>> object_motion(g, 1, (0.5, 0.0, 0.0))[0, 0].tolist()
+        [[0.0, 0.5]]
+    """
+    if gbuffer.shape_id is None:
+        raise ValueError("gbuffer: object motion needs the shape_id channel")
+    d = torch.as_tensor(displacement, dtype=gbuffer.view_z.dtype, device=gbuffer.view_z.device)
+    if d.shape != (3,) or not bool(torch.isfinite(d).all()):
+        raise ValueError(f"displacement: expected three finite numbers, got {displacement!r}")
+    on = (gbuffer.shape_id == int(shape)).to(d.dtype)
+    return on * d.view(1, 3, 1, 1)
+
+
 def reproject(history: torch.Tensor, prev_camera: Camera, prev_view_z: torch.Tensor, gbuffer: GBuffer,
-              depth_tolerance: float = 0.02) -> tuple[torch.Tensor, torch.Tensor]:
+              depth_tolerance: float = 0.02, motion: Optional[torch.Tensor] = None
+              ) -> tuple[torch.Tensor, torch.Tensor]:
     """``(history_here, valid)``: last frame's :math:`(B, C, H, W)` ``history`` read at where each current pixel
-    was (bilinear), and :math:`(B, 1, H, W)` where that is trusted (see the module docstring, steps 1–2)."""
+    was (bilinear), and :math:`(B, 1, H, W)` where that is trusted (see the module docstring, steps 1–2).
+    ``motion``: :math:`(B, 3, H, W)` world-space motion vectors (:func:`object_motion`; ``None``: a static
+    world, only the camera moves)."""
     from .. import checks
     checks.check_shape(history, ["B", "C", "H", "W"], "history")
     checks.check_shape(prev_view_z, ["B", "1", "H", "W"], "prev_view_z")
@@ -66,7 +92,11 @@ def reproject(history: torch.Tensor, prev_camera: Camera, prev_view_z: torch.Ten
     z = gbuffer.view_z
     dt = history.dtype
     pos = cam.uv_to_view(cam.uv_grid(dt, z.device).unsqueeze(0), z.to(dt))           # (B, 3, H, W) view
-    prev = prev_camera.world_to_view(cam.view_to_world(pos, dim=1), dim=1)
+    world = cam.view_to_world(pos, dim=1)
+    if motion is not None:
+        checks.check_shape(motion, ["B", "3", "H", "W"], "motion")
+        world = world - motion.to(dt)
+    prev = prev_camera.world_to_view(world, dim=1)
     px = prev_camera.view_to_pixel(prev, dim=1)                                         # (B, 2, H, W)
     W, H = prev_camera.width, prev_camera.height
     grid = torch.stack([px[:, 0] / W * 2 - 1, px[:, 1] / H * 2 - 1], -1)                # align_corners=False
@@ -116,13 +146,15 @@ class TemporalAccumulator:
         self._prev: Optional[tuple] = None
         self.valid: Optional[torch.Tensor] = None                   # the last step's trusted-history mask
 
-    def step(self, current: torch.Tensor, gbuffer: GBuffer) -> torch.Tensor:
+    def step(self, current: torch.Tensor, gbuffer: GBuffer, motion: Optional[torch.Tensor] = None) -> torch.Tensor:
+        """One frame: ``current`` :math:`(B, C, H, W)` with its G-buffer, and the motion vectors since the last
+        frame (:func:`object_motion`; ``None``: nothing but the camera moved)."""
         if self._prev is None:
             out = current
             self.valid = torch.zeros_like(gbuffer.mask)
         else:
             history, cam, z = self._prev
-            here, self.valid = reproject(history, cam, z, gbuffer, self.params.depth_tolerance)
+            here, self.valid = reproject(history, cam, z, gbuffer, self.params.depth_tolerance, motion)
             out = accumulate(current, here, self.valid, self.params)
         self._prev = (out, gbuffer.camera, gbuffer.view_z)
         return out

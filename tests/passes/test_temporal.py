@@ -75,3 +75,27 @@ def test_clamp_bounds_history_by_the_current_neighbourhood():
         AccumulationParams(alpha=0.0)
     with pytest.raises(ValueError, match="clamp"):
         AccumulationParams(clamp="variance")
+
+
+def test_motion_vectors_follow_a_moving_surface():
+    """A textured plane slides 0.3 world units along x under a still camera; the history is its texture
+    coordinate ``u = x − offset``. With the plane's motion vectors the reprojected history reads, at every pixel,
+    the coordinate the surface point there had last frame, which is its coordinate now (exactly, but for the column
+    whose source lies half off screen, read with border padding). Reprojecting by the camera alone reads the texture 0.3 away."""
+    from ssbench.passes.temporal import object_motion
+    cam = Camera.from_look_at((0, 0, 0), (0, 0, -1), (0, 1, 0), 60.0, 32, 24, 0.1, 100.0)
+    g, x = plane(cam)
+    g = GBuffer(cam, view_z=g.view_z, mask=g.mask, shape_id=torch.zeros_like(g.view_z, dtype=torch.int32))
+    u_prev, u_now = x - 0.0, x - 0.3                                        # the plane moved by +0.3 in x
+    motion = object_motion(g, 0, (0.3, 0.0, 0.0))
+    here, valid = reproject(u_prev, cam, g.view_z, g, motion=motion)
+    assert float(valid.float().mean()) > 0.8
+    err = (here - u_now).abs()[valid]
+    assert float((err > 1e-9).float().mean()) < 0.05 and float(err.max()) < 0.25 * 0.108   # exact but the border
+    still, valid_still = reproject(u_prev, cam, g.view_z, g)
+    assert float((still - u_now).abs()[valid_still].min()) > 0.29
+    assert bool((object_motion(g, 1, (0.3, 0.0, 0.0)) == 0).all())             # another shape: no motion
+    with pytest.raises(ValueError, match="displacement"):
+        object_motion(g, 0, (0.3, float("nan"), 0.0))
+    with pytest.raises(ValueError, match="shape_id"):
+        object_motion(wall(cam), 0, (0.3, 0.0, 0.0))

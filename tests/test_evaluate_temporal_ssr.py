@@ -6,7 +6,7 @@ import pytest
 import torch
 
 from ssbench.evaluate import ssr_frames
-from ssbench.evaluate._temporal_ssr import luminance
+from ssbench.metrics import luminance
 from ssbench.passes.temporal import AccumulationParams
 from ssbench.scenes.motion import Motion
 

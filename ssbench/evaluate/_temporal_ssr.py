@@ -26,6 +26,7 @@ from typing import Optional
 
 import torch
 
+from ..metrics.image import luminance
 from ..metrics.temporal import flicker, ghosting
 from ..passes.temporal import AccumulationParams
 from ..scenes.motion import Motion
@@ -33,20 +34,7 @@ from ._common import resolve_params
 from ._frames import FramePlan, run_frames
 from ._temporal import check_truth_rays
 
-__all__ = ["SSRFrames", "ssr_frames", "luminance"]
-
-_REC709 = (0.2126, 0.7152, 0.0722)
-
-
-def luminance(rgb: torch.Tensor) -> torch.Tensor:
-    """:math:`(..., 1, H, W)` Rec. 709 luminance of :math:`(..., 3, H, W)` linear RGB.
-
-    Example:
-        >>> luminance(torch.ones(1, 3, 1, 1)).item()
-        1.0
-    """
-    w = torch.tensor(_REC709, dtype=rgb.dtype, device=rgb.device).view(3, 1, 1)
-    return (rgb * w).sum(-3, keepdim=True)
+__all__ = ["SSRFrames", "ssr_frames"]
 
 
 @dataclasses.dataclass(frozen=True)

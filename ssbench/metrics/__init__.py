@@ -14,8 +14,8 @@ from .ao import (HaloResult, depth_edges, flat_bias, halo, highpass, noise, over
 from .ao_banding import banding, lowpass
 from . import implicit
 from .temporal import flicker, temporal_std
-from .image import bias, flip, mae, masked_mean, psnr, rmse, ssim
+from .image import bias, flip, luminance, mae, masked_mean, psnr, rmse, ssim
 
-__all__ = ["mae", "rmse", "bias", "psnr", "ssim", "flip", "masked_mean", "halo", "HaloResult", "depth_edges",
+__all__ = ["mae", "rmse", "bias", "psnr", "ssim", "flip", "masked_mean", "luminance", "halo", "HaloResult", "depth_edges",
            "flat_bias", "banding", "lowpass", "tile_energy", "power_spectrum", "noise", "highpass", "over_darkening",
            "implicit", "flicker", "temporal_std"]

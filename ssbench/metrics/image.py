@@ -16,7 +16,22 @@ import torch
 
 from .. import checks
 
-__all__ = ["mae", "rmse", "bias", "psnr", "ssim", "flip", "masked_mean"]
+__all__ = ["mae", "rmse", "bias", "psnr", "ssim", "flip", "masked_mean", "luminance"]
+
+_REC709 = (0.2126, 0.7152, 0.0722)
+
+
+def luminance(rgb: torch.Tensor) -> torch.Tensor:
+    """:math:`(..., 1, H, W)` Rec. 709 luminance of :math:`(..., 3, H, W)` linear RGB.
+
+    Example:
+        >>> luminance(torch.ones(1, 3, 1, 1)).item()
+        1.0
+    """
+    if not isinstance(rgb, torch.Tensor) or rgb.dim() < 3 or rgb.shape[-3] != 3:
+        raise ValueError(f"rgb: expected shape (..., 3, H, W), got {getattr(rgb, 'shape', type(rgb))}")
+    w = torch.tensor(_REC709, dtype=rgb.dtype, device=rgb.device).view(3, 1, 1)
+    return (rgb * w).sum(-3, keepdim=True)
 
 
 def prepare(pred: torch.Tensor, target: Optional[torch.Tensor], mask: Optional[torch.Tensor]):

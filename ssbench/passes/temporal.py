@@ -18,6 +18,7 @@ With a still camera and ``clamp="none"`` this is the exponential moving average 
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Optional
 
@@ -39,12 +40,16 @@ class AccumulationParams:
     Args:
         alpha: the current frame's weight (0.1: about ten frames of history, as TAA resolves ship).
         clamp: ``"minmax"`` (3×3 neighbourhood clamp) or ``"none"``.
-        depth_tolerance: relative view-depth mismatch beyond which the history is rejected.
+        depth_tolerance: relative view-depth mismatch beyond which the history is rejected (``math.inf``: never;
+            TXAA on a still camera relies on the clamp alone, since the jitter moves silhouettes every frame).
+        background: also resolve background pixels (a shaded image whose background is a colour, as an implicit
+            render's sky; ``False``: AO or reflections, undefined there, pass through).
     """
 
     alpha: float = 0.1
     clamp: str = "minmax"
     depth_tolerance: float = 0.02
+    background: bool = False
 
     def __post_init__(self) -> None:
         if isinstance(self.alpha, bool) or not isinstance(self.alpha, (int, float)) or not 0 < self.alpha <= 1:
@@ -52,8 +57,10 @@ class AccumulationParams:
         if self.clamp not in CLAMPS:
             raise ValueError(f"clamp: expected one of {CLAMPS}, got {self.clamp!r}")
         t = self.depth_tolerance
-        if isinstance(t, bool) or not isinstance(t, (int, float)) or not 0 < t < float("inf"):
-            raise ValueError(f"depth_tolerance: must be a finite number > 0, got {t!r}")
+        if isinstance(t, bool) or not isinstance(t, (int, float)) or not 0 < t <= float("inf"):
+            raise ValueError(f"depth_tolerance: must be a number > 0 (inf: no rejection), got {t!r}")
+        if not isinstance(self.background, bool):
+            raise ValueError(f"background: expected a bool, got {self.background!r}")
 
 
 def object_motion(gbuffer: GBuffer, shape: int, displacement) -> torch.Tensor:
@@ -79,12 +86,12 @@ def object_motion(gbuffer: GBuffer, shape: int, displacement) -> torch.Tensor:
 
 
 def reproject(history: torch.Tensor, prev_camera: Camera, prev_view_z: torch.Tensor, gbuffer: GBuffer,
-              depth_tolerance: float = 0.02, motion: Optional[torch.Tensor] = None
+              depth_tolerance: float = 0.02, motion: Optional[torch.Tensor] = None, background: bool = False
               ) -> tuple[torch.Tensor, torch.Tensor]:
     """``(history_here, valid)``: last frame's :math:`(B, C, H, W)` ``history`` read at where each current pixel
     was (bilinear), and :math:`(B, 1, H, W)` where that is trusted (see the module docstring, steps 1–2).
     ``motion``: :math:`(B, 3, H, W)` world-space motion vectors (:func:`object_motion`; ``None``: a static
-    world, only the camera moves)."""
+    world, only the camera moves). ``background``: background pixels may keep history too."""
     from .. import checks
     checks.check_shape(history, ["B", "C", "H", "W"], "history")
     checks.check_shape(prev_view_z, ["B", "1", "H", "W"], "prev_view_z")
@@ -107,7 +114,9 @@ def reproject(history: torch.Tensor, prev_camera: Camera, prev_view_z: torch.Ten
     prev_z = sample(prev_view_z)
     inside = ((grid.abs() <= 1).all(-1) & (prev[:, 2] < 0)).unsqueeze(1)
     agree = (prev_z - prev[:, 2:3]).abs() <= depth_tolerance * prev[:, 2:3].abs()
-    valid = inside & agree & gbuffer.mask
+    if math.isinf(depth_tolerance):
+        agree = torch.ones_like(agree)
+    valid = inside & agree & (True if background else gbuffer.mask)
     return here, valid
 
 
@@ -154,7 +163,8 @@ class TemporalAccumulator:
             self.valid = torch.zeros_like(gbuffer.mask)
         else:
             history, cam, z = self._prev
-            here, self.valid = reproject(history, cam, z, gbuffer, self.params.depth_tolerance, motion)
+            here, self.valid = reproject(history, cam, z, gbuffer, self.params.depth_tolerance, motion,
+                                         self.params.background)
             out = accumulate(current, here, self.valid, self.params)
         self._prev = (out, gbuffer.camera, gbuffer.view_z)
         return out

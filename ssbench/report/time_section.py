@@ -1,7 +1,8 @@
 """The report's "Time" section: every AO method over frames, raw and temporally accumulated
 (:mod:`ssbench.passes.temporal`), as a renderer shows it — flicker on a still camera, ghosting and the error over
 frames on an orbiting one, ghosting near a moving object with and without its motion vectors, and animated
-raw | accumulated comparisons; then every SSR method's flicker and ghosting (:mod:`ssbench.report.time_ssr`).
+raw | accumulated comparisons; then every SSR method's flicker and ghosting (:mod:`ssbench.report.time_ssr`) and
+every implicit caster's TXAA (:mod:`ssbench.report.time_implicit`).
 
 Per method (:func:`ssbench.evaluate.ao_frames`, :data:`SCENE`, radius 0.5, noise advancing every frame, Halton
 sub-pixel jitter): ``flicker`` / ``flicker_accumulated`` on the still camera; on the camera turning
@@ -25,6 +26,7 @@ import torch
 from ..pictures import ao_rgb
 from ..scenes.motion import Motion
 from .summary import fmt, unavailable_md
+from .time_implicit import implicit_rows, summary_lines as implicit_summary_lines
 from .time_ssr import ssr_rows, summary_lines as ssr_summary_lines
 
 SCENE = "stairs"
@@ -117,11 +119,15 @@ def build_time_section(run_dir: str, width: int = 128, height: int = 96, *, use_
         images[f"{prefix}animation"] = f"img/time/{prefix}{ANIMATED}.gif"
     table = [{**r, **{k: fmt(r[k], "{:.4f}") for k in AO_KEYS}} for r in rows]
     ssr = ssr_rows(width, height, FRAMES, acc, use_cache=use_cache, progress=progress)
+    imp = implicit_rows(run_dir, max(8, width // 2), max(6, height // 2), use_cache=use_cache, progress=progress)
+    if imp["image"]:
+        images["txaa"] = imp["image"]
     glance = [{"method": r["method"], "headline": f"flicker {r['flicker']} → {r['flicker_accumulated']} "
                                                   f"accumulated; ghosting {r['ghosting']}",
                "seconds": "–", "scenes": 1} for r in table]
     return {"available": bool(rows), "note": "" if rows else "no AO method ran over frames",
-            "notes": notes + ssr["notes"], "rows": rows + ssr["rows"], "table": table, "ssr": ssr,
+            "notes": notes + ssr["notes"] + imp["notes"], "rows": rows + ssr["rows"] + imp["rows"], "table": table,
+            "ssr": ssr, "implicit": imp,
             "moving": {"scene": MOVING_SCENE, "shape": MOVING.shape, "velocity": list(MOVING.velocity)},
             "images": images, "glance": glance, "scene": SCENE, "frames": FRAMES,
             "orbit_deg": ORBIT_DEG, "radius": RADIUS, "truth_rays": TRUTH_RAYS, "animated": ANIMATED,
@@ -144,5 +150,5 @@ def summary_md(sec: dict) -> str:
               "| ghosting, moving object | camera only |",
               "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
     lines += [f"| {r['method']} | " + " | ".join(r[k] for k in AO_KEYS) + " |" for r in sec["table"]]
-    lines += ssr_summary_lines(sec["ssr"])
+    lines += ssr_summary_lines(sec["ssr"]) + implicit_summary_lines(sec["implicit"])
     return "\n".join(lines + [f"- {n}" for n in sec["notes"]]) + "\n"

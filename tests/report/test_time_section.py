@@ -24,12 +24,20 @@ def test_every_ao_method_has_a_row_and_the_pictures_exist(section):
     from ssbench.passes import SSR_METHODS
     assert [r["method"] for r in sec["rows"] if r["kind"] == "time"] == list(AO_METHODS)
     assert [r["method"] for r in sec["rows"] if r["kind"] == "time_ssr"] == list(SSR_METHODS)
+    from ssbench.passes import IMPLICIT_METHODS
+    from ssbench.report.time_implicit import SCENES
+    assert [(r["scene"], r["method"]) for r in sec["rows"] if r["kind"] == "time_implicit"] == [
+        (s, m) for s in SCENES for m in IMPLICIT_METHODS]
     for r in sec["rows"]:
-        assert r["flicker"] > 0 and r["flicker_accumulated"] > 0 and r["ghosting"] == r["ghosting"]   # not NaN
+        assert r["flicker"] > 0 and r["flicker_accumulated"] > 0
+        if r["kind"] == "time_implicit":
+            assert r["error_txaa"] < r["error_raw"], r
+            continue
+        assert r["ghosting"] == r["ghosting"]                                        # not NaN
         if r["kind"] == "time":
             assert r["ghosting_moving"] == r["ghosting_moving"] and r["ghosting_moving_camera_only"] == \
                 r["ghosting_moving_camera_only"]
-    for f in ("error.png", "gtao.gif", "moving_gtao.gif"):
+    for f in ("error.png", "gtao.gif", "moving_gtao.gif", "txaa.png"):
         assert (run / "img" / "time" / f).is_file(), f
     from PIL import Image
     with Image.open(run / "img" / "time" / "gtao.gif") as gif:
@@ -42,10 +50,10 @@ def test_template_and_summary_render_the_rows(section):
                              undefined=jinja2.StrictUndefined)
     html = env.get_template("time_section.html.j2").render(time=sec, fmt=render.fmt)
     assert re.findall(r'<img[^>]*src="([^"]+)"', html) == ["img/time/error.png", "img/time/gtao.gif",
-                                                          "img/time/moving_gtao.gif"]
+                                                          "img/time/moving_gtao.gif", "img/time/txaa.png"]
     assert all(r["method"] in html for r in sec["rows"])
     md = T.summary_md(sec)
-    assert "## Time" in md and md.count("\n| ") >= len(sec["rows"]) + 2
+    assert "## Time" in md and md.count("\n| ") >= len(sec["rows"]) + 3
 
 
 def test_a_failing_method_is_a_note(tmp_path, monkeypatch):
@@ -55,6 +63,7 @@ def test_a_failing_method_is_a_note(tmp_path, monkeypatch):
         raise RuntimeError("no frames here")
     monkeypatch.setattr(E, "ao_frames", broken)
     monkeypatch.setattr(E, "ssr_frames", broken)
+    monkeypatch.setattr(E, "implicit_frames", broken)
     sec = T.build_time_section(str(tmp_path), 16, 12, progress=False)
     assert not sec["available"] and all("no frames here" in n for n in sec["notes"])
     assert "no AO method" in T.summary_md(sec) or "Time" in T.summary_md(sec)

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from ._ao import (BLUR_NAMES, GT_CHANNELS, RADIUS_NAMES, TARGET_METRICS, TARGETS, AOEvaluation, ao, blur_fn,
                   flavour, radius_param, run_ao, score)
+from ._ao_beyond import ao_beyond, has_bent_normals
 from ._common import resolve_params
 from ._glossy import GLOSSY_GT_CHANNELS, ROUGHNESS_EDGES, GlossyEvaluation, run_glossy, ssr_glossy
 from ._frames import MOVING_BAND, FramePlan
@@ -28,7 +29,7 @@ from ._implicit import ImplicitEvaluation, implicit, lipschitz_diagnostic, run_i
 from ._ssr import (EQUAL_RAY_LENGTH, EQUAL_THICKNESS, SSR_GT_CHANNELS, SSREvaluation, equal_roles, equal_settings,
                    pass_channels, run_ssr, scene_scale, ssr)
 
-__all__ = ["ao", "run_ao", "AOEvaluation", "resolve_params", "radius_param", "flavour", "score", "blur_fn",
+__all__ = ["ao", "run_ao", "ao_beyond", "has_bent_normals", "AOEvaluation", "resolve_params", "radius_param", "flavour", "score", "blur_fn",
            "RADIUS_NAMES", "GT_CHANNELS", "TARGET_METRICS", "TARGETS", "BLUR_NAMES",
            "ssr", "run_ssr", "SSREvaluation", "pass_channels", "SSR_GT_CHANNELS", "equal_settings", "equal_roles",
            "scene_scale", "EQUAL_RAY_LENGTH", "EQUAL_THICKNESS",

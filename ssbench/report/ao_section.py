@@ -286,4 +286,5 @@ def summary_md(ao: dict) -> str:
                          f"{fmt(mean('banding'))} | {fmt(mean('halo_dark_flavour'))} |")
         lines += ["", "Defaults from:"] + [f"- {m}: {declared(ao_method(m)[0], 'DEFAULTS_SOURCE') or 'not declared'}"
                                           for m in dict.fromkeys(r["method"] for r in rows)]
-    return "\n".join(lines + [f"- {n}" for n in ao["notes"]]) + "\n"
+    from .ao_beyond import summary_lines
+    return "\n".join(lines + [f"- {n}" for n in ao["notes"]] + summary_lines(ao.get("beyond") or {})) + "\n"

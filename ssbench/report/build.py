@@ -110,9 +110,12 @@ def _ao_section(run_dir, scenes, width, height, enabled, radius, rays, seed, use
     if not enabled:
         return {"available": False, "note": "AO section turned off.", "notes": [], "summary_md": ""}
     try:
-        from . import ao_section
+        from . import ao_beyond, ao_section
         out = ao_section.build_ao_section(run_dir, scenes, width, height, radius=radius, rays=rays, seed=seed,
                                           use_cache=use_cache, progress=progress)
+        out["beyond"] = ao_beyond.build_ao_beyond(min(width, 160), min(height, 120), seed=seed, use_cache=use_cache,
+                                                  progress=progress)
+        out["extra_rows"] = {"ao_beyond": out["beyond"]["rows"]}
         out["summary_md"] = ao_section.summary_md(out)
     except Exception as e:                                   # the report must not crash on the AO slice
         note = f"AO section failed: {type(e).__name__}: {e}"

@@ -185,13 +185,18 @@ def clean_json(x: Any) -> Any:
 
 def rows_jsonl(meta: dict) -> dict[str, str]:
     """``{section key: JSON-lines text}`` of every section holding a ``rows`` list (one row per line, each with
-    ``"effect"`` set to the section key first, strict JSON: NaN → null)."""
+    ``"effect"`` set to the section key first, strict JSON: NaN → null), plus ``{name: text}`` for each list of a
+    section's ``extra_rows`` dict (rows of another shape, e.g. the AO section's bent-normal table)."""
     out = {}
+    lines = lambda key, rows: "".join(json.dumps(clean_json({"effect": key, **r}), allow_nan=False) + "\n"  # noqa
+                                      for r in rows if isinstance(r, dict))
     for key, _ in SECTIONS:
-        rows = (meta.get(key) or {}).get("rows")
-        if isinstance(rows, list):
-            out[key] = "".join(json.dumps(clean_json({"effect": key, **r}), allow_nan=False) + "\n"
-                               for r in rows if isinstance(r, dict))
+        sec = meta.get(key) or {}
+        if isinstance(sec.get("rows"), list):
+            out[key] = lines(key, sec["rows"])
+        for name, rows in (sec.get("extra_rows") or {}).items():
+            if isinstance(rows, list):
+                out[name] = lines(key, rows)
     return out
 
 

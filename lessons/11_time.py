@@ -28,7 +28,10 @@
 # > 2. how reprojection finds where a pixel was last frame, and when the depth says the history is new;
 # > 3. why the resolve clamps the history to the current neighbourhood, and what the blend weight does;
 # > 4. how much accumulation cuts each method's flicker;
-# > 5. what ghosting measures, and how it grows when the resolve keeps stale history.
+# > 5. what ghosting measures, and how it grows when the resolve keeps stale history;
+# > 6. what a moving object adds, and what its motion vectors fix (and do not fix);
+# > 7. why reflections lag behind the camera after a resolve;
+# > 8. how TXAA anti-aliases an implicit surface, and why a depth test in the resolve undoes it.
 
 # %% [markdown]
 # ## Setup
@@ -42,13 +45,14 @@ import matplotlib.pyplot as plt
 import torch
 
 import _setup
-from ssbench.evaluate import EDGE_BAND, EDGE_JUMP, ao_frames, orbit
+from ssbench.evaluate import EDGE_BAND, EDGE_JUMP, ao_frames, implicit_frames, orbit, ssr_frames
 from ssbench.metrics.ao import edge_band
 from ssbench.metrics.temporal import flicker, ghosting
 from ssbench.passes import AO_METHODS
 from ssbench.passes.temporal import AccumulationParams, accumulate, reproject
 from ssbench.reference import gbuffer
 from ssbench.scenes import catalog
+from ssbench.scenes.motion import Motion
 
 torch.set_num_threads(1)
 W, H = _setup.size((128, 96))
@@ -177,6 +181,87 @@ for a in ax:
 plt.show()
 
 # %% [markdown]
+# ## Step 6 — A moving object and its motion vectors
+#
+# Now the camera stands still and the ball of `sphere_on_plane` slides 0.15 per frame
+# (`ssbench.scenes.motion.Motion`). Two things change under it:
+#
+# - the **ball's own pixels** now show a surface point that was elsewhere last frame. Reprojecting by the camera
+#   alone reads the history at the same pixel; the **motion vectors** (`ssbench.passes.temporal.object_motion`:
+#   where the surface point is now minus where it was) send the lookup to where that point was;
+# - its **contact shadow** moves over the floor, which did not move. The floor's history is valid by every
+#   test, yet the AO there is stale. No motion vector can fix that; only the clamp bounds it.
+#
+# `ghosting_moving` counts the pixels within 8 px of the ball, where both effects show.
+
+# %%
+ball = dict(kw, truth_rays=_setup.pick(64, 32), moving=Motion("ball", (0.15, 0.0, 0.0)))
+runs = {(clamp, mv): ao_frames("sphere_on_plane", "gtao", accumulation=AccumulationParams(clamp=clamp),
+                                motion_vectors=mv, **ball)
+        for clamp in ("minmax", "none") for mv in (True, False)}
+for (clamp, mv), r in runs.items():
+    print(f"clamp {clamp:6}  motion vectors {str(mv):5}  ghosting near the ball {r.ghosting_moving:+.4f}  "
+          f"history kept {float(r.history_valid[1:].float().mean()):.1%}")
+r = runs[("none", False)]
+fig, ax = plt.subplots(1, 2, figsize=(8, 3))
+ax[0].imshow(r.truth[-1, 0, 0], cmap="gray", vmin=0, vmax=1), ax[0].set_title("truth, last frame")
+ax[1].imshow((r.accumulated[-1] - r.truth[-1])[0, 0], cmap="RdBu", vmin=-0.2, vmax=0.2)
+ax[1].set_title("no clamp, camera only − truth")
+for a in ax:
+    a.axis("off")
+plt.show()
+
+# %% [markdown]
+# The clamp does most of the work: the trail is the contact shadow, and its floor pixels carry no motion. The
+# motion vectors keep more history (the ball's pixels reproject onto the ball) and trim the rest.
+#
+# ## Step 7 — Reflections lag
+#
+# The same resolve on SSR (`ssbench.evaluate.ssr_frames`, scene `glossy_ramp`). The history of a reflection is
+# found through the **floor's** depth and motion, but what the reflection shows moves with its own parallax:
+# turn the camera and the reflected spheres slide across the floor faster than the floor does. The truth of each
+# frame is the screen-space oracle (the G-buffer colour where each lobe direction's hit projects), so the
+# comparison is about the resolve, not what the screen lacks.
+
+# %%
+ssr_kw = dict(frames=FRAMES, width=W, height=H, truth_rays=_setup.pick(16, 8))
+refl = {name: ssr_frames("glossy_ramp", "dda", accumulation=acc, orbit_deg=1.5, **ssr_kw)
+        for name, acc in (("tight", AccumulationParams()),
+                          ("loose", AccumulationParams(alpha=0.05, clamp="none", depth_tolerance=10.0)))}
+still = ssr_frames("glossy_ramp", "glossy_stochastic", accumulation=AccumulationParams(), frames=FRAMES, width=W,
+                   height=H)
+print(f"DDA reflections, turning camera: ghosting tight {refl['tight'].ghosting:+.4f}, "
+      f"loose {refl['loose'].ghosting:+.4f} (near edges {refl['tight'].ghosting_edges:+.4f} → "
+      f"{refl['loose'].ghosting_edges:+.4f})")
+print(f"stochastic glossy SSR, still camera: flicker {still.flicker:.4f} raw → {still.flicker_accumulated:.4f}")
+
+# %% [markdown]
+# ## Step 8 — TXAA on an implicit surface
+#
+# The progressive-tracing article's notes (補足: アンチエイリアシング) jitter the camera by a random sub-pixel
+# offset every frame. Resolved over frames, the jittered samples average over each pixel's area: the
+# supersampled image, without supersampling. `ssbench.evaluate.implicit_frames` casts the frames, resolves them,
+# and scores the silhouettes against the certified reference at 4 × 4 samples per pixel.
+#
+# One setting matters: the AO resolve's **depth test**. The jitter moves every silhouette by up to half a pixel
+# each frame, so a silhouette pixel flips between the surface and the background, and its depth with it. A depth
+# test then throws the history away exactly where TXAA works. `TXAA` resolves without it (and keeps the
+# background, which is a colour here).
+
+# %%
+txaa = implicit_frames("torus", "sphere", frames=16, width=W // 2, height=H // 2)
+depth = implicit_frames("torus", "sphere", frames=16, width=W // 2, height=H // 2,
+                        accumulation=AccumulationParams(background=True))
+late = lambda run: sum(run.error_accumulated[-4:]) / 4                                   # noqa: E731
+print(f"silhouette error: raw {sum(txaa.error_raw) / 16:.4f}, TXAA {late(txaa):.4f}, with a depth test "
+      f"{late(depth):.4f}")
+fig, ax = plt.subplots(1, 3, figsize=(11, 3))
+for a, (img, title) in zip(ax, ((txaa.color[-1], "one jittered frame"), (txaa.accumulated[-1], "TXAA, 16 frames"),
+                                (txaa.truth, "4×4 supersampled truth"))):
+    a.imshow((img[0].permute(1, 2, 0).clamp(0, 1) ** (1 / 2.2)).numpy()), a.set_title(title), a.axis("off")
+plt.show()
+
+# %% [markdown]
 # ## Checks
 
 # %%
@@ -188,6 +273,9 @@ assert rows["ssao"][1] < rows["ssao"][0] and rows["hbao"][1] < rows["hbao"][0]
 assert loose.ghosting > tight.ghosting
 assert float(flicker(frozen.ao, frozen.mask)) == 0.0
 assert ghosting(tight.accumulated, tight.ao, tight.truth, tight.history_valid) == tight.ghosting
+assert runs[("none", True)].ghosting_moving > runs[("minmax", True)].ghosting_moving
+assert refl["loose"].ghosting > refl["tight"].ghosting and still.flicker_accumulated < still.flicker
+assert late(txaa) < sum(txaa.error_raw) / 16 and late(depth) > late(txaa)
 print("all checks passed")
 
 # %% [markdown]
@@ -195,5 +283,8 @@ print("all checks passed")
 #
 # - `ssbench/passes/temporal.py`: the resolve, with its parameters.
 # - `ssbench/report/time_section.py`: the same numbers for every method in the report's **Time** section, with
-#   the error over frames and an animated raw | accumulated comparison.
+#   the error over frames and animated raw | accumulated comparisons (camera turning, ball moving); the SSR and
+#   TXAA tables come from `time_ssr.py` and `time_implicit.py`.
+# - `ssbench/evaluate/_frames.py`: the frame loop (jitter, orbit, moving object, motion vectors) every temporal
+#   evaluation shares.
 # - Lesson 3 (GTAO's noise and its denoiser) and lesson 9 (reading a report).

@@ -63,7 +63,7 @@ def _run(args, env, cwd):
 
 
 def test_the_registries_are_the_declared_methods_in_order():
-    assert list(AO_METHODS) == ["crytek", "ssao", "hbao", "gtao", "vbao", "three_gtao"]
+    assert list(AO_METHODS) == ["crytek", "ssao", "hbao", "gtao", "sao", "vbao", "three_gtao"]
     assert list(SSR_METHODS) == ["linear", "dda", "dda_supercover", "hiz", "three_ssr", "glossy_stochastic",
                                  "glossy_blur"]
     assert list(IMPLICIT_METHODS) == ["fixed", "sphere", "progressive"]

@@ -1,5 +1,5 @@
-"""The ``ssbench`` command: ``info``, ``scenes``, ``render``, ``ao``, ``ssr``, ``implicit``, ``sweep``, ``tune`` and
-``report``.
+"""The ``ssbench`` command: ``info``, ``scenes``, ``render``, ``ao``, ``ssr``, ``implicit``, ``frames``, ``sweep``,
+``tune`` and ``report``.
 
 ``main(argv)`` returns the exit status instead of exiting, so it can be called in-process; user errors print
 ``ssbench: error: ...`` to stderr (exit status 2 for bad arguments, 1 for a failed run) without a traceback
@@ -16,6 +16,7 @@ from ..gbuffer import CHANNELS
 from ._args import (UsageError, Parser, channels_arg, define_arg, non_negative, non_negative_float, param_arg, positive,
                     positive_float, gt_rays, scene_list, size_arg, coerce_params, parse_value)  # noqa: F401
 from ._effect_cmds import cmd_ao, cmd_ssr
+from ._frames_cmd import add_parser as add_frames_parser, cmd_frames
 from ._implicit_cmd import cmd_implicit
 from ._scene_cmds import cmd_info, cmd_render, cmd_report, cmd_scenes
 
@@ -114,6 +115,7 @@ def _parser() -> Parser:
     q.add_argument("--json", action="store_true", help="print the row as JSON")
     q.add_argument("--no-cache", action="store_true", help="do not read or write the reference cache")
     q.add_argument("--force", action="store_true", help="run work above the size limits (ssbench/RELIABILITY.md)")
+    add_frames_parser(sub)
     from ._sweep_cmd import add_sweep_parser
     from ._tune_cmd import add_tune_parser
     add_sweep_parser(sub)
@@ -165,7 +167,7 @@ def _parser() -> Parser:
 
 
 _COMMANDS = {"info": cmd_info, "scenes": cmd_scenes, "render": cmd_render, "ao": cmd_ao,
-             "ssr": cmd_ssr, "implicit": cmd_implicit, "report": cmd_report}
+             "ssr": cmd_ssr, "implicit": cmd_implicit, "frames": cmd_frames, "report": cmd_report}
 
 
 def _cmd_sweep(args) -> int:

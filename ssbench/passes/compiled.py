@@ -9,7 +9,9 @@ pass is the same pass. Compiled: Crytek and hemisphere SSAO (bit for bit equal t
 vectorised cos/acos differ from ATen's by an ulp and ``acos`` near ±1 magnifies that; float64 agrees to 1e-14) and
 the visibility-bitmask AO (the same ulp now and then moves a sample across a sector edge: one bit of one slice,
 1/(sectors·slices) = 1/128 at the defaults, in 0.03 % of the pixels of stairs at 640×360; 4.3× faster than eager
-there, 9.2× with cosine weighting). Not compiled: HBAO (its
+there, 9.2× with cosine weighting) and SAO's tap loop (bit-equal at the defaults on stairs at 640×360, 2.0× faster;
+with G-buffer normals and radius 2, 2 of 230 400 pixels differ by ≤ 4.5e-5: inductor contracts ``ssR·cos`` to an
+FMA, and a tap within an ulp of a pixel edge truncates to the neighbour). Not compiled: HBAO (its
 march's early exit breaks the graph every step; unrolled without it, the compiled march ran slower than eager),
 and the SSR marchers, which compact their live rays every step (data-dependent shapes).
 

@@ -48,13 +48,13 @@ def test_a_kernel_runs_eager_when_off_and_compiled_once_per_signature_when_on():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("method", ["crytek", "ssao", "gtao", "vbao"])
+@pytest.mark.parametrize("method", ["crytek", "ssao", "gtao", "vbao", "sao"])
 def test_compiled_ao_passes_equal_eager(method):
     from ssbench.passes import ao_method
     from tests.passes.ssr_scenes import room
     g = dataclasses.replace(room(24, 18, torch.float32, slat=True), color=None)
     fn, params_cls, _ = ao_method(method)
-    p = params_cls(quality="low") if method == "gtao" else params_cls()
+    p = params_cls(quality="low") if method == "gtao" else params_cls(radius=4.0) if method == "sao" else params_cls()
     with C.compiling(False):
         eager = fn(g, p, generator=torch.Generator().manual_seed(1), debug=True)
     before = C.compile_seconds()
@@ -66,6 +66,10 @@ def test_compiled_ao_passes_equal_eager(method):
         d = (eager.ao - comp.ao).abs()                                  # slice, 1/(N·S), in few pixels
         assert float(d.max()) <= 1.0 / (p.sector_count * p.slices) + 1e-6 and float((d > 0).float().mean()) < 0.02
         assert float((eager.debug["bits"] == comp.debug["bits"]).float().mean()) > 0.98    # the same sectors
+    elif method == "sao":   # a tap whose ssR·cos lands within an ulp of an integer can truncate to the next pixel
+        d = (eager.ao - comp.ao).abs()                                  # (inductor contracts to FMA): rare pixels
+        assert float((d > 0).float().mean()) < 0.01 and float(d.max()) < 0.05
+        assert float((eager.debug["mip_level"] != comp.debug["mip_level"]).float().mean()) < 0.01
     elif method != "gtao":
         assert torch.equal(eager.ao, comp.ao)
         for k, v in eager.debug.items():

@@ -40,6 +40,7 @@ from torch import nn
 
 from ...gbuffer import GBuffer
 from ..common import AOResult, check_count, check_positive, check_radius
+from ..compiled import kernel
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..registry import Method, SpeedPanel
 from .sao_parts import (depth_mips, gl_rows, mip_level, pixels_per_meter, quad_filter, spin_angle,
@@ -122,6 +123,53 @@ def face_normals(position: torch.Tensor) -> torch.Tensor:
     return torch.where(ok, n / torch.where(ok, norm, torch.ones_like(norm)), torch.zeros_like(n))
 
 
+@kernel
+def sao_taps(c: tuple, n: tuple, spin: torch.Tensor, ss_disk: torch.Tensor, xy: tuple, mips: tuple,
+             uv_to_view: tuple, p: "SAOParams", debug: bool) -> tuple:
+    """The listing's tap loop (``sampleAO`` summed over ``NUM_SAMPLES``) on the whole image, one tap at a time,
+    per component (the pass's compilable kernel, :mod:`ssbench.passes.compiled`).
+
+    Args:
+        c: ``C``'s x, y, z :math:`(B, 1, H, W)` (GL rows); n: ``n_C``'s :math:`(B, 1, H, W)` components.
+        spin: :math:`(1, 1, H, W)` pattern angle; ss_disk: :math:`(B, 1, H, W)` ``ssDiskRadius`` in pixels.
+        xy: integer pixel ``x`` :math:`(1, 1, 1, W)` and ``y`` :math:`(1, 1, H, 1)`.
+        mips: the pyramid flattened per batch :math:`(B, N)`, each level's ``(W, H)`` and its start in it.
+        uv_to_view: ``(A₀, A₁, B₀, B₁)`` of :meth:`~ssbench.camera.Camera.uv_to_view_params`.
+
+    Returns:
+        ``(sum, levels)``: :math:`(B, 1, H, W)` the taps' sum and, with ``debug``, :math:`(B, N, H, W)` int8 the
+        level each tap read (else ``None``).
+    """
+    (cx, cy, cz), (nx, ny, nz), (x, y) = c, n, xy
+    flat, sizes, starts = mips
+    a0, a1, b0, b1 = uv_to_view
+    B, _, H, W = cz.shape
+    r2 = p.radius * p.radius
+    total = torch.zeros_like(cz)
+    levels = []
+    for i in range(p.num_samples):
+        ux, uy, alpha = tap_location(i, p.num_samples, p.num_spiral_turns, spin)
+        ss_r = alpha * ss_disk
+        lv = mip_level(ss_r, p.log_max_offset, p.max_mip_level) if p.use_mips else torch.zeros_like(cz, dtype=torch.long)
+        px = torch.trunc(ss_r * ux).long() + x
+        py = torch.trunc(ss_r * uy).long() + y
+        w_l, h_l = sizes[lv, 0], sizes[lv, 1]
+        tx = torch.minimum(torch.bitwise_right_shift(px, lv).clamp(min=0), w_l - 1)
+        ty = torch.minimum(torch.bitwise_right_shift(py, lv).clamp(min=0), h_l - 1)
+        zq = torch.gather(flat, 1, (starts[lv] + ty * w_l + tx).reshape(B, -1)).view_as(cz)
+        vx = (a0 * ((px.to(cz.dtype) + 0.5) / W) + b0) * zq - cx                       # v = Q − C
+        vy = (a1 * ((py.to(cz.dtype) + 0.5) / H) + b1) * zq - cy
+        vz = zq - cz
+        vv = vx * vx + vy * vy + vz * vz
+        vn = vx * nx + vy * ny + vz * nz
+        f = (r2 - vv).clamp(min=0.0)
+        tap = f * f * f * ((vn - p.bias) / (EPSILON + vv)).clamp(min=0.0)
+        total = total + torch.where(f > 0, tap, torch.zeros_like(tap))      # out of reach (or overflowed): 0
+        if debug:
+            levels.append(lv.to(torch.int8))
+    return total, (torch.cat(levels, 1) if debug else None)
+
+
 @half_in_float32
 def sao(gbuffer: GBuffer, params: SAOParams = SAOParams(), *, generator: Optional[torch.Generator] = None,
         debug: bool = False) -> AOResult:
@@ -155,46 +203,28 @@ def sao(gbuffer: GBuffer, params: SAOParams = SAOParams(), *, generator: Optiona
     z = gl_rows(torch.where(gbuffer.mask, gbuffer.view_z, torch.full_like(gbuffer.view_z, -cam.far)))
     x = torch.arange(W, device=dev).view(1, 1, 1, W)
     y = torch.arange(H, device=dev).view(1, 1, H, 1)
-
-    def position(px: torch.Tensor, py: torch.Tensor, zz: torch.Tensor) -> torch.Tensor:   # reconstructCSPosition
-        uv = torch.cat(torch.broadcast_tensors((px.to(dtype) + 0.5) / W, (py.to(dtype) + 0.5) / H), 1)
-        return cam.uv_to_view(uv, zz, dim=1)
-
-    c = position(x, y, z)                                                             # (B, 3, H, W)
-    n = face_normals(c) if p.normals == "depth" else gl_rows(gbuffer.normal)
+    a0, a1, b0, b1 = cam.uv_to_view_params()
+    u, v = (x.to(dtype) + 0.5) / W, (y.to(dtype) + 0.5) / H
+    c = ((a0 * u + b0) * z, (a1 * v + b1) * z, z)                                   # reconstructCSPosition
+    if p.normals == "depth":
+        n = face_normals(torch.cat(torch.broadcast_tensors(*c), 1))
+    else:
+        n = gl_rows(gbuffer.normal)
     spin = spin_angle(x, y).to(dtype)
     ss_disk = -pixels_per_meter(cam) * p.radius / z
     mips = depth_mips(z, p.max_mip_level if p.use_mips else 0)
     flat = torch.cat([m.reshape(B, -1) for m in mips], 1)
     sizes = torch.tensor([[m.shape[-1], m.shape[-2]] for m in mips], device=dev)        # (levels, 2) W, H
     starts = torch.cumsum(torch.cat([torch.zeros(1, dtype=torch.long, device=dev), sizes[:-1].prod(1)]), 0)
+    total, levels = sao_taps(c, tuple(n[:, k:k + 1] for k in range(3)), spin, ss_disk, (x, y),
+                             (flat, sizes, starts), (a0, a1, b0, b1), p, debug)
     r2 = p.radius * p.radius
-    total = torch.zeros_like(z)
-    levels = []
-    for i in range(p.num_samples):
-        ux, uy, alpha = tap_location(i, p.num_samples, p.num_spiral_turns, spin)
-        ss_r = alpha * ss_disk
-        lv = mip_level(ss_r, p.log_max_offset, p.max_mip_level) if p.use_mips else torch.zeros_like(z, dtype=torch.long)
-        px = torch.trunc(ss_r * ux).long() + x
-        py = torch.trunc(ss_r * uy).long() + y
-        w_l, h_l = sizes[lv, 0], sizes[lv, 1]
-        tx = torch.minimum(torch.bitwise_right_shift(px, lv).clamp(min=0), w_l - 1)
-        ty = torch.minimum(torch.bitwise_right_shift(py, lv).clamp(min=0), h_l - 1)
-        zq = torch.gather(flat, 1, (starts[lv] + ty * w_l + tx).reshape(B, -1)).view_as(z)
-        v = position(px, py, zq) - c
-        vv = (v * v).sum(1, keepdim=True)
-        vn = (v * n).sum(1, keepdim=True)
-        f = (r2 - vv).clamp(min=0.0)
-        tap = f * f * f * ((vn - p.bias) / (EPSILON + vv)).clamp(min=0.0)
-        total = total + torch.where(f > 0, tap, torch.zeros_like(tap))      # out of reach (or overflowed): 0
-        if debug:
-            levels.append(gl_rows(lv).to(torch.int8))
     a = (1.0 - total * (p.intensity / r2 ** 3) * (5.0 / p.num_samples)).clamp(min=0.0)
     if p.quad_filter:
         a = quad_filter(a, z)
     a = gl_rows(a)
     ao = torch.where(gbuffer.mask, a.clamp(max=1.0), torch.ones_like(a))
-    extra = {"mip_level": torch.cat(levels, 1), "normal": gl_rows(n)} if debug else {}
+    extra = {"mip_level": gl_rows(levels), "normal": gl_rows(n)} if debug else {}
     return AOResult(ao=ao, debug=extra)
 
 

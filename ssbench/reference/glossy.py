@@ -124,7 +124,7 @@ def glossy_reflections(scene, gbuffer: GBuffer, *, rays: int = 32, seed: int = 0
     rng = mi.PCG32(size=N, initstate=dr.opaque(mi.UInt64, seed), initseq=dr.arange(mi.UInt64, N))
     sampler = mi.load_dict({"type": "independent"})
     integrator = mscene.integrator()
-    eye = mi.Point3f(*[float(v) for v in cam.eye])
+    eye = mi.Point3f(*[dr.opaque(mi.Float, float(v)) for v in cam.eye])   # opaque: one kernel for every camera
     valid = hit.torch().bool()
     sums = {k: torch.zeros(3, N, dtype=torch.float64) for k in ("lobe", "lobe2", "spec", "spec2", "orc", "orc2",
                                                                  "gap", "gap2")}
@@ -147,7 +147,7 @@ def glossy_reflections(scene, gbuffer: GBuffer, *, rays: int = 32, seed: int = 0
         dist = dr.norm(to_p)
         pi = mscene.ray_intersect_preliminary(mi.Ray3f(eye, to_p / dr.maximum(dist, 1e-30)), active=si_r.is_valid())
         seen = above & si_r.is_valid() & (pi.t >= dist * (1.0 - 1e-4)) & (dr.dot(si_r.n, eye - p) > 0)
-        dr.eval(L, g1, cos_vm, p, seen)
+        dr.eval(L, g1, cos_vm, p, seen, rng)           # rng too: the next ray's kernel starts from stored state
         Lt = torch.stack([L.x.torch(), L.y.torch(), L.z.torch()]).double()
         fres = f0 + (1.0 - f0) * (1.0 - cos_vm.torch().double().clamp(0, 1)) ** 5
         spec = fres * g1.torch().double() * Lt

@@ -110,7 +110,7 @@ def reflections(scene, gbuffer: GBuffer, *, spp: int = 16, seed: int = 0, use_ca
     p = rray.o + si_r.t * rray.d
 
     # ---- Seen from the camera: an eye ray to the hit point, and facing ----
-    eye = mi.Point3f(*[float(v) for v in cam.eye])
+    eye = mi.Point3f(*[dr.opaque(mi.Float, float(v)) for v in cam.eye])     # opaque: one kernel for every camera
     to_p = p - eye
     dist = dr.norm(to_p)
     pi = mscene.ray_intersect_preliminary(mi.Ray3f(eye, to_p / dr.maximum(dist, 1e-30)), active=hit)
@@ -127,6 +127,7 @@ def reflections(scene, gbuffer: GBuffer, *, spp: int = 16, seed: int = 0, use_ca
     sampler = mi.load_dict({"type": "independent"})
     integrator = mscene.integrator()
     acc = torch.zeros(3, N, dtype=torch.float64)
+    dr.eval(rray, valid)                             # traced once, not again in every sample's kernel
     for k in range(spp):
         sampler.seed(dr.opaque(mi.UInt32, pass_seed(seed, k)), N)
         L, _, _ = integrator.sample(mscene, sampler, mi.RayDifferential3f(rray), None, valid)

@@ -252,9 +252,8 @@ print(f"stochastic glossy SSR, still camera: flicker {still.flicker:.4f} raw →
 txaa = implicit_frames("torus", "sphere", frames=16, width=W // 2, height=H // 2)
 depth = implicit_frames("torus", "sphere", frames=16, width=W // 2, height=H // 2,
                         accumulation=AccumulationParams(background=True))
-late = lambda run: sum(run.error_accumulated[-4:]) / 4                                   # noqa: E731
-print(f"silhouette error: raw {sum(txaa.error_raw) / 16:.4f}, TXAA {late(txaa):.4f}, with a depth test "
-      f"{late(depth):.4f}")
+print(f"silhouette error: raw {txaa.raw_error():.4f}, TXAA {txaa.late_error():.4f} (last 4 frames), with a depth "
+      f"test {depth.late_error():.4f}")
 fig, ax = plt.subplots(1, 3, figsize=(11, 3))
 for a, (img, title) in zip(ax, ((txaa.color[-1], "one jittered frame"), (txaa.accumulated[-1], "TXAA, 16 frames"),
                                 (txaa.truth, "4×4 supersampled truth"))):
@@ -275,7 +274,7 @@ assert float(flicker(frozen.ao, frozen.mask)) == 0.0
 assert ghosting(tight.accumulated, tight.ao, tight.truth, tight.history_valid) == tight.ghosting
 assert runs[("none", True)].ghosting_moving > runs[("minmax", True)].ghosting_moving
 assert refl["loose"].ghosting > refl["tight"].ghosting and still.flicker_accumulated < still.flicker
-assert late(txaa) < sum(txaa.error_raw) / 16 and late(depth) > late(txaa)
+assert txaa.late_error() < txaa.raw_error() and depth.late_error() > txaa.late_error()
 print("all checks passed")
 
 # %% [markdown]

@@ -15,9 +15,8 @@ from ._args import UsageError, coerce_params, guard_work, param_arg, parse_value
 
 EFFECTS = ("ao", "ssr", "implicit")
 #: the numbers each effect prints, in order
-KEYS = {"ao": ("flicker", "flicker_accumulated", "ghosting", "ghosting_edges", "ghosting_moving"),
-        "ssr": ("flicker", "flicker_accumulated", "ghosting", "ghosting_edges", "ghosting_moving"),
-        "implicit": ("error_raw", "error_accumulated", "flicker", "flicker_accumulated")}
+_SCREEN = ("flicker", "flicker_accumulated", "ghosting", "ghosting_edges", "ghosting_moving")
+KEYS = {"ao": _SCREEN, "ssr": _SCREEN, "implicit": ("error_raw", "error_accumulated", "flicker", "flicker_accumulated")}
 
 
 def move_arg(s: str):
@@ -102,8 +101,7 @@ def cmd_frames(args) -> int:
                   use_cache=not args.no_cache)
     if args.effect == "implicit":
         run = evaluate.implicit_frames(args.scene, args.method, params or None, accumulation=acc, **common)
-        row = {"error_raw": sum(run.error_raw) / len(run.error_raw),
-               "error_accumulated": sum(run.error_accumulated[-4:]) / len(run.error_accumulated[-4:]),
+        row = {"error_raw": run.raw_error(), "error_accumulated": run.late_error(),
                "flicker": run.flicker, "flicker_accumulated": run.flicker_accumulated}
     else:
         fn = evaluate.ao_frames if args.effect == "ao" else evaluate.ssr_frames

@@ -24,7 +24,7 @@ from ._glossy import GLOSSY_GT_CHANNELS, ROUGHNESS_EDGES, GlossyEvaluation, run_
 from ._frames import MOVING_BAND, FramePlan
 from ._temporal import EDGE_BAND, EDGE_JUMP, AOFrames, ao_frames, orbit
 from ._temporal_ssr import SSRFrames, ssr_frames
-from ._temporal_implicit import TXAA, ImplicitFrames, implicit_frames
+from ._temporal_implicit import LATE_FRAMES, TXAA, ImplicitFrames, implicit_frames
 from ._implicit import ImplicitEvaluation, implicit, lipschitz_diagnostic, run_implicit, steps_param
 from ._ssr import (EQUAL_RAY_LENGTH, EQUAL_THICKNESS, SSR_GT_CHANNELS, SSREvaluation, equal_roles, equal_settings,
                    pass_channels, run_ssr, scene_scale, ssr)
@@ -35,5 +35,5 @@ __all__ = ["ao", "run_ao", "ao_beyond", "has_bent_normals", "AOEvaluation", "res
            "scene_scale", "EQUAL_RAY_LENGTH", "EQUAL_THICKNESS",
            "ssr_glossy", "run_glossy", "GlossyEvaluation", "GLOSSY_GT_CHANNELS", "ROUGHNESS_EDGES",
            "ao_frames", "AOFrames", "orbit", "EDGE_BAND", "EDGE_JUMP", "MOVING_BAND", "FramePlan",
-           "ssr_frames", "SSRFrames", "implicit_frames", "ImplicitFrames", "TXAA",
+           "ssr_frames", "SSRFrames", "implicit_frames", "ImplicitFrames", "TXAA", "LATE_FRAMES",
            "implicit", "run_implicit", "ImplicitEvaluation", "steps_param", "lipschitz_diagnostic"]

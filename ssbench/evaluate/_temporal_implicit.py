@@ -12,8 +12,7 @@ history stays in place, so the resolve averages the jittered samples over the pi
 The truth is the box-filtered image: the certified reference (:func:`ssbench.reference.implicit.implicit`) cast at
 ``truth_factor``² samples per pixel, shaded the same way and averaged (the article's supersampling,
 :func:`~ssbench.passes.implicit.gbuffer.supersample`). Scores, on luminance, per frame: the mean |error| over the
-silhouette pixels (:func:`~ssbench.passes.implicit.progressive_notes.silhouette_mask` of the truth's coverage),
-raw and accumulated — aliasing is the raw error there; the flicker of both over the silhouettes.
+silhouette pixels (those the truth covers only partly, and their neighbours), raw and accumulated — aliasing is the raw error there; the flicker of both over the silhouettes.
 """
 from __future__ import annotations
 
@@ -29,7 +28,10 @@ from ..metrics.temporal import flicker
 from ..passes.temporal import AccumulationParams, TemporalAccumulator
 from ._common import resolve_params
 
-__all__ = ["ImplicitFrames", "implicit_frames", "supersampled_truth", "TXAA"]
+__all__ = ["ImplicitFrames", "implicit_frames", "supersampled_truth", "TXAA", "LATE_FRAMES"]
+
+#: :meth:`ImplicitFrames.late_error` averages the accumulated error over this many last frames
+LATE_FRAMES = 4
 
 #: the TXAA resolve of a still camera: no depth rejection (the jitter moves silhouettes every frame, so a depth
 #: test would drop the history exactly where it anti-aliases), the background resolved too, the 3×3 clamp kept
@@ -43,7 +45,7 @@ class ImplicitFrames:
     Attributes:
         color, accumulated: :math:`(T, 1, 3, H, W)` shaded frames raw and resolved.
         truth: :math:`(1, 3, H, W)` the supersampled image; coverage :math:`(1, 1, H, W)` its hit share.
-        silhouettes: :math:`(1, 1, H, W)` bool, the pixels partly covered or beside a label change.
+        silhouettes: :math:`(1, 1, H, W)` bool, the pixels the truth covers partly, dilated by one pixel.
         error_raw, error_accumulated: per-frame mean |luminance error| over the silhouettes.
         flicker, flicker_accumulated: :func:`ssbench.metrics.flicker` of the luminance over the silhouettes.
         offsets: each frame's jitter ``(dx, dy)`` in pixels.
@@ -61,6 +63,15 @@ class ImplicitFrames:
     flicker_accumulated: float
     offsets: tuple
     params: object
+
+    def raw_error(self) -> float:
+        """The mean silhouette error of the raw frames (the aliasing)."""
+        return sum(self.error_raw) / len(self.error_raw)
+
+    def late_error(self, frames: int = LATE_FRAMES) -> float:
+        """The mean silhouette error of the last ``frames`` accumulated frames (what the resolve converged to)."""
+        last = self.error_accumulated[-frames:]
+        return sum(last) / len(last)
 
 
 def supersampled_truth(scene, camera, factor: int, use_cache: bool = True) -> tuple[torch.Tensor, torch.Tensor]:

@@ -17,7 +17,6 @@ from .summary import fmt
 SCENES = ("torus", "thin_shell")
 FRAMES = 16
 TRUTH_FACTOR = 4
-LATE = 4
 KEYS = ("error_raw", "error_txaa", "error_depth_test", "flicker", "flicker_accumulated")
 
 
@@ -43,7 +42,7 @@ def implicit_rows(run_dir: str, width: int, height: int, *, use_cache: bool = Tr
                   progress: Optional[bool] = None) -> dict:
     """``{"rows", "table", "notes", "image"}`` of every implicit caster on :data:`SCENES`; failures are notes."""
     from tqdm import tqdm
-    from ..evaluate import implicit_frames
+    from ..evaluate import LATE_FRAMES, implicit_frames
     from ..passes import IMPLICIT_METHODS
     from ..passes.temporal import AccumulationParams
     rows, notes, curves = [], [], {}
@@ -59,9 +58,8 @@ def implicit_rows(run_dir: str, width: int, height: int, *, use_cache: bool = Tr
         curves[(scene, m)] = (txaa.error_raw, txaa.error_accumulated)
         rows.append({"kind": "time_implicit", "scene": scene, "method": m, "frames": FRAMES, "width": width,
                      "height": height, "truth_factor": TRUTH_FACTOR,
-                     "error_raw": sum(txaa.error_raw) / FRAMES,
-                     "error_txaa": sum(txaa.error_accumulated[-LATE:]) / LATE,
-                     "error_depth_test": sum(depth.error_accumulated[-LATE:]) / LATE,
+                     "error_raw": txaa.raw_error(), "error_txaa": txaa.late_error(),
+                     "error_depth_test": depth.late_error(),
                      "flicker": txaa.flicker, "flicker_accumulated": txaa.flicker_accumulated})
     image = None
     if curves:
@@ -69,7 +67,7 @@ def implicit_rows(run_dir: str, width: int, height: int, *, use_cache: bool = Tr
         image = "img/time/txaa.png"
     table = [{**r, **{k: fmt(r[k], "{:.4f}") for k in KEYS}} for r in rows]
     return {"rows": rows, "table": table, "notes": notes, "image": image, "scenes": list(SCENES),
-            "frames": FRAMES, "truth_factor": TRUTH_FACTOR, "late": LATE}
+            "frames": FRAMES, "truth_factor": TRUTH_FACTOR, "late": LATE_FRAMES}
 
 
 def summary_lines(imp: dict) -> list:

@@ -100,7 +100,7 @@ def ssr_frames(scene, method: str, params=None, *, frames: int = 8, jitter: bool
     sc = load_scene(scene)
     plan = FramePlan(sc, sc.camera.with_resolution(width, height), frames, jitter, orbit_deg, moving,
                      motion_vectors)
-    chans = tuple(dict.fromkeys(needs + GLOSSY_CHANNELS + ("metallic", "roughness")))
+    chans = tuple(dict.fromkeys(needs + GLOSSY_CHANNELS))                     # GLOSSY_CHANNELS: roughness, metallic
 
     def render(t, _scene, g):
         gen = torch.Generator().manual_seed(seed + t)

@@ -102,7 +102,8 @@ def reflections(scene, gbuffer: GBuffer, *, spp: int = 16, seed: int = 0, use_ca
     r_dir = dr.normalize(ray.d - 2.0 * dr.dot(ray.d, n) * n)
     # origin nudged along r itself (not along n as spawn_ray does, which shifts the whole line by ~1e-4·|p| and
     # the hit by ~1e-3 relative): the ray stays on the exact mirror line, scale-invariantly
-    t_eye = si.t + dr.norm(ray.o - mi.Point3f(*[float(v) for v in cam.eye]))
+    eye = mi.Point3f(*[dr.opaque(mi.Float, float(v)) for v in cam.eye])     # opaque: one kernel for every camera
+    t_eye = si.t + dr.norm(ray.o - eye)
     step = 1e-4 * t_eye
     rray = mi.Ray3f(ray.o + si.t * ray.d + step * r_dir, r_dir)
     si_r = mscene.ray_intersect(rray, valid)
@@ -110,7 +111,6 @@ def reflections(scene, gbuffer: GBuffer, *, spp: int = 16, seed: int = 0, use_ca
     p = rray.o + si_r.t * rray.d
 
     # ---- Seen from the camera: an eye ray to the hit point, and facing ----
-    eye = mi.Point3f(*[dr.opaque(mi.Float, float(v)) for v in cam.eye])     # opaque: one kernel for every camera
     to_p = p - eye
     dist = dr.norm(to_p)
     pi = mscene.ray_intersect_preliminary(mi.Ray3f(eye, to_p / dr.maximum(dist, 1e-30)), active=hit)

@@ -18,7 +18,6 @@ With a still camera and ``clamp="none"`` this is the exponential moving average 
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Optional
 
@@ -113,10 +112,8 @@ def reproject(history: torch.Tensor, prev_camera: Camera, prev_view_z: torch.Ten
     here = sample(history)
     prev_z = sample(prev_view_z)
     inside = ((grid.abs() <= 1).all(-1) & (prev[:, 2] < 0)).unsqueeze(1)
-    agree = (prev_z - prev[:, 2:3]).abs() <= depth_tolerance * prev[:, 2:3].abs()
-    if math.isinf(depth_tolerance):
-        agree = torch.ones_like(agree)
-    valid = inside & agree & (True if background else gbuffer.mask)
+    agree = (prev_z - prev[:, 2:3]).abs() <= depth_tolerance * prev[:, 2:3].abs()   # inf: every finite mismatch
+    valid = inside & agree if background else inside & agree & gbuffer.mask
     return here, valid
 
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 import torch
 
 from ...camera import Camera
-from ..common import AOResult, check_count, check_radius, fetch, texel_of
+from ..common import AOResult, check_count, check_radius, fetch, nan_to_zero, texel_of
 
 __all__ = ["check_ssao_params", "view_position", "range_check_count", "occlusion_to_ao", "ssao_result"]
 
@@ -52,8 +52,9 @@ def range_check_count(camera: Camera, sample_point: tuple, texture: torch.Tensor
     x, y, z = sample_point
     # NOTE: w = -z = 0 would divide by zero; the GPU result is undefined, ours reads as "just in front"
     z_proj = torch.where(z == 0, torch.full_like(z, -torch.finfo(z.dtype).tiny), z)
-    u, v = (torch.nan_to_num(camera.ndc_to_uv(c)) for c in camera.view_to_ndc_xy(x, y, z_proj))  # samplePointUv
-    col, row = texel_of(u, v, texture.shape[-2], texture.shape[-1])
+    # NaN reads as 0 (texel_of clamps infinities as nan_to_num would clamp ±max)
+    u, v = (nan_to_zero(camera.ndc_to_uv(c)) for c in camera.view_to_ndc_xy(x, y, z_proj))  # samplePointUv
+    col, row = texel_of(u, v, texture.shape[-2], texture.shape[-1], nan_free=True)
     real = fetch(texture, col.squeeze(1), row.squeeze(1)).reshape(z.shape)     # (B, 1, K, H, W) NEAREST, clamp
     if from_depth:
         real = camera.depth_to_view_z(real)                                      # perspectiveDepthToViewZ

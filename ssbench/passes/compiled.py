@@ -1,10 +1,12 @@
 """One switch for compiled passes: ``torch.compile`` of each pass's per-band kernel.
 
-A pass marks the pure tensor function it runs per band of rows with :func:`kernel`. With the switch off (the
+A pass marks the pure tensor function it runs per band of rows (or once per image, for its per-pixel set-up) with
+:func:`kernel`. With the switch off (the
 default) the kernel runs as written (eager). With it on, the kernel runs through ``torch.compile`` (inductor;
 ``dynamic=False``, so an image size compiles at most twice: its full bands and its last band); everything
 around it — parameter checks, noise and kernel draws, the band loop, early exits — stays eager, so a compiled
-pass is the same pass. Compiled: Crytek and hemisphere SSAO (bit for bit equal to eager, tested) and GTAO (the one exception to
+pass is the same pass. Compiled: Crytek and hemisphere SSAO (their per-pixel set-up and their sample loop, bit for bit
+equal to eager, tested) and GTAO (the one exception to
 "equal": its AO differs from eager by up to 4.5e-6 in float32, measured at 1920×1080, because inductor's
 vectorised cos/acos differ from ATen's by an ulp and ``acos`` near ±1 magnifies that; float64 agrees to 1e-14) and
 the visibility-bitmask AO (the same ulp now and then moves a sample across a sector edge: one bit of one slice,

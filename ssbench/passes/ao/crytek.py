@@ -97,6 +97,17 @@ def sphere_band(cam, position: torch.Tensor, rnd: torch.Tensor, k: torch.Tensor,
     return range_check_count(cam, sample_point, texture, False, p.min_distance, p.max_distance)
 
 
+@kernel
+def sphere_frame(cam, view_z: torch.Tensor, noise: torch.Tensor, p: "CrytekSSAOParams") -> tuple:
+    """Per pixel, before the sample loop (a compilable kernel, :mod:`ssbench.passes.compiled`): the view position
+    :math:`(B, 3, H, W)` and the depth texture from ``view_z`` :math:`(B, 1, H, W)`, and the random reflection
+    plane :math:`(1, 3, 1, H, W)` read from ``noise`` :math:`(3, S, S)` at texel ``(row, col)`` :math:`(H, W)`."""
+    position, texture = view_position(cam, view_z, "view_z")                       # (B, 3, H, W)
+    col, row = noise_texel(cam.uv_grid(view_z.dtype, view_z.device), cam.width, cam.height, p.noise_size)
+    random = noise[:, row, col].reshape(1, 3, 1, cam.height, cam.width)            # (1, 3, 1, H, W)
+    return position, texture, random, row, col
+
+
 @half_in_float32
 def crytek_ssao(gbuffer: GBuffer, params: CrytekSSAOParams = CrytekSSAOParams(), *,
                 generator: torch.Generator | None = None, debug: bool = False) -> AOResult:
@@ -136,9 +147,7 @@ def crytek_ssao(gbuffer: GBuffer, params: CrytekSSAOParams = CrytekSSAOParams(),
     kernel = sphere_kernel(p.kernel_size, g).to(dtype=dtype, device=device)        # (K, 3)
     noise = noise_texture(p.noise_size, g).to(dtype=dtype, device=device)          # (3, S, S) unit, z = 0
 
-    position, texture = view_position(cam, gbuffer.view_z, "view_z")              # (B, 3, H, W)
-    col, row = noise_texel(cam.uv_grid(dtype, device), cam.width, cam.height, p.noise_size)   # (H, W)
-    random = noise[:, row, col].reshape(1, 3, 1, cam.height, cam.width)            # (1, 3, 1, H, W)
+    position, texture, random, row, col = sphere_frame(cam, gbuffer.view_z, noise, p)
     k = kernel.T.reshape(1, 3, -1, 1, 1)                                           # (1, 3, K, 1, 1)
     count = torch.empty(position.shape[0], 1, cam.height, cam.width, dtype=torch.int64, device=device)
     for rs in row_bands(cam.height, cam.width, p.kernel_size, position.element_size()):   # cache-sized bands

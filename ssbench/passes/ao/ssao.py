@@ -211,14 +211,25 @@ def hemisphere_frame(gbuffer: GBuffer, params: HemisphereSSAOParams,
     g = make_generator(p.seed, generator)
     kernel = hemisphere_kernel(p.kernel_size, g).to(dtype=dtype, device=device)    # (K, 3) Kernel[i]
     noise = noise_texture(p.noise_size, g).to(dtype=dtype, device=device)          # (3, S, S)
-    position, texture = view_position(cam, gbuffer.view_z, p.position_from)       # (B, 3, H, W) viewPosition
-    col, row = noise_texel(cam.uv_grid(dtype, device), cam.width, cam.height, p.noise_size)   # (H, W)
+    position, texture, tangent, bitangent, row, col = frame_tensors(cam, gbuffer.view_z, n, noise, p)
+    return HemisphereFrame(position, texture, tangent, bitangent, n, kernel, noise, row, col)
+
+
+@kernel
+def frame_tensors(cam: Camera, view_z: torch.Tensor, n: torch.Tensor, noise: torch.Tensor,
+                  p: HemisphereSSAOParams) -> tuple:
+    """The per-pixel part of :func:`hemisphere_frame` (a compilable kernel, :mod:`ssbench.passes.compiled`):
+    ``viewPosition`` and the buffer ``getLinearDepth`` samples, the noise texel ``random`` (``(row, col)``) and the
+    Gram–Schmidt ``tangent`` and ``bitangent`` of ``kernelMatrix`` from ``view_z`` :math:`(B, 1, H, W)`, the unit
+    normal ``n`` :math:`(B, 3, H, W)` and the noise texture :math:`(3, S, S)`."""
+    position, texture = view_position(cam, view_z, p.position_from)               # (B, 3, H, W) viewPosition
+    col, row = noise_texel(cam.uv_grid(n.dtype, n.device), cam.width, cam.height, p.noise_size)   # (H, W)
     random = noise[:, row, col].unsqueeze(0)                                       # (1, 3, H, W)
     if p.noise_channels == "r":                                                    # three.js: vec3(noise.r)
         random = random[:, :1].expand(-1, 3, -1, -1)
     tangent = random - n * (random * n).sum(1, keepdim=True)                      # (B, 3, H, W) Gram–Schmidt
-    tangent = tangent / length(tangent).clamp_min(torch.finfo(dtype).tiny)
-    return HemisphereFrame(position, texture, tangent, torch.cross(n, tangent, dim=1), n, kernel, noise, row, col)
+    tangent = tangent / length(tangent).clamp_min(torch.finfo(n.dtype).tiny)
+    return position, texture, tangent, torch.cross(n, tangent, dim=1), row, col
 
 
 class HemisphereSSAO(nn.Module):

@@ -27,7 +27,7 @@ the far plane.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Optional
 
 import torch
@@ -77,11 +77,45 @@ class ThreeSSRParams:
                 raise ValueError(f"{name}: expected True or False, got {getattr(self, name)!r}")
 
 
-def _unproject(cam, u: torch.Tensor, v: torch.Tensor, d: torch.Tensor, clip_w: torch.Tensor) -> torch.Tensor:
-    """``getViewPosition``: ``(cameraInverseProjectionMatrix · ((uv, d) − ½)·2·clipW).xyz`` → ``(..., 3)``."""
+def _unproject(cam, u: torch.Tensor, v: torch.Tensor, d: torch.Tensor, clip_w: torch.Tensor,
+               rows: int = 3) -> torch.Tensor:
+    """``getViewPosition``: ``(cameraInverseProjectionMatrix · ((uv, d) − ½)·2·clipW).xyz`` → ``(..., 3)`` (only
+    ``x`` with ``rows=1``, ``(..., 1)``)."""
     m = cam.inverse_projection_matrix(dtype=u.dtype, device=u.device)
     clip = ((u - 0.5) * 2.0 * clip_w, (v - 0.5) * 2.0 * clip_w, (d - 0.5) * 2.0 * clip_w, clip_w)
-    return torch.stack([sum(m[i, k] * clip[k] for k in range(4)) for i in range(3)], -1)
+    return torch.stack([sum(m[i, k] * clip[k] for k in range(4)) for i in range(rows)], -1)
+
+
+#: the march carries stopped rays along (masked) until they are this fraction of its working set, then drops them:
+#: gathering every ray's constants anew each step cost more than marching a few stopped rays
+COMPACT_BELOW = 0.75
+
+
+@dataclass(frozen=True)
+class MarchRays:
+    """The working set of the pixel DDA: ray ids (``ray``, into the rays the shader casts) and each ray's constants
+    (batch index ``b``, ``d0``, ``span``, ``totalStep``, ``1/z`` at both ends, ``viewPosition``, the far end
+    ``d1viewPosition``, the ray's length, ``viewReflectDir``, ``viewNormal``, ``sStep``) and its state ``s``, all
+    compacted together."""
+
+    ray: torch.Tensor
+    b: torch.Tensor
+    d0: torch.Tensor
+    span: torch.Tensor
+    total: torch.Tensor
+    recip: torch.Tensor
+    recip_end: torch.Tensor
+    vp: torch.Tensor
+    d1v: torch.Tensor
+    length: torch.Tensor
+    refl: torch.Tensor
+    n: torch.Tensor
+    s_step: torch.Tensor
+    s: torch.Tensor
+
+    def take(self, keep: torch.Tensor) -> "MarchRays":
+        """The rays at positions ``keep`` of this set."""
+        return MarchRays(*(getattr(self, f.name).index_select(0, keep) for f in fields(self)))
 
 
 @half_in_float32
@@ -139,44 +173,49 @@ def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
     hit_k = torch.zeros(m, dtype=torch.long, device=dev)
     hit_xy = torch.zeros(m, 2, dtype=dt, device=dev)
     hit_vp = torch.zeros(m, 3, dtype=dt, device=dev)
-    s = s_step.clone()
-    live = torch.arange(m, device=dev)
     res = torch.tensor([W, H], dtype=dt, device=dev)
+    ws = MarchRays(torch.arange(m, device=dev), b, d0, span, total, recip, recip_end, vp, d1v, (d1v - vp).norm(dim=1),
+                   refl, n, s_step, s_step.clone())
+    alive = torch.ones(m, dtype=torch.bool, device=dev)
+    depth_flat, vz_flat, normal_flat = depth.reshape(-1), vz_tex.reshape(-1), normal.reshape(B * HW, 3)
     for i in range(1, max_step):
-        if live.numel() == 0:
+        if ws.ray.numel() == 0:
             break
-        end = i >= total[live]
-        xy = d0[live] + i * span[live]
+        end = i >= ws.total
+        xy = ws.d0 + i * ws.span
         off = ~end & ((xy[:, 0] < 0) | (xy[:, 0] > W) | (xy[:, 1] < 0) | (xy[:, 1] > H))
-        term[live[end]], term[live[off]] = MAX_DISTANCE, OFF_SCREEN
-        steps[live] = i - 1 + (~end).int()
-        keep = ~(end | off)
-        live, xy = live[keep], xy[keep]
-        bl = b[live]
+        term[ws.ray[alive & end]], term[ws.ray[alive & off]] = MAX_DISTANCE, OFF_SCREEN
+        steps[ws.ray[alive]] = (i - 1 + (~end).int())[alive]
+        alive &= ~(end | off)
         uv = xy / res
         tex = gl_texel_index(uv[:, 0], uv[:, 1], H, W)
-        d, vz = depth[bl, tex], vz_tex[bl, tex]
+        texel = ws.b * HW + tex
+        d, vz = torch.take(depth_flat, texel), torch.take(vz_flat, texel)
         sky = -vz >= far                                                         # continue: s does not advance
         vpt = _unproject(cam, uv[:, 0], uv[:, 1], d, -vz)
-        ray_z = 1.0 / (recip[live] + s[live] * (recip_end[live] - recip[live]))
-        behind = ~sky & (ray_z <= vz)
+        ray_z = 1.0 / (ws.recip + ws.s * (ws.recip_end - ws.recip))
+        behind = alive & ~sky & (ray_z <= vz)
         if p.infinite_thick:
             hit = behind
         else:
-            a, e = vp[live], d1v[live]
-            away = torch.linalg.cross(vpt - a, vpt - e, dim=1).norm(dim=1) / (e - a).norm(dim=1)
-            nb = _unproject(cam, (xy[:, 0] + 1.0) / W, uv[:, 1], d, -vz)               # the texel to the right
+            away = torch.linalg.cross(vpt - ws.vp, vpt - ws.d1v, dim=1).norm(dim=1) / ws.length   # pointToLineDistance
+            nb = _unproject(cam, (xy[:, 0] + 1.0) / W, uv[:, 1], d, -vz, rows=1)       # the texel to the right
             hit = behind & (away <= torch.clamp((nb[:, 0] - vpt[:, 0]) * 3.0, min=p.thickness))
-        if bool(hit.any()):                       # every hit ends the ray: a true hit, or a back face / too far
-            back = (refl[live] * normal[bl, tex]).sum(1) >= 0
-            nrm = n[live]
-            plane = (nrm * vpt).sum(1) - (nrm * vp[live]).sum(1)                  # pointPlaneDistance
-            done = hit & ~back & ~(plane > p.max_distance)
-            term[live[hit & ~done]] = MAX_DISTANCE
-            term[live[done]] = HIT
-            hit_k[live[done]], hit_xy[live[done]], hit_vp[live[done]] = tex[done], xy[done], vpt[done]
-        s[live] = s[live] + torch.where(sky | hit, 0.0, s_step[live])
-        live = live[~hit]
+        h = hit.nonzero().squeeze(1)              # every hit ends the ray: a true hit, or a back face / too far
+        if h.numel():
+            nh, vph = ws.n[h], vpt[h]
+            back = (ws.refl[h] * normal_flat[texel[h]]).sum(1) >= 0
+            plane = (nh * vph).sum(1) - (nh * ws.vp[h]).sum(1)                  # pointPlaneDistance
+            done = ~back & ~(plane > p.max_distance)
+            ray_h = ws.ray[h]
+            term[ray_h] = torch.where(done, HIT, MAX_DISTANCE).to(term.dtype)
+            hit_k[ray_h[done]], hit_xy[ray_h[done]], hit_vp[ray_h[done]] = tex[h][done], xy[h][done], vph[done]
+        ws.s.copy_(ws.s + torch.where(sky | hit, 0.0, ws.s_step))
+        alive &= ~hit
+        n_alive = int(alive.sum())
+        if n_alive < COMPACT_BELOW * ws.ray.numel():                 # drop the stopped rays now and then
+            keep = alive.nonzero().squeeze(1)
+            ws, alive = ws.take(keep), alive.index_select(0, keep)
 
     # ---- outputs ----
     h = (term == HIT).nonzero().squeeze(1)

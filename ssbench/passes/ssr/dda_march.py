@@ -23,7 +23,7 @@ def fetch_cell(permute: torch.Tensor, b: torch.Tensor, Px: torch.Tensor, Py: tor
     px, py = torch.where(permute, Py, Px), torch.where(permute, Px, Py)
     on = (px >= 0) & (px < W) & (py >= 0) & (py < H)
     t = b * (H * W) + py.floor().clamp(0, H - 1).long() * W + px.floor().clamp(0, W - 1).long()
-    return on, t, tex[0][t], tex[1][t]
+    return on, t, torch.take(tex[0], t), torch.take(tex[1], t)                 # (take: a faster gather than [t])
 
 
 def ray_view_z(Qz, k, lo, hi):

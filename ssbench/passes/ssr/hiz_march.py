@@ -82,7 +82,8 @@ class HiZRays:
     def select(self, index: torch.Tensor) -> "HiZRays":
         """The live rays at ``index``; ``ray_dir`` :math:`(N_0, 3)` and ``clipped`` :math:`(N_0,)` stay whole
         (every ray of the chunk, read by ``i``: the unit view-space direction, the near plane shortened it)."""
-        return HiZRays(i=self.i[index], b=self.b[index], t=self.t[index], mip=self.mip[index], c=self.c[:, index],
+        take = lambda x, dim=0: x.index_select(dim, index)       # noqa: E731  (gathers: 5× faster than x[index])
+        return HiZRays(i=take(self.i), b=take(self.b), t=take(self.t), mip=take(self.mip), c=take(self.c, 1),
                        ray_dir=self.ray_dir, clipped=self.clipped)
 
 
@@ -192,10 +193,11 @@ def hiz_march(r: HiZRays, pyr: DepthPyramid, tex: HiZTexels, params, gbuffer: GB
         c, t = r.c, r.t
         x, y, z = c[OX] + t * c[VX], c[OY] + t * c[VY], c[OZ] + t * c[VZ]
         off = ~((x >= 0) & (x < W) & (y >= 0) & (y < H))                        # NaN (degenerate input) too
-        inv_s, scale = inv_scales[r.mip], scales[r.mip]
+        inv_s, scale = inv_scales.index_select(0, r.mip), scales.index_select(0, r.mip)
         cx, cy = (x * inv_s).long(), (y * inv_s).long()                           # x, y ≥ 0 on screen: trunc = floor
-        index = (r.b * total + pyr.offsets[r.mip] + cy * pyr.widths[r.mip] + cx).clamp(0, flat.numel() - 1)
-        surface = flat[index]                                                     # garbage only for `off` rays
+        index = (r.b * total + pyr.offsets.index_select(0, r.mip) + cy * pyr.widths.index_select(0, r.mip)
+                 + cx).clamp(0, flat.numel() - 1)
+        surface = torch.take(flat, index)                                         # garbage only for `off` rays
         on = ~off
         out.steps.index_add_(0, r.i, on.int())
         if level_reads is not None:

@@ -10,11 +10,12 @@ from typing import TYPE_CHECKING
 import torch
 
 from ..common import fetch_uv
+from ..compiled import kernel
 
 if TYPE_CHECKING:
     from .hbao import HBAOParams
 
-__all__ = ["hbao_band", "rsqrt", "tan_to_sin", "tangent", "snap", "min_diff"]
+__all__ = ["hbao_band", "hbao_band_unrolled", "rsqrt", "tan_to_sin", "tangent", "snap", "min_diff"]
 
 
 def rsqrt(x: torch.Tensor) -> torch.Tensor:
@@ -44,9 +45,10 @@ def min_diff(P: torch.Tensor, Pa: torch.Tensor, Pb: torch.Tensor) -> torch.Tenso
 
 
 def hbao_band(cam, uv0: torch.Tensor, mask: torch.Tensor, rand: torch.Tensor, tex: torch.Tensor,
-              params: "HBAOParams", debug: bool) -> tuple[torch.Tensor, dict]:
-    """HBAO on a band of rows (SSAO article §3.3). Not compiled (:mod:`ssbench.passes.compiled`): the march's
-    early exit breaks the graph at every step, and without it the unrolled march ran slower compiled than eager.
+              params: "HBAOParams", debug: bool, early_exit: bool = True) -> tuple[torch.Tensor, dict]:
+    """HBAO on a band of rows (SSAO article §3.3). The march stops early once no pixel of the band has steps left
+    (``early_exit``); every later step would be masked out anyway, so without it the result is the same (what the
+    compiled kernel :func:`hbao_band_unrolled` runs: a data-dependent exit breaks the graph).
 
     Args:
         uv0: :math:`(B, 2, h, W)` ``vUv`` of the band's pixels; mask: :math:`(B, 1, h, W)`;
@@ -121,7 +123,7 @@ def hbao_band(cam, uv0: torch.Tensor, mask: torch.Tensor, rand: torch.Tensor, te
     samples = torch.ones_like(numSteps)
     for j in range(1, params.num_steps):                                     # the march: j < numSteps
         live = active & (j < numStepsLeft)                                   # (B, 1, h, W)
-        if live.device.type != "meta" and not bool(live.any()):               # (meta: shapes only)
+        if early_exit and live.device.type != "meta" and not bool(live.any()):   # (meta: shapes only)
             break
         samples = samples + live.to(dtype)
         uv = uv + deltaUV
@@ -139,3 +141,11 @@ def hbao_band(cam, uv0: torch.Tensor, mask: torch.Tensor, rand: torch.Tensor, te
         dbg = {"num_steps": torch.where(active, numSteps, 0.0), "samples": torch.where(active, samples, 0.0),
                "horizons": torch.where(active, torch.atan(tanH), 0.0), "radius_pixels": radiusInPixels}
     return out, dbg
+
+
+@kernel
+def hbao_band_unrolled(cam, uv0: torch.Tensor, mask: torch.Tensor, rand: torch.Tensor, tex: torch.Tensor,
+                       params: "HBAOParams", debug: bool) -> tuple[torch.Tensor, dict]:
+    """:func:`hbao_band` with every step of the march run (masked), no early exit: the pass's compilable kernel
+    (:mod:`ssbench.passes.compiled`)."""
+    return hbao_band(cam, uv0, mask, rand, tex, params, debug, early_exit=False)

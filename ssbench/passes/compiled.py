@@ -13,9 +13,9 @@ the visibility-bitmask AO (the same ulp now and then moves a sample across a sec
 1/(sectors·slices) = 1/128 at the defaults, in 0.03 % of the pixels of stairs at 640×360; 4.3× faster than eager
 there, 9.2× with cosine weighting) and SAO's tap loop (bit-equal at the defaults on stairs at 640×360, 2.0× faster;
 with G-buffer normals and radius 2, 2 of 230 400 pixels differ by ≤ 4.5e-5: inductor contracts ``ssR·cos`` to an
-FMA, and a tap within an ulp of a pixel edge truncates to the neighbour) and HBAO's band (its march unrolled: the
-early exit, which breaks the graph, is left out, and the steps it skipped are masked anyway; the same AO bit for bit,
-only the debug ``horizons`` differ by an ulp of ``atan``). Not compiled: the SSR marchers, which compact their live
+FMA, and a tap within an ulp of a pixel edge truncates to the neighbour) and HBAO's band (compiled, its march skips
+the early exit, which would break the graph — ``torch.compiler.is_compiling()`` — and the steps it skipped are masked
+anyway: the same AO bit for bit, only the debug ``horizons`` differ by an ulp of ``atan``). Not compiled: the SSR marchers, which compact their live
 rays every step (data-dependent shapes).
 
 The switch, in order of precedence: :func:`compiling` (a context manager), else the environment variable

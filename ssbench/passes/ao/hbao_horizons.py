@@ -15,7 +15,7 @@ from ..compiled import kernel
 if TYPE_CHECKING:
     from .hbao import HBAOParams
 
-__all__ = ["hbao_band", "hbao_band_unrolled", "rsqrt", "tan_to_sin", "tangent", "snap", "min_diff"]
+__all__ = ["hbao_band", "rsqrt", "tan_to_sin", "tangent", "snap", "min_diff"]
 
 
 def rsqrt(x: torch.Tensor) -> torch.Tensor:
@@ -44,11 +44,12 @@ def min_diff(P: torch.Tensor, Pa: torch.Tensor, Pb: torch.Tensor) -> torch.Tenso
     return torch.where((v1 * v1).sum(1, keepdim=True) < (v2 * v2).sum(1, keepdim=True), v1, v2)
 
 
+@kernel
 def hbao_band(cam, uv0: torch.Tensor, mask: torch.Tensor, rand: torch.Tensor, tex: torch.Tensor,
-              params: "HBAOParams", debug: bool, early_exit: bool = True) -> tuple[torch.Tensor, dict]:
-    """HBAO on a band of rows (SSAO article §3.3). The march stops early once no pixel of the band has steps left
-    (``early_exit``); every later step would be masked out anyway, so without it the result is the same (what the
-    compiled kernel :func:`hbao_band_unrolled` runs: a data-dependent exit breaks the graph).
+              params: "HBAOParams", debug: bool) -> tuple[torch.Tensor, dict]:
+    """HBAO on a band of rows (SSAO article §3.3); the pass's compilable kernel (:mod:`ssbench.passes.compiled`).
+    Eager, the march stops early once no pixel of the band has steps left; compiled, it runs every step (a
+    data-dependent exit would break the graph), and the steps the exit skips are masked anyway: the same result.
 
     Args:
         uv0: :math:`(B, 2, h, W)` ``vUv`` of the band's pixels; mask: :math:`(B, 1, h, W)`;
@@ -123,7 +124,7 @@ def hbao_band(cam, uv0: torch.Tensor, mask: torch.Tensor, rand: torch.Tensor, te
     samples = torch.ones_like(numSteps)
     for j in range(1, params.num_steps):                                     # the march: j < numSteps
         live = active & (j < numStepsLeft)                                   # (B, 1, h, W)
-        if early_exit and live.device.type != "meta" and not bool(live.any()):   # (meta: shapes only)
+        if not torch.compiler.is_compiling() and live.device.type != "meta" and not bool(live.any()):  # meta: shapes
             break
         samples = samples + live.to(dtype)
         uv = uv + deltaUV
@@ -142,10 +143,3 @@ def hbao_band(cam, uv0: torch.Tensor, mask: torch.Tensor, rand: torch.Tensor, te
                "horizons": torch.where(active, torch.atan(tanH), 0.0), "radius_pixels": radiusInPixels}
     return out, dbg
 
-
-@kernel
-def hbao_band_unrolled(cam, uv0: torch.Tensor, mask: torch.Tensor, rand: torch.Tensor, tex: torch.Tensor,
-                       params: "HBAOParams", debug: bool) -> tuple[torch.Tensor, dict]:
-    """:func:`hbao_band` with every step of the march run (masked), no early exit: the pass's compilable kernel
-    (:mod:`ssbench.passes.compiled`)."""
-    return hbao_band(cam, uv0, mask, rand, tex, params, debug, early_exit=False)

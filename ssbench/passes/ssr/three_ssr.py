@@ -27,7 +27,7 @@ the far plane.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import Optional
 
 import torch
@@ -38,6 +38,7 @@ from ..common import check_positive, gl_texel_index
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..registry import Method, SpeedPanel
 from .common import HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult
+from .dda_state import select_rows
 
 REQUIRES = ("view_z", "normal", "mask", "color")
 DEFAULTS_SOURCE = "three.js SSRShader / SSRPass defaults (maxDistance 180, thickness 0.018, opacity 0.5)"
@@ -115,7 +116,7 @@ class MarchRays:
 
     def take(self, keep: torch.Tensor) -> "MarchRays":
         """The rays at positions ``keep`` of this set."""
-        return MarchRays(*(getattr(self, f.name).index_select(0, keep) for f in fields(self)))
+        return select_rows(self, keep)
 
 
 @half_in_float32
@@ -210,10 +211,9 @@ def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
             ray_h = ws.ray[h]
             term[ray_h] = torch.where(done, HIT, MAX_DISTANCE).to(term.dtype)
             hit_k[ray_h[done]], hit_xy[ray_h[done]], hit_vp[ray_h[done]] = tex[h][done], xy[h][done], vph[done]
-        ws.s.copy_(ws.s + torch.where(sky | hit, 0.0, ws.s_step))
+        ws.s.add_(torch.where(sky | hit, 0.0, ws.s_step))
         alive &= ~hit
-        n_alive = int(alive.sum())
-        if n_alive < COMPACT_BELOW * ws.ray.numel():                 # drop the stopped rays now and then
+        if int(alive.sum()) < COMPACT_BELOW * ws.ray.numel():         # drop the stopped rays now and then
             keep = alive.nonzero().squeeze(1)
             ws, alive = ws.take(keep), alive.index_select(0, keep)
 

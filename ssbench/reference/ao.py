@@ -167,6 +167,7 @@ def primary_hits(mi, dr, mscene, cam) -> PrimaryHits:
     ray, _ = mscene.sensors()[0].sample_ray(0.0, 0.0, pos, mi.Point2f(0.5, 0.5))
     si = mscene.ray_intersect(ray)
     v2w = _v2w(mi, cam)
+    dr.make_opaque(v2w)                          # one kernel for every camera (a literal would recompile it)
     w2v = v2w.inverse()
     n_view = dr.normalize(w2v @ mi.Vector3f(si.sh_frame.n))
     d_view = w2v @ mi.Vector3f(ray.d)

@@ -68,6 +68,7 @@ def _trace(mi, dr, mscene, cam: Camera, want_back: bool, want_albedo: bool = Fal
     si = mscene.ray_intersect(ray)
     hit = si.is_valid()
     V = mi.Transform4f([[float(v) for v in row] for row in cam.view_matrix().tolist()])
+    dr.make_opaque(V)                            # one kernel for every camera (a literal would recompile it)
     p_view = V @ si.p
     n_view = dr.normalize(V @ mi.Vector3f(si.sh_frame.n))
     n_view = dr.select(dr.dot(n_view, mi.Vector3f(p_view)) > 0, -n_view, n_view)   # face the camera

@@ -141,6 +141,22 @@ class TestFLIP:
         target = torch.full((1, 1, 16, 16), 0.5)
         assert flip(target + 0.05, target) < flip(target + 0.3, target)
 
+    def test_a_pair_is_evaluated_once(self, monkeypatch):
+        import flip_evaluator
+        calls = []
+        real = flip_evaluator.evaluate
+        monkeypatch.setattr(flip_evaluator, "evaluate", lambda *a, **k: calls.append(k) or real(*a, **k))
+        target = torch.rand(1, 1, 12, 16, generator=_gen(5))
+        pred = (target + 0.1).clamp(0, 1)
+        first, fmap = flip(pred, target, return_map=True)
+        fmap[:] = 7                                                         # the kept map is not aliased
+        again, fmap2 = flip(pred.clone(), target.clone(), return_map=True)
+        assert len(calls) == 1 and torch.equal(again, first) and bool((fmap2 < 1).all())
+        flip(pred, target, inputs_srgb=False)                               # another setting, another pair
+        flip(pred, target, ppd=30)
+        flip(pred.flip(-1), target)
+        assert len(calls) == 4
+
     def test_bad_arguments(self):
         x = torch.zeros(1, 2, 8, 8)
         with pytest.raises(ValueError, match="1 or 3 channels"):

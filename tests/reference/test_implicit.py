@@ -62,11 +62,16 @@ def torus_first_roots(cam, R=1.0, r=0.35):
     return first.reshape(H, W), sep.reshape(H, W)
 
 
+#: both march engines (torch lock-step, one Dr.Jit kernel) answer every closed-form and behaviour test
+ENGINES = ("torch", "drjit")
+
+
 # ------------------------------------------------------------------------------------------ closed forms
+@pytest.mark.parametrize("engine", ENGINES)
 @pytest.mark.parametrize("name", ["sphere", "badly_scaled"])
-def test_unit_sphere_first_roots_match_the_quadratic(name):
+def test_unit_sphere_first_roots_match_the_quadratic(name, engine):
     surf, cam = scene(name)
-    ref = implicit(surf, cam, exits=True, use_cache=False)
+    ref = implicit(surf, cam, exits=True, use_cache=False, engine=engine)
     near, far, disc = sphere_roots(cam)
     clear = np.abs(disc) > 1e-6                                    # skip exact grazing
     hit = ref.hit[0, 0].numpy()
@@ -84,9 +89,10 @@ def test_unit_sphere_first_roots_match_the_quadratic(name):
     assert (ref.object_index[ref.hit] == 0).all() and (ref.object_index[~ref.hit] == -1).all()
 
 
-def test_torus_first_roots_match_the_quartic():
+@pytest.mark.parametrize("engine", ENGINES)
+def test_torus_first_roots_match_the_quartic(engine):
     surf, cam = scene("torus")
-    ref = implicit(surf, cam, use_cache=False)
+    ref = implicit(surf, cam, use_cache=False, engine=engine)
     first, sep = torus_first_roots(cam)
     clear = sep > 1e-4
     hit = ref.hit[0, 0].numpy()
@@ -97,10 +103,11 @@ def test_torus_first_roots_match_the_quartic():
     assert bool(ref.certified.all()) and not bool(ref.unfinished.any())
 
 
-def test_double_root_is_seen_by_intervals_but_is_no_hit():
+@pytest.mark.parametrize("engine", ENGINES)
+def test_double_root_is_seen_by_intervals_but_is_no_hit(engine):
     """(‖p‖−1)² ≥ 0 everywhere: no sign change, so no hit; interval arithmetic still flags it (ambiguous_t)."""
     surf, cam = scene("double_root")
-    ref = implicit(surf, cam, use_cache=False)
+    ref = implicit(surf, cam, use_cache=False, engine=engine)
     near, _, disc = sphere_roots(cam)
     assert not bool(ref.hit.any()) and not bool(ref.unfinished.any())
     amb = ref.ambiguous_t[0, 0].numpy()
@@ -120,10 +127,11 @@ HARD = ["thin_shell", "thin_plate", "tangent_sphere", "badly_scaled",
         pytest.param("barth_sextic", marks=pytest.mark.slow)]
 
 
+@pytest.mark.parametrize("engine", ENGINES)
 @pytest.mark.parametrize("name", HARD)
-def test_reference_never_misses_a_root_the_dense_march_finds(name):
+def test_reference_never_misses_a_root_the_dense_march_finds(name, engine):
     surf, cam = scene(name)
-    ref = implicit(surf, cam, use_cache=False)
+    ref = implicit(surf, cam, use_cache=False, engine=engine)
     dm = dense_march(surf, cam, steps=100_000)
     assert not bool(ref.unfinished.any())
     slack = LEAF * dm.t_hi.clamp(min=1.0)                          # the hit leaf may straddle t_hi
@@ -155,10 +163,11 @@ def test_dense_march_bracket_contains_the_sphere_root():
 
 
 # ------------------------------------------------------------------------------------------ behaviour
-def test_deterministic_and_batched():
+@pytest.mark.parametrize("engine", ENGINES)
+def test_deterministic_and_batched(engine):
     surf, cam = scene("torus", 12, 9)
-    a, a2 = implicit(surf, cam, use_cache=False), implicit(surf, cam, use_cache=False)
-    b = implicit(surf, cam, use_cache=False, batch=2)
+    a, a2 = implicit(surf, cam, use_cache=False, engine=engine), implicit(surf, cam, use_cache=False, engine=engine)
+    b = implicit(surf, cam, use_cache=False, batch=2, engine=engine)
     assert isinstance(a, ImplicitReference) and a.t.shape == (1, 1, 9, 12) and b.t.shape == (2, 1, 9, 12)
     fields = ("t", "hit", "certified", "ambiguous_t", "t_exit", "normal", "object_index", "interval_evaluations",
               "point_evaluations", "unfinished", "t_start", "t_end")
@@ -168,14 +177,15 @@ def test_deterministic_and_batched():
     # another batch size changes the lane schedule (cost), not the answer beyond epsilon
     assert torch.equal(a.hit[0], b.hit[0]) and torch.equal(a.certified[0], b.certified[0])
     assert torch.allclose(a.t[0], b.t[0], rtol=1e-11, atol=0)
-    jit = implicit(surf, cam, use_cache=False, jitter=torch.full((1, 2, 1, 1), 0.25))
+    jit = implicit(surf, cam, use_cache=False, jitter=torch.full((1, 2, 1, 1), 0.25), engine=engine)
     assert not torch.equal(jit.t, a.t)
 
 
-def test_iteration_cap_marks_unfinished_never_a_silent_miss():
+@pytest.mark.parametrize("engine", ENGINES)
+def test_iteration_cap_marks_unfinished_never_a_silent_miss(engine):
     surf, cam = scene("sphere", 12, 9)
-    ref = implicit(surf, cam, max_iterations=2, use_cache=False)
-    full = implicit(surf, cam, use_cache=False)
+    ref = implicit(surf, cam, max_iterations=2, use_cache=False, engine=engine)
+    full = implicit(surf, cam, use_cache=False, engine=engine)
     assert bool(ref.unfinished[full.hit].all()) and not bool(ref.hit.any())
     assert not bool(ref.certified[ref.unfinished].any())
     assert torch.equal(ref.t, camera_rays(cam, dtype=torch.float64).t_far)
@@ -207,12 +217,13 @@ def test_nan_enclosure_may_hold_a_root_and_is_never_certified():
     assert bool(capped.unfinished.all()) and not bool(capped.hit.any())
 
 
-def test_ray_starting_inside_finds_the_next_entering_root():
+@pytest.mark.parametrize("engine", ENGINES)
+def test_ray_starting_inside_finds_the_next_entering_root(engine):
     """Eye inside a shell's wall region: the exit crossing is no hit; the next entry is, uncertified."""
     from ssbench.camera import Camera
     surf, _ = scene("thin_shell")
     cam = Camera.from_look_at((0, 0, 1.0), (0, 0, -1), (0, 1, 0), 10.0, 2, 2, 0.001, 10.0)   # inside the wall
-    ref = implicit(surf, cam, use_cache=False)
+    ref = implicit(surf, cam, use_cache=False, engine=engine)
     dm = dense_march(surf, cam, steps=100_000, backend="torch")
     assert bool(ref.hit.all()) and bool(dm.hit.all()) and bool((ref.t <= dm.t_hi).all())
     assert bool((ref.t > 1.9).all()) and not bool(ref.certified.any())          # the far wall, ~2 away
@@ -246,9 +257,10 @@ RING = {"id": "ring", "f": "length(vec3(length(vec3(x, 0, z)) - 1, y, 0)) - 0.3"
         "bounds": [[-1.4, -0.4, -1.4], [1.4, 0.4, 1.4]]}
 
 
+@pytest.mark.parametrize("engine, budget", [("torch", 1000), ("drjit", 4000)])   # lock-step its / ray segments
 @pytest.mark.parametrize("f", ["max(length(p) - 1, 0)",                      # f = 0 on a solid ball
                                "length(p) - 0.5 + 0*log(length(p) - 1)"])   # NaN everywhere inside |p| < 1
-def test_degenerate_regions_end_in_bounded_iterations(f):
+def test_degenerate_regions_end_in_bounded_iterations(f, engine, budget):
     """Regression: a zero or NaN region was walked one leaf per iteration (10 of 10 CLI runs past 60 s
     at 40×30); a long unresolved run is now crossed with doubling leaves. Such rays are never certified,
     the ring behind the ball is still found, and nothing is unfinished."""
@@ -256,8 +268,8 @@ def test_degenerate_regions_end_in_bounded_iterations(f):
                                                  "fovy": 45, "width": 40, "height": 30, "near": 0.1, "far": 12},
                "implicit": [{"id": "a", "f": f, "bounds": [[-1.4, -1.4, -1.4], [1.4, 1.4, 1.4]]}, RING]})
     for exits in (False, True):
-        ref = implicit(sc.surface(0), sc.camera_at(0), exits=exits, use_cache=False)
-        assert ref.iterations <= 1000, ref.iterations                     # was the 20000 cap, ~5 min
+        ref = implicit(sc.surface(0), sc.camera_at(0), exits=exits, use_cache=False, engine=engine)
+        assert ref.iterations <= budget, ref.iterations                   # torch: was the 20000 cap, ~5 min
         assert not bool(ref.unfinished.any())
         through = torch.isfinite(ref.ambiguous_t)                            # rays that met the region
         assert int(through.sum()) > 50 and not bool(ref.certified[through].any())

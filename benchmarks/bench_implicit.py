@@ -10,6 +10,11 @@ untimed warm-up and then served from Dr.Jit's cache). Each figure is the median 
 Part 2 — time per frame of each method at 320×240 on thin_shell (``ssbench.evaluate.run_implicit`` with no
 reference; the median over ``--frames`` frames; the progressive method carries its state).
 
+Part 3 — the certified reference (``ssbench.reference.implicit`` with ``exits=True``, as the evaluation traces it)
+per frame with the torch engine and the Dr.Jit engine, alternated round by round in one process (median of
+``--ref-rounds``); the Dr.Jit kernel's first compilation is timed apart (``first s``), and the two engines'
+hit masks are compared.
+
 Run: ``.venv/bin/python benchmarks/bench_implicit.py [--points 1000000 --repeats 7 --threads 2]``.
 """
 from __future__ import annotations
@@ -73,6 +78,34 @@ def method_times(width: int, height: int, frames: int) -> list[dict]:
                          lipschitz_samples=0).row for m in IMPLICIT_METHODS]
 
 
+def reference_times(scenes, sizes, rounds: int) -> list[dict]:
+    """Per scene and size: the reference's seconds per frame with each engine (median over alternated rounds)."""
+    from ssbench.reference.implicit import implicit
+    rows = []
+    for name in scenes:
+        sc = load(name)
+        for w, h in sizes:
+            cam, surf = sc.camera_at(0).with_resolution(w, h), sc.surface(0)
+
+            def run(engine):
+                t0 = time.perf_counter()
+                ref = implicit(surf, cam, exits=True, use_cache=False, engine=engine)
+                return time.perf_counter() - t0, ref
+            first, _ = run("drjit")                                      # compiles the kernel (or loads it)
+            times = {"torch": [], "drjit": []}
+            for _ in range(rounds):
+                for engine in times:
+                    s, ref = run(engine)
+                    times[engine].append(s)
+                    if engine == "torch":
+                        hit_t = ref.hit
+                    else:
+                        same = bool((ref.hit == hit_t).all())
+            rows.append({"scene": name, "size": f"{w}x{h}", "first_s": first, "same_hits": same,
+                         **{e: statistics.median(v) for e, v in times.items()}})
+    return rows
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--points", type=int, default=1_000_000)
@@ -82,6 +115,9 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=10)
     ap.add_argument("--threads", type=int, default=None, help="torch threads (default: torch's choice)")
     ap.add_argument("--skip-evaluators", action="store_true")
+    ap.add_argument("--ref-scenes", default="thin_shell,torus,gyroid_sheet,barth_sextic")
+    ap.add_argument("--ref-sizes", default="96x72,320x240")
+    ap.add_argument("--ref-rounds", type=int, default=3)
     a = ap.parse_args()
     if a.threads:
         torch.set_num_threads(a.threads)
@@ -102,6 +138,13 @@ def main() -> None:
     for r in method_times(a.width, a.height, a.frames):
         rate = r["evaluations_mean"] * r["width"] * r["height"] / r["seconds_per_frame"] / 1e6
         print(f"  {r['method']:12s} {r['seconds_per_frame'] * 1e3:9.1f} {r['evaluations_mean']:9.1f} {rate:8.1f}")
+    sizes = [tuple(int(v) for v in s.split("x")) for s in a.ref_sizes.split(",") if s]
+    print(f"\ncertified reference per frame (exits), torch vs Dr.Jit engine, median of {a.ref_rounds} alternated rounds")
+    print(f"  {'scene':14s} {'size':>8s} {'torch s':>8s} {'drjit s':>8s} {'torch/drjit':>11s} {'first s':>8s} "
+          f"{'same hits':>9s}")
+    for r in reference_times([n for n in a.ref_scenes.split(",") if n], sizes, a.ref_rounds):
+        print(f"  {r['scene']:14s} {r['size']:>8s} {r['torch']:8.3f} {r['drjit']:8.4f} {r['torch'] / r['drjit']:10.0f}x "
+              f"{r['first_s']:8.2f} {str(r['same_hits']):>9s}")
 
 
 if __name__ == "__main__":

@@ -60,6 +60,7 @@ def test_class_fractions_sum_to_one_and_row_is_complete(shell_rows):
     assert row["seconds_per_frame"] > 0 and len(row["seconds_frames"]) == 10 and row["threads"] >= 1
     assert row["lambda_declared"] == 1.0 and row["lambda_overshoot"] is False
     assert row["truth_certified"] == 1.0 and row["truth_ambiguous_pixels"] == 0 and row["nonfinite"] == 0
+    assert row["truth_engine"] == prog.truth.engine in ("drjit", "torch")
     assert row["depth_max"] < 1e-3 and (row["width"], row["height"]) == (32, 24)
     assert sorted(prog.results) == list(range(10)) and sorted(prog.classes) == list(range(10))
     assert prog.truth is prog.truths[0] and tuple(prog.result.t.shape) == (1, 1, 24, 32)

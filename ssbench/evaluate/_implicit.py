@@ -23,8 +23,9 @@ jitter per frame when its ``jitter`` is on), traces the certified reference (``s
 * cost: ``evaluations_{mean,p95,max}`` and ``steps_{mean,max}`` pooled over all pixels of all frames,
   ``seconds_per_frame`` (median), ``seconds_total``;
 * ``lambda_{declared,observed,ratio,overshoot}`` from :func:`ssbench.metrics.implicit.lipschitz_check`;
-* truth: ``truth_traced`` (new traces this run), ``truth_seconds``, ``truth_hit_share``, ``truth_certified`` (share of
-  pixels), ``truth_ambiguous_pixels``, ``truth_unfinished_pixels`` (of the last scored frame).
+* truth: ``truth_traced`` (new traces this run), ``truth_seconds``, ``truth_engine`` (the reference's march:
+  ``drjit`` or ``torch``), ``truth_hit_share``, ``truth_certified`` (share of pixels), ``truth_ambiguous_pixels``,
+  ``truth_unfinished_pixels`` (of the last scored frame).
 """
 from __future__ import annotations
 
@@ -273,7 +274,8 @@ def run_implicit(scene, method: str, params=None, *, frames: int = 1, width: Opt
                if pred is not None else None, frames_to_1pct=_first_under(rates),
                predicted_frames_to_1pct=_first_under(pred) if pred is not None else None)
     row.update(lipschitz_diagnostic(sc.surface(0), lipschitz_samples, seed))
-    row.update(truth_traced=n_traced, truth_seconds=truth_s)
+    engines = sorted({t.engine for t in traced.values()})
+    row.update(truth_traced=n_traced, truth_seconds=truth_s, truth_engine=",".join(engines) or None)
     return ImplicitEvaluation(row, results, truths, classes, cameras, sc)
 
 

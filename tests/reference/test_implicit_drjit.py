@@ -63,3 +63,22 @@ def test_auto_picks_drjit_for_parsed_surfaces_and_torch_otherwise():
         engine_of(psurf, "drjit")
     with pytest.raises(ValueError, match="engine"):
         implicit(surf, load("torus").camera_at(0), engine="cuda")
+
+
+def test_engines_agree_through_rotation_scale_and_translation():
+    """The Dr.Jit box transform (``p − T``, ``Rᵀ·``, ``/ s``, widened) against the torch one, on a union."""
+    scene = {"name": "moved", "camera": {"eye": [0.5, 1.5, 5], "target": [0, 0, 0], "up": [0, 1, 0], "fovy": 40,
+                                          "width": 40, "height": 30, "near": 0.1, "far": 12},
+             "implicit": [{"id": "a", "f": "length(vec3(length(vec3(x, 0, z)) - 1, y, 0)) - 0.25",
+                           "bounds": [[-1.3, -0.3, -1.3], [1.3, 0.3, 1.3]], "rotate": [30, 20, 10], "scale": 0.7,
+                           "translate": [0.3, -0.2, 0.1]},
+                          {"id": "b", "f": "abs(length(p) - 0.5) - 0.02", "bounds": [[-0.6] * 3, [0.6] * 3],
+                           "scale": 1.5, "translate": [-0.4, 0.5, -1]}]}
+    sc = load(scene)
+    surf, cam = sc.surface(0), sc.camera_at(0)
+    a = implicit(surf, cam, engine="torch", exits=True, use_cache=False)
+    b = implicit(surf, cam, engine="drjit", exits=True, use_cache=False)
+    assert torch.equal(a.certified, b.certified) and torch.equal(a.hit, b.hit) and int(a.hit.sum()) > 100
+    both = a.hit & a.certified
+    assert _max((a.t[both] - b.t[both]).abs()) < 1e-10 and torch.equal(a.object_index, b.object_index)
+    assert set(a.object_index[a.hit].tolist()) == {0, 1}

@@ -302,9 +302,10 @@ def object_interval_drjit(obj, lo, hi):
     space (``p − T``, ``Rᵀ·``, ``/ s``, each bound widened), the expression's enclosure, times ``s``."""
     dr = _dr()
     lo, hi = list(lo), list(hi)
-    if any(obj.translate):
-        lo = [down(v - t) for v, t in zip(lo, obj.translate)]
-        hi = [up(v - t) for v, t in zip(hi, obj.translate)]
+    if any(obj.translate):                              # opaque: an animated object reuses the kernel
+        t = [dr.opaque(type(lo[0]), v) for v in obj.translate]
+        lo = [down(v - c) for v, c in zip(lo, t)]
+        hi = [up(v - c) for v, c in zip(hi, t)]
     if any(a != 0.0 for a in obj.rotate):
         R = obj.rotation
         qlo, qhi = [], []

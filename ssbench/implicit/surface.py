@@ -161,7 +161,9 @@ class ImplicitObject:
     def drjit_f(self, x, y, z):
         """The world field on Dr.Jit arrays (same transform, the expression's Dr.Jit evaluator)."""
         if any(self.translate):
-            x, y, z = x - self.translate[0], y - self.translate[1], z - self.translate[2]
+            import drjit as dr
+            t = [dr.opaque(type(x), v) if dr.is_array_v(x) else v for v in self.translate]   # a moved object:
+            x, y, z = x - t[0], y - t[1], z - t[2]                                           # the same kernel
         if self._rotated:
             r = self.rotation
             x, y, z = (r[0][0] * x + r[1][0] * y + r[2][0] * z, r[0][1] * x + r[1][1] * y + r[2][1] * z,

@@ -82,3 +82,27 @@ def test_engines_agree_through_rotation_scale_and_translation():
     both = a.hit & a.certified
     assert _max((a.t[both] - b.t[both]).abs()) < 1e-10 and torch.equal(a.object_index, b.object_index)
     assert set(a.object_index[a.hit].tolist()) == {0, 1}
+
+
+def _ball(eye, *, near=0.1, far=12.0, scale=1.0, translate=(0.0, 0.0, 0.0), target=None):
+    return load({"name": "ball", "camera": {"eye": list(eye), "target": list(target or translate), "up": [0, 1, 0],
+                                            "fovy": 40, "width": 24, "height": 18, "near": near, "far": far},
+                 "implicit": [{"id": "a", "f": "length(p) - 1", "bounds": [[-1.1] * 3, [1.1] * 3], "scale": scale,
+                               "translate": list(translate)}]})
+
+
+@pytest.mark.parametrize("case", [
+    dict(eye=(0, 0, 5e-5), near=1e-7, far=1e-3, scale=1e-5),                           # a 10 µm ball
+    dict(eye=(1e6, 0, 1e6 + 5), translate=(1e6, 0, 1e6)),                               # a million units out
+    dict(eye=(0, 0, 5), near=1e-9, far=1e12),                                           # extreme near/far
+    dict(eye=(0, 0, 5e8), near=1.0, far=1e9, scale=1e8),                                # a 10⁸ ball
+    dict(eye=(1.0, 0, 5), target=(1.0, 0, 0)),                                          # grazing silhouettes
+], ids=["tiny", "far_away", "near_far", "huge", "grazing"])
+def test_engines_agree_at_extreme_scales(case):
+    sc = _ball(**case)
+    surf, cam = sc.surface(0), sc.camera_at(0)
+    a = implicit(surf, cam, engine="torch", exits=True, use_cache=False)
+    b = implicit(surf, cam, engine="drjit", exits=True, use_cache=False)
+    assert torch.equal(a.hit, b.hit) and torch.equal(a.certified, b.certified) and int(a.hit.sum()) > 20
+    assert bool(b.certified.all()) and not bool(b.unfinished.any()) and not bool(b.t.isnan().any())
+    assert _max((a.t - b.t).abs()[a.hit] / a.t.abs()[a.hit].clamp(min=1.0)) < 1e-10

@@ -40,7 +40,7 @@ import math
 from typing import Mapping, Optional
 
 from .ast import Binary, Num, Param, PowI, Unary, Var
-from .torch_eval import missing_param, schedule
+from .torch_eval import missing_param, pow_abs_int, schedule
 
 __all__ = ["interval_drjit", "object_interval_drjit", "surface_interval_drjit", "supported", "subnormal",
            "flush_outward", "TRIG_LIMIT"]
@@ -150,23 +150,24 @@ def _abs(x):
 
 
 def _ipow(m, n: int):
-    """``(m**n, multiplications)`` by repeated squaring of ``m >= 0``."""
-    acc, base, k = None, m, 0
-    while n:
-        if n & 1:
-            acc, k = (base, k) if acc is None else (acc * base, k + 1)
-        n >>= 1
-        if n:
-            base, k = base * base, k + 1
-    return acc, k
+    """``(m**n, multiplications)``: :func:`~ssbench.implicit.torch_eval.pow_abs_int` of ``m >= 0`` and how many
+    products (each one rounding) its repeated squaring takes."""
+    return pow_abs_int(m, n), n.bit_length() + bin(n).count("1") - 2
+
+
+def _full(like, value: float):
+    """``value`` as an array as wide as ``like`` (never ``like · 0 + value``: NaN where ``like`` is infinite)."""
+    dr = _dr()
+    return dr.full(type(like), value, dr.width(like))
 
 
 def _powi(x, n: int):
     dr = _dr()
     if n < 0:
-        return _div((x[0] * 0.0 + 1.0, x[0] * 0.0 + 1.0), _powi(x, -n))
+        one = _full(x[0], 1.0)
+        return _div((one, one), _powi(x, -n))
     if n == 0:
-        one = x[0] * 0.0 + 1.0
+        one = _full(x[0], 1.0)
         return _finish(one, one, _nan(x))
     if n % 2:
         (pl, k), (ph, _) = _ipow(dr.abs(x[0]), n), _ipow(dr.abs(x[1]), n)
@@ -272,7 +273,6 @@ def interval_drjit(node, lo, hi, params: Optional[Mapping[str, float]] = None):
     lo, hi = zip(*(flush_outward(a, b) for a, b in zip(lo, hi)))
     box = {"x": (lo[0], hi[0]), "y": (lo[1], hi[1]), "z": (lo[2], hi[2])}
     sched = schedule(node)
-    zero = lo[0] * 0.0
     vals: list = [None] * len(sched.nodes)
     for i, nd in enumerate(sched.nodes):
         a = [vals[j] for j in sched.args[i]]
@@ -281,7 +281,7 @@ def interval_drjit(node, lo, hi, params: Optional[Mapping[str, float]] = None):
         elif isinstance(nd, (Num, Param)):
             if isinstance(nd, Param) and nd.name not in params:
                 raise missing_param(nd.name, params)
-            c = zero + float(nd.value if isinstance(nd, Num) else params[nd.name])
+            c = _full(lo[0], float(nd.value if isinstance(nd, Num) else params[nd.name]))
             v = (c, c)
         elif isinstance(nd, Unary):
             v = _unary(nd.op, a[0])
@@ -310,7 +310,7 @@ def object_interval_drjit(obj, lo, hi):
         R = obj.rotation
         qlo, qhi = [], []
         for j in range(3):                                  # q_j = Σ_i R[i][j] p_i
-            slo, shi = lo[0] * 0.0, lo[0] * 0.0
+            slo = shi = _full(lo[0], 0.0)
             for i in range(3):
                 r = R[i][j]
                 if r != 0.0:

@@ -15,8 +15,8 @@ there, 9.2× with cosine weighting) and SAO's tap loop (bit-equal at the default
 with G-buffer normals and radius 2, 2 of 230 400 pixels differ by ≤ 4.5e-5: inductor contracts ``ssR·cos`` to an
 FMA, and a tap within an ulp of a pixel edge truncates to the neighbour) and HBAO's band (compiled, its march skips
 the early exit, which would break the graph — ``torch.compiler.is_compiling()`` — and the steps it skipped are masked
-anyway: the same AO bit for bit, only the debug ``horizons`` differ by an ulp of ``atan``). Not compiled: the SSR marchers, which compact their live
-rays every step (data-dependent shapes).
+anyway: the same AO bit for bit, only the debug ``horizons`` differ by an ulp of ``atan``). Not compiled: the SSR
+marchers, which compact their live rays every step (data-dependent shapes).
 
 The switch, in order of precedence: :func:`compiling` (a context manager), else the environment variable
 ``SSBENCH_COMPILE`` (``1``/``true``: on; ``ssbench --compile …`` sets it, so sweep processes inherit it).

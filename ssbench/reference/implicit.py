@@ -207,21 +207,20 @@ def implicit(surface, camera, *, epsilon: float = 1e-12, max_iterations: int = 2
     bounds = getattr(surface, "bounds", None)
     if bounds is None or len(bounds) != 2 or any(len(b) != 3 for b in bounds):
         raise ValueError(f"surface.bounds: expected ((x0, y0, z0), (x1, y1, z1)), got {bounds!r}")
+    engine = engine_of(surface, engine)
     key = None
     skey = _surface_key(surface) if use_cache and jitter is None else None
     if skey is not None:
         from . import cache
         key = cache.make_key("implicit", _KERNEL_VERSION, skey, camera, epsilon, max_iterations, exits, batch,
-                             tolerance, engine_of(surface, engine))
+                             tolerance, engine)
         got = cache.load(key)
         if got is not None:
             return ImplicitReference(**{k: torch.from_numpy(got[k]) for k in _TENSORS},
-                                     iterations=int(got["iterations"]), seconds=float(got["seconds"]),
-                                     engine=engine_of(surface, engine))
+                                     iterations=int(got["iterations"]), seconds=float(got["seconds"]), engine=engine)
     start = time.perf_counter()
     o, d, tn, tf, img = flat_rays(camera, batch, jitter)
     t0, t1 = clip_to_bounds(o, d, tn, tf, bounds)
-    engine = engine_of(surface, engine)
     if engine == "drjit":
         s = interval_march_drjit(surface, o, d, t0, t1, float(tolerance), max_iterations, exits)
         bisect = _bisect_drjit

@@ -142,4 +142,3 @@ def hbao_band(cam, uv0: torch.Tensor, mask: torch.Tensor, rand: torch.Tensor, te
         dbg = {"num_steps": torch.where(active, numSteps, 0.0), "samples": torch.where(active, samples, 0.0),
                "horizons": torch.where(active, torch.atan(tanH), 0.0), "radius_pixels": radiusInPixels}
     return out, dbg
-

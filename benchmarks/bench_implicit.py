@@ -92,15 +92,12 @@ def reference_times(scenes, sizes, rounds: int) -> list[dict]:
                 ref = implicit(surf, cam, exits=True, use_cache=False, engine=engine)
                 return time.perf_counter() - t0, ref
             first, _ = run("drjit")                                      # compiles the kernel (or loads it)
-            times = {"torch": [], "drjit": []}
+            times, refs = {"torch": [], "drjit": []}, {}
             for _ in range(rounds):
                 for engine in times:
-                    s, ref = run(engine)
+                    s, refs[engine] = run(engine)
                     times[engine].append(s)
-                    if engine == "torch":
-                        hit_t = ref.hit
-                    else:
-                        same = bool((ref.hit == hit_t).all())
+            same = bool(torch.equal(refs["torch"].hit, refs["drjit"].hit))
             rows.append({"scene": name, "size": f"{w}x{h}", "first_s": first, "same_hits": same,
                          **{e: statistics.median(v) for e, v in times.items()}})
     return rows
@@ -139,12 +136,13 @@ def main() -> None:
         rate = r["evaluations_mean"] * r["width"] * r["height"] / r["seconds_per_frame"] / 1e6
         print(f"  {r['method']:12s} {r['seconds_per_frame'] * 1e3:9.1f} {r['evaluations_mean']:9.1f} {rate:8.1f}")
     sizes = [tuple(int(v) for v in s.split("x")) for s in a.ref_sizes.split(",") if s]
-    print(f"\ncertified reference per frame (exits), torch vs Dr.Jit engine, median of {a.ref_rounds} alternated rounds")
+    print(f"\ncertified reference per frame (exits), torch vs Dr.Jit engine, median of {a.ref_rounds} "
+          "alternated rounds")
     print(f"  {'scene':14s} {'size':>8s} {'torch s':>8s} {'drjit s':>8s} {'torch/drjit':>11s} {'first s':>8s} "
           f"{'same hits':>9s}")
     for r in reference_times([n for n in a.ref_scenes.split(",") if n], sizes, a.ref_rounds):
-        print(f"  {r['scene']:14s} {r['size']:>8s} {r['torch']:8.3f} {r['drjit']:8.4f} {r['torch'] / r['drjit']:10.0f}x "
-              f"{r['first_s']:8.2f} {str(r['same_hits']):>9s}")
+        print(f"  {r['scene']:14s} {r['size']:>8s} {r['torch']:8.3f} {r['drjit']:8.4f} "
+              f"{r['torch'] / r['drjit']:10.0f}x {r['first_s']:8.2f} {str(r['same_hits']):>9s}")
 
 
 if __name__ == "__main__":

@@ -193,9 +193,20 @@ class Camera:
     def view_to_ndc_xy(self, x: torch.Tensor, y: torch.Tensor, z: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """NDC ``x, y`` of view points given as separate components (what :meth:`view_to_ndc` computes, op for
         op, without stacking: a compiled kernel fuses it with the fetch that follows)."""
-        w = -z
+        return self.scaled_ndc_xy(x, y, z, self.ndc_scale())
+
+    def ndc_scale(self) -> tuple[float, float]:
+        """``(F / aspect, F)``: the factors :meth:`view_to_ndc_xy` multiplies view ``x`` and ``y`` by before the
+        divide, as plain numbers (what a compiled kernel takes instead of the camera)."""
         F = self.focal
-        return F / self.aspect * x / w, F * y / w
+        return F / self.aspect, F
+
+    @staticmethod
+    def scaled_ndc_xy(x: torch.Tensor, y: torch.Tensor, z: torch.Tensor,
+                      scale: tuple[float, float]) -> tuple[torch.Tensor, torch.Tensor]:
+        """:meth:`view_to_ndc_xy` with the camera's :meth:`ndc_scale` given: ``(sx·x / w, sy·y / w)``, ``w = −z``."""
+        w = -z
+        return scale[0] * x / w, scale[1] * y / w
 
     def ndc_to_view(self, ndc: torch.Tensor, dim: int = -3) -> torch.Tensor:
         """NDC ``(x, y, z)`` → view points (inverse of :meth:`view_to_ndc`)."""

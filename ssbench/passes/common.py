@@ -62,16 +62,18 @@ def nan_to_zero(x: torch.Tensor) -> torch.Tensor:
 
 
 def texel_of(u: torch.Tensor, v: torch.Tensor, height: int, width: int, *,
-             nan_free: bool = False) -> tuple[torch.Tensor, torch.Tensor]:
+             nan_free: bool = False, dtype: torch.dtype = torch.int64) -> tuple[torch.Tensor, torch.Tensor]:
     """:func:`uv_to_texel` of ``u`` and ``v`` given apart (nothing stacked: a compiled kernel fuses it).
 
     A NaN coordinate (a degenerate projection) reads index 0 of its axis, never ``INT64_MIN``; ``nan_free=True``
     says the caller already replaced NaNs and skips that test (one less select per sample in a compiled loop).
+    ``dtype``: of the indices (``torch.int32`` halves a compiled loop's integer work on AVX2, which has no
+    64-bit vector multiply; the caller makes sure the flat indices it builds fit).
     """
     col, row = torch.floor(u * width), torch.floor((1.0 - v) * height)
     if not nan_free:
         col, row = nan_to_zero(col), nan_to_zero(row)
-    return col.clamp(0, width - 1).long(), row.clamp(0, height - 1).long()
+    return col.clamp(0, width - 1).to(dtype), row.clamp(0, height - 1).to(dtype)
 
 
 def gl_texel_index(u: torch.Tensor, v: torch.Tensor, height: int, width: int) -> torch.Tensor:

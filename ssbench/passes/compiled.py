@@ -78,21 +78,29 @@ def compiling(on: bool = True) -> Iterator[None]:
         _local.forced = prev
 
 
-def _signature(args: tuple, kwargs: dict) -> tuple:
+def _signature(args: tuple, kwargs: dict, dynamic: bool = False) -> tuple:
     """What makes a compiled kernel compile again: tensor shapes, dtypes and devices (inside tuples too, never
-    their values) and the other arguments' values (parameter dataclasses, cameras, flags)."""
+    their values) and the other arguments' values (parameter dataclasses, cameras, flags). A ``dynamic`` kernel
+    compiles once for all sizes and numbers: only tensors' ranks, dtypes and devices and the other values count."""
     def one(v: Any) -> Any:
         if isinstance(v, torch.Tensor):
-            return ("T", tuple(v.shape), v.dtype, v.device.type)
+            return ("T", v.dim() if dynamic else tuple(v.shape), v.dtype, v.device.type)
         if isinstance(v, (tuple, list)):
             return ("S", tuple(one(x) for x in v))
+        if dynamic and isinstance(v, (int, float)) and not isinstance(v, bool):
+            return ("N", type(v).__name__)
         return ("V", repr(v))
     return tuple(one(v) for v in args) + tuple((k, one(v)) for k, v in sorted(kwargs.items()))
 
 
-def kernel(fn: Callable) -> Callable:
+def kernel(fn: Optional[Callable] = None, *, dynamic: bool = False) -> Callable:
     """Mark ``fn`` (a pure tensor function, the body a pass runs per band) as the pass's compilable kernel:
-    eager while the switch is off, ``torch.compile(fn)`` while it is on; ``wrapper.eager`` is ``fn`` itself."""
+    eager while the switch is off, ``torch.compile(fn)`` while it is on; ``wrapper.eager`` is ``fn`` itself.
+
+    ``@kernel(dynamic=True)`` compiles with symbolic sizes and numbers (``torch.compile(dynamic=True)``): for a
+    marcher's step, whose working set shrinks as rays stop, one compilation serves every size."""
+    if fn is None:
+        return functools.partial(kernel, dynamic=dynamic)
     compiled: list = []
 
     @functools.wraps(fn)
@@ -100,8 +108,8 @@ def kernel(fn: Callable) -> Callable:
         if not enabled():
             return fn(*args, **kwargs)
         if not compiled:
-            compiled.append(torch.compile(fn, dynamic=False))
-        key = (fn.__qualname__, fn.__module__, _signature(args, kwargs))
+            compiled.append(torch.compile(fn, dynamic=dynamic))
+        key = (fn.__qualname__, fn.__module__, _signature(args, kwargs, dynamic))
         if key in _first_calls:
             return compiled[0](*args, **kwargs)
         t0 = time.perf_counter()

@@ -5,16 +5,18 @@ builds the rays (§1.1), calls these, and assembles the images (§1.4–1.5); :c
 buffers (visit counts, one pixel's samples) only when they are asked for."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Optional
 
 import torch
 
 from ...camera import Camera
-from ..common import uv_to_texel
+from ..common import texel_of, uv_to_texel
+from ..compiled import kernel
+from .dda_state import select_rows
 from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS
 
-__all__ = ["DepthTest", "MarchLog", "MarchOutcome", "march", "refine"]
+__all__ = ["DepthTest", "MarchLog", "MarchOutcome", "LiveRays", "march_step", "march", "refine"]
 
 
 @dataclass(frozen=True)
@@ -43,6 +45,10 @@ class DepthTest:
         uv = cam.ndc_to_uv(cam.view_to_ndc(q, dim=-1)[:, :2])                     # (m, 2) uv, v up
         col, row = uv_to_texel(uv, self.H, self.W, dim=1)
         return uv, base + row * self.W + col
+
+    def front(self) -> torch.Tensor:
+        """``scene_z`` with NaN off the mask: with it, ``dist = z − front`` tests hit and mask in one read."""
+        return torch.where(self.mask, self.scene_z, torch.full_like(self.scene_z, float("nan")))
 
     def intersects(self, z: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
         """``dist = z − sceneZMax``; hit iff ``−Thickness < dist < 0`` (or, with back faces, ``back − Thickness
@@ -86,42 +92,121 @@ class MarchOutcome:
     hit_q: torch.Tensor
 
 
+@dataclass(frozen=True)
+class LiveRays:
+    """The march's working set: ``ids`` (into the rays), each ray's sample ``Q`` and ``deltaStep`` as x, y, z
+    apart (flat arrays, so a compiled step runs vectorised), its batch offset ``base`` (in the index dtype) and
+    its state, all int32 (a compiled step loads and stores bool arrays lane by lane): ``live`` (1: still marching),
+    ``hit`` (1: stopped on a hit; ``Q`` stays at the hit sample) and ``steps`` (samples taken). Stopped rays ride
+    along, masked, until a quarter of the set has stopped."""
+
+    ids: torch.Tensor
+    qx: torch.Tensor
+    qy: torch.Tensor
+    qz: torch.Tensor
+    dx: torch.Tensor
+    dy: torch.Tensor
+    dz: torch.Tensor
+    base: torch.Tensor
+    live: torch.Tensor
+    hit: torch.Tensor
+    steps: torch.Tensor
+
+
+@kernel(dynamic=True)
+def march_step(scale: tuple, size: tuple, thickness: float, front: torch.Tensor, back: Optional[torch.Tensor],
+               rays: tuple, debug: bool = False) -> tuple:
+    """One step of §1.2 for every ray of a working set: ``Q += deltaStep``, project (:meth:`DepthTest.project`, op
+    for op), read ``front`` (the scene z, NaN off the mask: a cleared texel is never hit) and test
+    ``rayIntersectsDepth``; a live ray stops on a hit or off screen. Rays that stopped earlier keep their state.
+
+    Args:
+        scale: the camera's :meth:`~ssbench.camera.Camera.ndc_scale`; size: ``(H, W)``.
+        rays: ``(qx, qy, qz, dx, dy, dz, base, live, hit, steps)`` of :class:`LiveRays`, each :math:`(m,)`.
+
+    Returns:
+        ``(qx, qy, qz, live, hit, steps, n_live)`` (``n_live`` a 0-d count), plus the texel index, the on-screen
+        test and this step's hits with ``debug`` (the pass's compilable, size-dynamic step kernel).
+    """
+    qx, qy, qz, dx, dy, dz, base, live, hit, steps = rays
+    x, y, z = qx + dx, qy + dy, qz + dz                                           # Q += deltaStep
+    u, v = (Camera.ndc_to_uv(c) for c in Camera.scaled_ndc_xy(x, y, z, scale))    # hitPixel (uv, v up)
+    col, row = texel_of(u, v, size[0], size[1], dtype=base.dtype)
+    t = base + row * size[1] + col
+    on = (u >= 0) & (u <= 1) & (v >= 0) & (v <= 1)
+    dist = z - front.index_select(0, t)                                           # dist = Q.z − sceneZMax
+    if back is None:
+        h = on & (dist < 0) & (dist > -thickness)
+    else:
+        h = on & (dist < 0) & (z > back.index_select(0, t) - thickness)
+    marching = live != 0
+    stop = marching & (h | ~on)
+    steps = steps + live                                                          # this sample counts too
+    hit = torch.where(stop & h, 1, hit)
+    qx, qy, qz = torch.where(marching, x, qx), torch.where(marching, y, qy), torch.where(marching, z, qz)
+    live = torch.where(stop, 0, live)
+    return (qx, qy, qz, live, hit, steps, live.sum()) + ((t, on, h) if debug else ())
+
+
 def march(test: DepthTest, log: MarchLog, Q: torch.Tensor, dS: torch.Tensor, base: torch.Tensor,
           clipped: torch.Tensor, iterations: int, max_iterations: int) -> MarchOutcome:
     """§1.2: ``Q += deltaStep`` up to ``Iterations`` times (at most ``max_iterations``, the shader's bound); a ray
     stops at its first hit or when its sample leaves [0, 1]² (``OFF_SCREEN``), else ends ``MAX_DISTANCE`` /
-    ``BEHIND_CAMERA`` (near-plane ``clipped``) or ``OUT_OF_STEPS``. Only live rays are updated (compacted as
-    they stop)."""
+    ``BEHIND_CAMERA`` (near-plane ``clipped``) or ``OUT_OF_STEPS``. Each step is :func:`march_step` over a
+    :class:`LiveRays` working set, compacted once a quarter of it has stopped."""
     n, dev = Q.shape[0], Q.device
-    term, steps = torch.full((n,), NO_RAY, dtype=torch.int8, device=dev), torch.zeros(n, dtype=torch.int32, device=dev)
-    hit_i, hitQ = torch.full((n,), -1, device=dev), torch.zeros(n, 3, dtype=Q.dtype, device=dev)
-    ids, Qa, dSa, basea = torch.arange(n, device=dev), Q, dS, base
+    out = _Outcome(torch.full((n,), NO_RAY, dtype=torch.int8, device=dev), torch.zeros(n, dtype=torch.int32, device=dev),
+                   torch.full((n,), -1, device=dev), torch.zeros(n, 3, dtype=Q.dtype, device=dev))
+    front = test.front()
+    index = torch.int32 if front.numel() < 2 ** 31 else torch.int64
+    flags = torch.zeros(n, dtype=torch.int32, device=dev)                          # live, hit, steps: int32
+    ws = LiveRays(torch.arange(n, device=dev), *Q.unbind(1), *dS.unbind(1), base.to(index), flags + 1, flags, flags)
+    ws = replace(ws, **{k: getattr(ws, k).contiguous() for k in ("qx", "qy", "qz", "dx", "dy", "dz")})
+    scale, debug = test.camera.ndc_scale(), bool(log.trace_ids) or log.counting
     n_run = min(iterations, max_iterations)
-    for i in range(n_run):
-        if ids.numel() == 0:
+    for _ in range(n_run):
+        m = ws.ids.numel()
+        if m == 0:
             break
-        Qa = Qa + dSa                                                             # Q += deltaStep
-        uv, t = test.project(Qa, basea)
-        on = ((uv >= 0) & (uv <= 1)).all(1)
-        hit = on & test.intersects(Qa[:, 2], t)
-        if log.trace_ids:
-            log.record(ids, Qa, hit, False)
-        if log.counting:
-            log.read(t[on])
-        gone = (hit | ~on).nonzero().squeeze(1)                                   # rays that stop here
-        if gone.numel():
-            g_hit = hit.index_select(0, gone)
-            g_ids = ids.index_select(0, gone)
-            steps[g_ids] = i + 1                                                  # samples taken, this one too
-            term[g_ids] = torch.where(g_hit, HIT, OFF_SCREEN).to(torch.int8)
-            h_ray = gone[g_hit]
-            hit_i[ids[h_ray]], hitQ[ids[h_ray]] = i, Qa[h_ray]
-            keep = (on & ~hit).nonzero().squeeze(1)
-            ids, Qa, dSa, basea = (x.index_select(0, keep) for x in (ids, Qa, dSa, basea))
-    steps[ids] = n_run                                                            # live to the loop's end
+        r = march_step(scale, (test.H, test.W), test.thickness, front, test.back, (ws.qx, ws.qy, ws.qz, ws.dx, ws.dy,
+                       ws.dz, ws.base, ws.live, ws.hit, ws.steps), debug=debug)
+        was = ws.live != 0
+        ws = replace(ws, qx=r[0], qy=r[1], qz=r[2], live=r[3], hit=r[4], steps=r[5])
+        if debug:
+            t, on, h = r[7:]
+            marched = was.nonzero().squeeze(1)
+            if log.trace_ids:
+                log.record(ws.ids[marched], torch.stack([ws.qx, ws.qy, ws.qz], 1)[marched], h[marched], False)
+            log.read(t[was & on].long())
+        if int(r[6]) <= 3 * m // 4:                                               # a quarter has stopped
+            out.flush(ws, (ws.live == 0).nonzero().squeeze(1))
+            ws = select_rows(ws, ws.live.nonzero().squeeze(1))
+    out.flush(ws, (ws.live == 0).nonzero().squeeze(1))
+    ids = ws.ids[ws.live != 0]
+    out.steps[ids] = n_run                                                        # live to the loop's end
     end = torch.where(clipped[ids], BEHIND_CAMERA, MAX_DISTANCE)                  # reached the end point
-    term[ids] = (end if n_run == iterations else torch.full_like(end, OUT_OF_STEPS)).to(torch.int8)
-    return MarchOutcome(term, steps, hit_i, hitQ)
+    out.term[ids] = (end if n_run == iterations else torch.full_like(end, OUT_OF_STEPS)).to(torch.int8)
+    return MarchOutcome(out.term, out.steps, out.hit_step, out.hit_q)
+
+
+@dataclass(frozen=True)
+class _Outcome:
+    """:class:`MarchOutcome`'s arrays while :func:`march` fills them."""
+
+    term: torch.Tensor
+    steps: torch.Tensor
+    hit_step: torch.Tensor
+    hit_q: torch.Tensor
+
+    def flush(self, ws: LiveRays, stopped: torch.Tensor) -> None:
+        """Write the results of the stopped rays at positions ``stopped`` of ``ws``."""
+        g, h = ws.ids.index_select(0, stopped), ws.hit.index_select(0, stopped) != 0
+        steps = ws.steps.index_select(0, stopped)
+        self.steps[g] = steps
+        self.term[g] = torch.where(h, HIT, OFF_SCREEN).to(torch.int8)
+        self.hit_step[g[h]] = steps[h].long() - 1                                 # the step index of the hit
+        at = stopped[h]
+        self.hit_q[g[h]] = torch.stack([c.index_select(0, at) for c in (ws.qx, ws.qy, ws.qz)], 1)
 
 
 def refine(test: DepthTest, log: MarchLog, h: torch.Tensor, O: torch.Tensor, dS: torch.Tensor,

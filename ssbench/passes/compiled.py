@@ -93,6 +93,14 @@ def _signature(args: tuple, kwargs: dict, dynamic: bool = False) -> tuple:
     return tuple(one(v) for v in args) + tuple((k, one(v)) for k, v in sorted(kwargs.items()))
 
 
+def _dynamic_shapes() -> contextlib.AbstractContextManager:
+    """Room for a size-dynamic kernel's variants beyond dynamo's default of 8 compilations per function, after
+    which it would silently run eager: with or without back faces or debug buffers, float32 or float64, a working
+    set of one ray, or a first call where the working set is as long as the image (dynamo's *duck sizing* then
+    assumes the two lengths equal, and the next, shorter set compiles once more) each compile on their own."""
+    return torch._dynamo.config.patch(recompile_limit=64)
+
+
 def kernel(fn: Optional[Callable] = None, *, dynamic: bool = False) -> Callable:
     """Mark ``fn`` (a pure tensor function, the body a pass runs per band) as the pass's compilable kernel:
     eager while the switch is off, ``torch.compile(fn)`` while it is on; ``wrapper.eager`` is ``fn`` itself.
@@ -110,10 +118,11 @@ def kernel(fn: Optional[Callable] = None, *, dynamic: bool = False) -> Callable:
         if not compiled:
             compiled.append(torch.compile(fn, dynamic=dynamic))
         key = (fn.__qualname__, fn.__module__, _signature(args, kwargs, dynamic))
-        if key in _first_calls:
-            return compiled[0](*args, **kwargs)
-        t0 = time.perf_counter()
-        out = compiled[0](*args, **kwargs)
+        with _dynamic_shapes() if dynamic else contextlib.nullcontext():
+            if key in _first_calls:
+                return compiled[0](*args, **kwargs)
+            t0 = time.perf_counter()
+            out = compiled[0](*args, **kwargs)
         _first_calls[key] = time.perf_counter() - t0
         return out
 

@@ -47,6 +47,21 @@ def test_a_kernel_runs_eager_when_off_and_compiled_once_per_signature_when_on():
     assert double.eager(x).tolist() == [0.0, 2.0, 4.0, 6.0]
 
 
+def test_a_dynamic_kernel_counts_one_compilation_for_every_size_and_number():
+    @C.kernel(dynamic=True)
+    def scaled(x, s):
+        return x * s
+
+    with C.compiling(True):
+        assert torch.equal(scaled(torch.arange(6.0), 2.0), torch.arange(6.0) * 2)
+        first = C.compile_seconds()
+        assert torch.equal(scaled(torch.arange(9.0), 3.0), torch.arange(9.0) * 3)   # another size, another number
+        assert C.compile_seconds() == first
+    assert C._signature((torch.zeros(3), 1.0), {}, dynamic=True) == C._signature((torch.zeros(5), 2.0), {}, dynamic=True)
+    assert C._signature((torch.zeros(3),), {}) != C._signature((torch.zeros(5),), {})
+    assert C._signature((torch.zeros(3), True), {}, dynamic=True) != C._signature((torch.zeros(3), False), {}, dynamic=True)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("method, settings", [("crytek", {}), ("ssao", {}), ("gtao", {"quality": "low"}), ("vbao", {}),
                                               ("sao", {"radius": 4.0}), ("hbao", {}),

@@ -16,7 +16,7 @@ from ..compiled import kernel
 from .dda_state import select_rows
 from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS
 
-__all__ = ["DepthTest", "MarchLog", "MarchOutcome", "LiveRays", "march_step", "march", "refine"]
+__all__ = ["DepthTest", "MarchLog", "MarchOutcome", "LiveRays", "march_step", "march", "refine_step", "refine"]
 
 
 @dataclass(frozen=True)
@@ -49,16 +49,6 @@ class DepthTest:
     def front(self) -> torch.Tensor:
         """``scene_z`` with NaN off the mask: with it, ``dist = z − front`` tests hit and mask in one read."""
         return torch.where(self.mask, self.scene_z, torch.full_like(self.scene_z, float("nan")))
-
-    def intersects(self, z: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
-        """``dist = z − sceneZMax``; hit iff ``−Thickness < dist < 0`` (or, with back faces, ``back − Thickness
-        < z < sceneZ``). A cleared background texel is never hit (three.js ``SSRShader``: ``if (-vZ >= cameraFar)
-        continue``)."""
-        dist = z - self.scene_z.index_select(0, t)
-        m = self.mask.index_select(0, t)
-        if self.back is None:
-            return (dist < 0) & (dist > -self.thickness) & m
-        return (dist < 0) & (z > self.back.index_select(0, t) - self.thickness) & m
 
 
 @dataclass
@@ -113,6 +103,20 @@ class LiveRays:
     steps: torch.Tensor
 
 
+def _probe(scale: tuple, size: tuple, thickness: float, front: torch.Tensor, back: Optional[torch.Tensor],
+           q: tuple, base: torch.Tensor) -> tuple:
+    """``(u, v, t, hit)`` of view samples ``q`` (x, y, z apart): :meth:`DepthTest.project` op for op, then
+    ``rayIntersectsDepth`` against ``front`` (the scene z, NaN off the mask, so a cleared texel is never hit)."""
+    x, y, z = q
+    u, v = (Camera.ndc_to_uv(c) for c in Camera.scaled_ndc_xy(x, y, z, scale))    # hitPixel (uv, v up)
+    col, row = texel_of(u, v, size[0], size[1], dtype=base.dtype)
+    t = base + row * size[1] + col
+    dist = z - front.index_select(0, t)                                           # dist = Q.z − sceneZMax
+    if back is None:
+        return u, v, t, (dist < 0) & (dist > -thickness)
+    return u, v, t, (dist < 0) & (z > back.index_select(0, t) - thickness)
+
+
 @kernel(dynamic=True)
 def march_step(scale: tuple, size: tuple, thickness: float, front: torch.Tensor, back: Optional[torch.Tensor],
                rays: tuple, debug: bool = False) -> tuple:
@@ -130,15 +134,9 @@ def march_step(scale: tuple, size: tuple, thickness: float, front: torch.Tensor,
     """
     qx, qy, qz, dx, dy, dz, base, live, hit, steps = rays
     x, y, z = qx + dx, qy + dy, qz + dz                                           # Q += deltaStep
-    u, v = (Camera.ndc_to_uv(c) for c in Camera.scaled_ndc_xy(x, y, z, scale))    # hitPixel (uv, v up)
-    col, row = texel_of(u, v, size[0], size[1], dtype=base.dtype)
-    t = base + row * size[1] + col
+    u, v, t, h = _probe(scale, size, thickness, front, back, (x, y, z), base)
     on = (u >= 0) & (u <= 1) & (v >= 0) & (v <= 1)
-    dist = z - front.index_select(0, t)                                           # dist = Q.z − sceneZMax
-    if back is None:
-        h = on & (dist < 0) & (dist > -thickness)
-    else:
-        h = on & (dist < 0) & (z > back.index_select(0, t) - thickness)
+    h = on & h
     marching = live != 0
     stop = marching & (h | ~on)
     steps = steps + live                                                          # this sample counts too
@@ -160,7 +158,8 @@ def march(test: DepthTest, log: MarchLog, Q: torch.Tensor, dS: torch.Tensor, bas
     front = test.front()
     index = torch.int32 if front.numel() < 2 ** 31 else torch.int64
     flags = torch.zeros(n, dtype=torch.int32, device=dev)                          # live, hit, steps: int32
-    ws = LiveRays(torch.arange(n, device=dev), *Q.unbind(1), *dS.unbind(1), base.to(index), flags + 1, flags, flags)
+    ws = LiveRays(torch.arange(n, device=dev), *Q.unbind(1), *dS.unbind(1), base.to(index), flags + 1, flags,
+                  flags.clone())
     ws = replace(ws, **{k: getattr(ws, k).contiguous() for k in ("qx", "qy", "qz", "dx", "dy", "dz")})
     scale, debug = test.camera.ndc_scale(), bool(log.trace_ids) or log.counting
     n_run = min(iterations, max_iterations)
@@ -178,14 +177,15 @@ def march(test: DepthTest, log: MarchLog, Q: torch.Tensor, dS: torch.Tensor, bas
             if log.trace_ids:
                 log.record(ws.ids[marched], torch.stack([ws.qx, ws.qy, ws.qz], 1)[marched], h[marched], False)
             log.read(t[was & on].long())
-        if int(r[6]) <= 3 * m // 4:                                               # a quarter has stopped
+        n_live = int(r[6])
+        if n_live <= 3 * m // 4 and n_live != 1:           # a quarter has stopped (a set of one ray compiles anew)
             out.flush(ws, (ws.live == 0).nonzero().squeeze(1))
             ws = select_rows(ws, ws.live.nonzero().squeeze(1))
     out.flush(ws, (ws.live == 0).nonzero().squeeze(1))
-    ids = ws.ids[ws.live != 0]
-    out.steps[ids] = n_run                                                        # live to the loop's end
-    end = torch.where(clipped[ids], BEHIND_CAMERA, MAX_DISTANCE)                  # reached the end point
-    out.term[ids] = (end if n_run == iterations else torch.full_like(end, OUT_OF_STEPS)).to(torch.int8)
+    ids = ws.ids.index_select(0, ws.live.nonzero().squeeze(1))
+    out.steps.index_fill_(0, ids, n_run)                                          # live to the loop's end
+    end = torch.where(clipped.index_select(0, ids), BEHIND_CAMERA, MAX_DISTANCE)  # reached the end point
+    out.term.index_copy_(0, ids, (end if n_run == iterations else torch.full_like(end, OUT_OF_STEPS)).to(torch.int8))
     return MarchOutcome(out.term, out.steps, out.hit_step, out.hit_q)
 
 
@@ -202,11 +202,32 @@ class _Outcome:
         """Write the results of the stopped rays at positions ``stopped`` of ``ws``."""
         g, h = ws.ids.index_select(0, stopped), ws.hit.index_select(0, stopped) != 0
         steps = ws.steps.index_select(0, stopped)
-        self.steps[g] = steps
-        self.term[g] = torch.where(h, HIT, OFF_SCREEN).to(torch.int8)
-        self.hit_step[g[h]] = steps[h].long() - 1                                 # the step index of the hit
-        at = stopped[h]
-        self.hit_q[g[h]] = torch.stack([c.index_select(0, at) for c in (ws.qx, ws.qy, ws.qz)], 1)
+        self.steps.index_copy_(0, g, steps)
+        self.term.index_copy_(0, g, torch.where(h, HIT, OFF_SCREEN).to(torch.int8))
+        hi = h.nonzero().squeeze(1)
+        gh, at = g.index_select(0, hi), stopped.index_select(0, hi)
+        self.hit_step.index_copy_(0, gh, steps.index_select(0, hi).long() - 1)   # the step index of the hit
+        self.hit_q.index_copy_(0, gh, torch.stack([c.index_select(0, at) for c in (ws.qx, ws.qy, ws.qz)], 1))
+
+
+@kernel(dynamic=True)
+def refine_step(scale: tuple, size: tuple, thickness: float, front: torch.Tensor, back: Optional[torch.Tensor],
+                probe: tuple, base: torch.Tensor, debug: bool = False) -> tuple:
+    """One probe of §1.3 on :math:`(m, 3)` arrays ``probe = (Qb, step, stride, best)`` (``stride`` :math:`(m, 1)`):
+    ``Qb += step·stride``, the depth test (no screen test, as the shader), ``best = Qb`` where it hit, and the
+    next stride, half as long (a power of two: exact), back after a hit and forward after a miss (the
+    refinement's size-dynamic kernel).
+
+    Returns:
+        ``(Qb, stride, best)``, plus the texel index and the hits with ``debug``.
+    """
+    qb, step, stride, best = probe
+    qb = qb + step * stride
+    _, _, t, hb = _probe(scale, size, thickness, front, back, qb.unbind(1), base)
+    best = torch.where(hb.unsqueeze(1), qb, best)
+    half = stride.abs() * 0.5
+    stride = torch.where(hb.unsqueeze(1), -half, half)
+    return (qb, stride, best) + ((t, hb) if debug else ())
 
 
 def refine(test: DepthTest, log: MarchLog, h: torch.Tensor, O: torch.Tensor, dS: torch.Tensor,
@@ -218,14 +239,15 @@ def refine(test: DepthTest, log: MarchLog, h: torch.Tensor, O: torch.Tensor, dS:
     step = torch.where(first, best - O, dS)
     originalStride = 0.5
     stride = torch.full((h.numel(), 1), originalStride, dtype=best.dtype, device=best.device)   # (m, 1)
+    front, debug = test.front(), bool(log.trace_ids) or log.counting
+    index = torch.int32 if front.numel() < 2 ** 31 else torch.int64
+    base = base.to(index)
     for _ in range(iterations):
-        Qb = Qb + step * stride
-        uv, t = test.project(Qb, base)
-        hb = test.intersects(Qb[:, 2], t)
-        if log.trace_ids:
-            log.record(h, Qb, hb, True)
-        log.read(t)
-        best = torch.where(hb.unsqueeze(1), Qb, best)
-        originalStride *= 0.5
-        stride = torch.where(hb, -originalStride, originalStride).unsqueeze(1).to(best.dtype)
+        r = refine_step(test.camera.ndc_scale(), (test.H, test.W), test.thickness, front, test.back,
+                        (Qb, step, stride, best), base, debug=debug)
+        Qb, stride, best = r[:3]
+        if debug:
+            if log.trace_ids:
+                log.record(h, Qb, r[4], True)
+            log.read(r[3].long())
     return best

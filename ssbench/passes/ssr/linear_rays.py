@@ -93,8 +93,8 @@ def linear_rays(gbuffer: GBuffer, params: "LinearSSRParams", generator: Optional
     ok = mask & (view_z <= -cam.near) & torch.isfinite(rayOrg).all(1, keepdim=True) \
         & torch.isfinite(deltaStep).all(1, keepdim=True)
     ray = ok.reshape(-1).nonzero().squeeze(1)                                     # (n,) flat pixel ids
-    O, dS, Q = flat(rayOrg)[ray], flat(deltaStep)[ray], flat(Q)[ray]           # (n, 3)
-    clipped = (rayLength < params.max_ray_distance).reshape(-1)[ray]
+    O, dS, Q = (flat(x).index_select(0, ray) for x in (rayOrg, deltaStep, Q))    # (n, 3)
+    clipped = (rayLength < params.max_ray_distance).reshape(-1).index_select(0, ray)
     base = (ray // HW) * HW                                                       # batch offset of each ray
     test = DepthTest(cam, H, W, sceneZ.reshape(-1), back.reshape(-1) if back is not None else None,
                      mask.reshape(-1), T)

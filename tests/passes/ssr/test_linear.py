@@ -289,3 +289,37 @@ def test_bad_gbuffer():
         ssr_linear(bad)
     with pytest.raises(TypeError, match="params"):
         ssr_linear(g, {"iterations": 3})
+
+
+@pytest.mark.slow
+def test_the_compiled_march_gives_the_eager_bits_at_two_sizes_without_recompiling():
+    """The march step through ``torch.compile`` (size-dynamic): every output, the visit map and a traced pixel's
+    samples equal eager, with back faces and jitter too; a second image size reuses the compiled step."""
+    import dataclasses
+
+    from torch._dynamo.utils import counters
+
+    from ssbench.passes import compiled as C
+    from ssbench.passes.ssr.linear_march import march_step
+    settings = [LinearSSRParams(thickness=0.3), LinearSSRParams(use_back_face_depth=True, thickness=0.3),
+                LinearSSRParams(jitter=1.0, iterations=16)]
+    for w, h in ((32, 24), (40, 30)):
+        g = scene(w, h, walls=((-5.0, 0.4, 1.2), (-7.0, 1.0, None)), dtype=torch.float32)
+        for p in settings:
+            with C.compiling(False):
+                eager = ssr_linear(g, p, debug=True, trace_pixel=(w // 2, h - 2))
+            with C.compiling(True):
+                comp = ssr_linear(g, p, debug=True, trace_pixel=(w // 2, h - 2))
+            assert bool(eager.hit.any()) and bool((eager.termination == OFF_SCREEN).any())
+            for f in dataclasses.fields(eager):
+                if f.name != "debug":
+                    assert torch.equal(getattr(eager, f.name), getattr(comp, f.name)), f.name
+            assert torch.equal(eager.debug["visits"], comp.debug["visits"])
+            for k, v in eager.debug["trace"][0].items():
+                assert torch.equal(v, comp.debug["trace"][0][k]), k
+        if w == 32:
+            seconds, graphs = C.compile_seconds(), counters["stats"]["unique_graphs"]
+    assert graphs >= 1 and counters["stats"]["unique_graphs"] == graphs          # the second size: nothing new
+    assert C.compile_seconds() == seconds
+    assert march_step.eager is not march_step
+

@@ -112,3 +112,9 @@ def empty_result(like: torch.Tensor, debug: Optional[dict] = None) -> SSRResult:
                      steps=torch.zeros(B, 1, H, W, dtype=torch.int32, device=like.device),
                      termination=torch.zeros(B, 1, H, W, dtype=torch.int8, device=like.device),
                      fade=z(1) + 1, raw_color=z(3), debug=debug or {})
+
+
+def flat(t: torch.Tensor) -> torch.Tensor:
+    """:math:`(B, C, H, W)` → :math:`(B·H·W, C)`, pixels in row-major order, contiguous (for ``B = 1`` the
+    reshape is a strided view, and ``index_select`` of its rows took 19 ms at 640×360 against 1.4 ms)."""
+    return t.permute(0, 2, 3, 1).reshape(-1, t.shape[1]).contiguous()

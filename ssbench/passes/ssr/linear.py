@@ -46,7 +46,8 @@ from ..gbuffer_checks import check_gbuffer, half_in_float32
 from .common import HIT, NO_RAY, SSRResult
 from .fade import FadeParams
 from .linear_march import MarchLog, march, refine
-from .linear_rays import flat, linear_rays
+from .common import flat
+from .linear_rays import linear_rays
 from ..registry import Method, SpeedPanel
 
 REQUIRES = ("view_z", "normal", "mask", "color")

@@ -12,13 +12,13 @@ import torch
 
 from ...gbuffer import GBuffer
 from ..common import make_generator
-from .common import clip_ray_length, reflection_rays
+from .common import clip_ray_length, flat, reflection_rays
 from .linear_march import DepthTest
 
 if TYPE_CHECKING:                                        # (ssr_linear imports this module)
     from .linear import LinearSSRParams
 
-__all__ = ["LinearRays", "linear_rays", "jitter_noise", "flat"]
+__all__ = ["LinearRays", "linear_rays", "jitter_noise"]
 
 
 def jitter_noise(params: "LinearSSRParams", generator: Optional[torch.Generator], shape) -> Optional[torch.Tensor]:
@@ -26,11 +26,6 @@ def jitter_noise(params: "LinearSSRParams", generator: Optional[torch.Generator]
     if params.jitter == 0:
         return None
     return torch.rand(shape, generator=make_generator(params.seed, generator), dtype=torch.float64)
-
-
-def flat(t: torch.Tensor) -> torch.Tensor:
-    """:math:`(B, C, H, W)` → :math:`(B·H·W, C)`, pixels in row-major order."""
-    return t.permute(0, 2, 3, 1).reshape(-1, t.shape[1])
 
 
 @dataclass(frozen=True)

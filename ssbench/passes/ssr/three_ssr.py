@@ -37,7 +37,7 @@ from ...gbuffer import GBuffer
 from ..common import check_positive, gl_texel_index
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..registry import Method, SpeedPanel
-from .common import HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult
+from .common import HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult, flat
 from .dda_state import select_rows
 
 REQUIRES = ("view_z", "normal", "mask", "color")
@@ -141,8 +141,8 @@ def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
     dt, dev, HW = view_z.dtype, view_z.device, H * W
     far = cam.far
     depth = cam.view_z_to_depth(view_z).reshape(B, HW)                            # tDepth
-    normal = gbuffer.normal.to(dt).permute(0, 2, 3, 1).reshape(B, HW, 3)
-    colour = gbuffer.color.to(dt).permute(0, 2, 3, 1).reshape(B, HW, 3)
+    normal = flat(gbuffer.normal.to(dt)).reshape(B, HW, 3)                       # contiguous: fast row gathers
+    colour = flat(gbuffer.color.to(dt)).reshape(B, HW, 3)
     vz_tex = cam.depth_to_view_z(depth)                                           # getViewZ of every texel
     max_step = p.max_step or int(math.sqrt(W * W + H * H))
 
@@ -228,20 +228,20 @@ def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
         op = op * ((inc[h] * refl[h]).sum(1) + 1.0) / 2.0
     op = op.clamp(0.0, 1.0)                     # the blend's alpha: a hit behind the reflecting plane gives ratio > 1
     pixel = torch.stack([hit_xy[h, 0], H - hit_xy[h, 1]], -1)                   # ssbench pixels (y down)
-    flat = b * HW + k
+    ray_pixel = b * HW + k
 
     def scatter(values, rows, fill, C, dtype):
         out = torch.full((B * HW, C), fill, dtype=dtype, device=dev)
         out[rows] = values.reshape(len(rows), C).to(dtype)
         return out.reshape(B, H, W, C).permute(0, 3, 1, 2).contiguous()
 
-    termination = scatter(term, flat, NO_RAY, 1, torch.int8)
-    rows = flat[h]
+    termination = scatter(term, ray_pixel, NO_RAY, 1, torch.int8)
+    rows = ray_pixel[h]
     return SSRResult(color=scatter(raw * op[:, None], rows, 0.0, 3, dt), hit=termination == HIT,
                      hit_pixel=scatter(pixel, rows, -1.0, 2, dt), hit_view=scatter(hit_vp[h], rows, 0.0, 3, dt),
-                     steps=scatter(steps, flat, 0, 1, torch.int32), termination=termination,
+                     steps=scatter(steps, ray_pixel, 0, 1, torch.int32), termination=termination,
                      fade=scatter(op, rows, 1.0, 1, dt), raw_color=scatter(raw, rows, 0.0, 3, dt),
-                     debug={"ray_end": scatter(d1v, flat, 0.0, 3, dt)} if debug else {})
+                     debug={"ray_end": scatter(d1v, ray_pixel, 0.0, 3, dt)} if debug else {})
 
 
 class ThreeSSR(nn.Module):

@@ -11,8 +11,11 @@ its peak memory is its own:
   survives a loaded machine; ``fused×`` the same against the *fused floor* (those reads as one Dr.Jit kernel);
   ``anchor×`` (hemisphere SSAO only) against the same method written as one Dr.Jit kernel
   (``ssbench.bench.anchors``, tested to count the same samples);
-* ``peak MiB`` — the process's peak resident memory while the pass runs twice (once for the timing check, once
-  eager for the comparison), minus its resident memory before (the G-buffer and the interpreter excluded);
+* ``peak MiB`` — the memory one steady call of the pass adds at its peak: the process's peak resident memory
+  during the call minus its resident memory just before (after the first calls, compiled and eager, for the timing
+  check and the comparison; the G-buffer, the interpreter and loaded compiled code excluded). The JSON rows also
+  carry ``first_peak_mib``, the peak of those first calls over the memory before them, which for a compiled pass
+  includes the compiler at work;
 * ``compile s`` — with ``--compile``: the pass's first call with its band kernels compiled
   (``ssbench.passes.compiled``: ``torch.compile``, inductor; the on-disk cache can make it short), reported apart
   from the run time; ``Δ eager`` the largest difference of the compiled output from the eager one on valid
@@ -26,6 +29,7 @@ A benchmark, not a test: run ``.venv/bin/python benchmarks/bench_passes.py`` (``
 from __future__ import annotations
 
 import argparse
+import ctypes
 import json
 import os
 import resource
@@ -58,6 +62,15 @@ def _reset_peak() -> bool:
         return True
     except OSError:
         return False
+
+
+def _trim_heap() -> None:
+    """Give glibc's free heap memory back to the kernel (``malloc_trim(0)``), so that resident memory is live data
+    and a later peak over it counts every page the next call touches; nothing off glibc."""
+    try:
+        ctypes.CDLL(None).malloc_trim(0)
+    except (OSError, AttributeError):
+        pass
 
 
 def _methods(effect: str) -> list[str]:
@@ -111,7 +124,12 @@ def one(effect: str, method: str, path: str, compiled: bool, min_run_time: float
     _reset_peak()
     before = _status_mib("VmRSS")
     call, out, valid, samples, first_s, eager = _inputs(effect, method, g, compiled)
-    peak = _status_mib("VmHWM") - before
+    first_peak = _status_mib("VmHWM") - before                 # compiled: includes the compiler's own working memory
+    _trim_heap()                                               # freed heap back to the kernel: RSS = live data
+    _reset_peak()
+    steady = _status_mib("VmRSS")
+    call()                                                     # a steady call: what the pass itself holds at its peak
+    peak = _status_mib("VmHWM") - steady
     row = time_pass(BenchInputs(call, out.detach(), valid, samples, g.view_z),
                     TimingSpec(min_run_time=min_run_time, warmup=1, rounds=rounds), threads)
     v = valid.expand_as(out)
@@ -122,7 +140,7 @@ def one(effect: str, method: str, path: str, compiled: bool, min_run_time: float
             "ms": row["time_median_ms"], "ns_px": row["time_median_ms"] * 1e6 / px, "floor_ms": row["floor_median_ms"],
             "floor_ratio": row["floor_ratio"], "floor_ratio_iqr": row["floor_ratio_iqr"], "samples": samples,
             "fused_floor_ratio": row["fused_floor_ratio"], "fused_floor_ms": row["fused_floor_median_ms"],
-            "peak_mib": peak, "first_call_s": first_s, "max_diff_eager": diff, "threads": threads,
+            "peak_mib": peak, "first_peak_mib": first_peak, "first_call_s": first_s, "max_diff_eager": diff, "threads": threads,
             "anchor_ratio": anchor, "error": row["timing_error"]}
 
 

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Optional
 
 import torch
 
+from ..compiled import kernel
 from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS
 from .dda_state import DDARays, MarchOutput
 
@@ -32,10 +33,11 @@ def ray_view_z(Qz, k, lo, hi):
 
 
 def count_visits(out: MarchOutput, visits, i, t, active) -> None:
-    """Add the fetches of ``active`` rays to their step counts and to the visit map."""
+    """Add the fetches of ``active`` rays (bool, or int32 0/1) to their step counts and to the visit map."""
     out.steps.index_add_(0, i, active.int())
     if visits is not None:
-        visits.index_add_(0, t[active], torch.ones_like(t[active], dtype=visits.dtype))
+        on = active if active.dtype == torch.bool else active != 0
+        visits.index_add_(0, t[on], torch.ones_like(t[on], dtype=visits.dtype))
 
 
 def refine_hits(h: DDARays, tex, params: "DDASSRParams", H: int, W: int, out: MarchOutput, visits) -> None:
@@ -83,36 +85,79 @@ def refine_hits(h: DDARays, tex, params: "DDASSRParams", H: int, W: int, out: Ma
         setattr(h, key, best[key])
 
 
+@kernel(dynamic=True)
+def dda_step(state: tuple, ray: tuple, tex: tuple, size: tuple, z_thickness: float) -> tuple:
+    """One DDA step of :func:`dda_march` for every ray of the working set (the march's size-dynamic compilable
+    kernel): advance by a stride, shorten the last footprint at ``stop``, ``texelFetch`` and the depth test.
+
+    Args:
+        state: ``(Px, Py, Qz, k, n, prevZ, alive)``, ``alive`` int32 (a compiled kernel loads bool arrays lane by
+            lane); ray: ``(dPx, dPy, dQz, dk, stride, stepDir, stop, end, zlo, zhi, permute, clipped, b)``,
+            ``permute`` and ``clipped`` int32.
+        tex: ``(front, back, second)`` flat: the scene view z with NaN off the mask (a NaN compares false, so a
+            cleared texel is never hit), the back-face and second-layer z (or ``None``) likewise.
+
+    Returns:
+        ``(Px, Py, Qz, k, n, prevZ, alive, t, live, hit, done, term)``: the new state (a ray that ends here is no
+        longer ``alive``), the fetched texel and, int32, the rays that fetched and that hit, the rays that ended
+        here (a hit, off screen, past ``stop`` or on their shortened last footprint) and their termination code.
+    """
+    Px, Py, Qz, k, n, prevZ, alive = state
+    dPx, dPy, dQz, dk, stride, stepDir, stop, end, zlo, zhi, permute, clipped, b = ray
+    front, back_z, second_z = tex
+    H, W = size
+    marching = alive != 0
+    Px, Py, Qz, k = Px + dPx, Py + dPy, Qz + dQz, k + dk
+    n = n + 1.0
+    u = Px * stepDir
+    beyond = marching & (u > stop)                                                # centre past P1 / the edge
+    f = ((stop - u) / stride + 0.5).clamp(0.0, 1.0)                               # footprint share before stop
+    partial = beyond & (f > 0)                                                    # last, shortened footprint
+    past = beyond & ~partial                                                      # nothing left to test: ended
+    back = torch.where(partial, 0.5 * (1.0 - f), 0.0)                             # centre of [P − ½dP, stop]
+    Px, Py, Qz, k = Px - dPx * back, Py - dPy * back, Qz - dQz * back, k - dk * back
+    n = n - back
+    half = torch.where(partial, 0.5 * f, 0.5)
+    swap = permute != 0
+    px, py = torch.where(swap, Py, Px), torch.where(swap, Px, Py)                 # hitPixel = permute ? P.yx : P
+    on = (px >= 0) & (px < W) & (py >= 0) & (py < H)
+    t = b * (H * W) + py.floor().clamp(0, H - 1).to(b.dtype) * W + px.floor().clamp(0, W - 1).to(b.dtype)
+    sceneZMax = front.index_select(0, t)
+    off, live = marching & ~past & ~on, marching & ~past & on                    # live: this sample is fetched
+    rayZMin = prevZ
+    rayZMax = ray_view_z(dQz * half + Qz, dk * half + k, zlo, zhi)                # footprint end
+    prevZ = rayZMax
+    rayZMin, rayZMax = torch.minimum(rayZMin, rayZMax), torch.maximum(rayZMin, rayZMax)   # swap
+    bottom = back_z.index_select(0, t) if back_z is not None else sceneZMax       # layered depth: the back face
+    hit = live & (rayZMax >= bottom - z_thickness) & (rayZMin <= sceneZMax)
+    if second_z is not None:                                                      # the second depth layer
+        z2 = second_z.index_select(0, t)
+        hit = hit | (live & (rayZMax >= z2 - z_thickness) & (rayZMin <= z2))
+    ended = torch.where(clipped != 0, BEHIND_CAMERA, MAX_DISTANCE)                # past P1
+    term = torch.where(u > end, ended, OFF_SCREEN)                                # the full step's centre
+    term = torch.where(off, OFF_SCREEN, torch.where(hit, HIT, term))
+    done = past | off | hit | partial
+    alive = torch.where(done, 0, alive)
+    return (Px, Py, Qz, k, n, prevZ, alive, t, live.to(torch.int32), hit.to(torch.int32), done.to(torch.int32),
+            term.to(torch.int8))
+
+
 def dda_march(s: DDARays, tex, params: "DDASSRParams", H: int, W: int, visits: Optional[torch.Tensor]) -> MarchOutput:
-    """The DDA loop; per-ray outputs by ``s.i``. Finished rays freeze (``alive``), dropped when 1/8 of ``s``."""
+    """The DDA loop; per-ray outputs by ``s.i``. Finished rays freeze (``alive``), dropped when 1/8 of ``s``.
+    Each step is :func:`dda_step`; hits are refined (:func:`refine_hits`) and outputs written here."""
     N = s.count
     out = MarchOutput.empty(N, s.k.dtype, s.k.device, OUT_OF_STEPS)
-    s.alive, dead = torch.ones(N, dtype=torch.bool, device=s.k.device), 0
+    dead, nan = 0, float("nan")
+    step_tex = tuple(None if x is None else torch.where(tex[1], x, nan) for x in (tex[0], tex[2], tex[3]))
+    index = torch.int32 if tex[0].numel() < 2 ** 31 else torch.int64
+    b, permute, clipped = s.b.to(index), s.permute.to(torch.int32), s.clipped.to(torch.int32)
+    alive = torch.ones(N, dtype=torch.int32, device=s.k.device)
     for _ in range(params.max_steps):
         if s.count == dead:
             break
-        s.Px, s.Py, s.Qz, s.k = s.Px + s.dPx, s.Py + s.dPy, s.Qz + s.dQz, s.k + s.dk
-        s.n = s.n + 1.0
-        u = s.Px * s.stepDir
-        beyond = s.alive & (u > s.stop)                                          # centre past P1 / the edge
-        f = ((s.stop - u) / s.stride + 0.5).clamp(0.0, 1.0)                      # footprint share before stop
-        partial = beyond & (f > 0)                                               # last, shortened footprint
-        past = beyond & ~partial                                                 # nothing left to test: ended
-        back = torch.where(partial, 0.5 * (1.0 - f), 0.0)                        # centre of [P − ½dP, stop]
-        s.Px, s.Py, s.Qz, s.k = s.Px - s.dPx * back, s.Py - s.dPy * back, s.Qz - s.dQz * back, s.k - s.dk * back
-        s.n = s.n - back
-        half = torch.where(partial, 0.5 * f, 0.5)
-        on, t, sceneZMax, m = fetch_cell(s.permute, s.b, s.Px, s.Py, tex, H, W)
-        off, live = s.alive & ~past & ~on, s.alive & ~past & on                  # live: this sample is fetched
-        rayZMin = s.prevZ
-        rayZMax = ray_view_z(s.dQz * half + s.Qz, s.dk * half + s.k, s.zlo, s.zhi)   # footprint end
-        s.prevZ = rayZMax
-        rayZMin, rayZMax = torch.minimum(rayZMin, rayZMax), torch.maximum(rayZMin, rayZMax)   # swap
-        bottom = tex[2][t] if tex[2] is not None else sceneZMax                  # layered depth: the back face
-        hit = live & m & (rayZMax >= bottom - params.z_thickness) & (rayZMin <= sceneZMax)
-        if tex[3] is not None:                                                    # the second depth layer
-            z2 = tex[3][t]
-            hit = hit | (live & m & (rayZMax >= z2 - params.z_thickness) & (rayZMin <= z2))
+        r = dda_step((s.Px, s.Py, s.Qz, s.k, s.n, s.prevZ, alive), (s.dPx, s.dPy, s.dQz, s.dk, s.stride, s.stepDir,
+                     s.stop, s.end, s.zlo, s.zhi, permute, clipped, b), step_tex, (H, W), params.z_thickness)
+        s.Px, s.Py, s.Qz, s.k, s.n, s.prevZ, alive, t, live, hit, done, term = r
         count_visits(out, visits, s.i, t, live)
         hi = hit.nonzero().squeeze(1)
         if hi.numel():
@@ -121,14 +166,13 @@ def dda_march(s: DDARays, tex, params: "DDASSRParams", H: int, W: int, visits: O
             out.P[h.i] = torch.where(h.permute[:, None], torch.stack([h.Py, h.Px], 1), torch.stack([h.Px, h.Py], 1))
             out.Q[h.i] = torch.stack([h.Q0x + h.dQx * h.n, h.Q0y + h.dQy * h.n, h.Qz], 1)
             out.k[h.i] = h.k
-        ended = torch.where(s.clipped, BEHIND_CAMERA, MAX_DISTANCE)                 # past P1
-        term = torch.where(u > s.end, ended, OFF_SCREEN)                            # the full step's centre
-        term = torch.where(off, OFF_SCREEN, torch.where(hit, HIT, term))
-        done = past | off | hit | partial
         di = done.nonzero().squeeze(1)
         if di.numel():
-            out.term[s.i[di]] = term[di].to(torch.int8)
-            s.alive, dead = s.alive & ~done, dead + di.numel()
+            out.term.index_copy_(0, s.i.index_select(0, di), term.index_select(0, di))
+            dead += di.numel()
             if 8 * dead >= s.count:                                                 # compact
-                s, dead = s.select(s.alive.nonzero().squeeze(1)), 0
+                keep = alive.nonzero().squeeze(1)
+                s, dead = s.select(keep), 0
+                b, permute, clipped, alive = (x.index_select(0, keep) for x in (b, permute, clipped, alive))
+    s.alive = alive != 0
     return out

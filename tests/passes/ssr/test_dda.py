@@ -365,18 +365,21 @@ def test_last_footprint_reaches_the_image_edge(stride):
 
 @pytest.mark.parametrize("method", ["dda", "dda_supercover"])
 def test_marching_in_chunks_of_rays_changes_no_bit(method, monkeypatch):
-    """The DDA marchers march RAY_CHUNK rays at a time (a bounded working set): chunks of 7 rays give the same
-    outputs, debug visit counts included, as one chunk for every ray."""
+    """The DDA marchers march chunks of rays at a time (a bounded working set: the DDA's MARCH_CHUNK, the
+    supercover's RAY_CHUNK): chunks of 7 rays give the same outputs, debug visit counts included, as one chunk
+    for every ray."""
     import dataclasses
 
+    import ssbench.passes.ssr.dda as D
     import ssbench.passes.ssr.dda_state as DS
     from ssbench.passes import ssr_method
     from tests.passes.ssr_scenes import room
     g = room(40, 30, slat=True)
     fn, params_cls, _ = ssr_method(method)
+    module, name = (D, "MARCH_CHUNK") if method == "dda" else (DS, "RAY_CHUNK")
 
     def run(chunk):
-        monkeypatch.setattr(DS, "RAY_CHUNK", chunk)
+        monkeypatch.setattr(module, name, chunk)
         return fn(g, params_cls(), debug=True)
     whole, chunked = run(1 << 40), run(7)
     assert int(whole.hit.sum()) > 0
@@ -430,3 +433,32 @@ def test_second_layer_sees_behind_the_bar():
     assert torch.equal(twin.termination, two.termination)
     with pytest.raises(ValueError, match="second_z"):
         ssr_dda(room(8, 6), DDASSRParams(use_second_layer=True))
+
+
+@pytest.mark.slow
+def test_the_compiled_dda_step_gives_the_eager_bits_at_two_sizes_without_recompiling():
+    """The DDA step through ``torch.compile`` (size-dynamic): every output and the visit map equal eager, with
+    strides and the binary search, the 1-pixel re-march, layered depth and jitter; a second size compiles nothing."""
+    import dataclasses
+
+    from torch._dynamo.utils import counters
+
+    from ssbench.passes import compiled as C
+    from tests.passes.ssr_scenes import room
+    settings = [DDASSRParams(pixel_stride=3.0), DDASSRParams(pixel_stride=2.0, refinement="remarch", jitter=1.0),
+                DDASSRParams(use_back_face_depth=True, z_thickness=0.05)]
+    for w, h in ((40, 30), (48, 36)):
+        g = room(w, h, torch.float32, slat=True)
+        for p in settings:
+            with C.compiling(False):
+                eager = ssr_dda(g, p, debug=True)
+            with C.compiling(True):
+                comp = ssr_dda(g, p, debug=True)
+            assert bool(eager.hit.any())
+            for f in dataclasses.fields(eager):
+                if f.name != "debug":
+                    assert torch.equal(getattr(eager, f.name), getattr(comp, f.name)), f.name
+            assert torch.equal(eager.debug["visits"], comp.debug["visits"])
+        if w == 40:
+            graphs = counters["stats"]["unique_graphs"]
+    assert graphs >= 1 and counters["stats"]["unique_graphs"] == graphs          # the second size: nothing new

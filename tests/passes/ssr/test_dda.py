@@ -438,17 +438,18 @@ def test_second_layer_sees_behind_the_bar():
 @pytest.mark.slow
 def test_the_compiled_dda_step_gives_the_eager_bits_at_two_sizes_without_recompiling():
     """The DDA step through ``torch.compile`` (size-dynamic): every output and the visit map equal eager, with
-    strides and the binary search, the 1-pixel re-march, layered depth and jitter; a second size compiles nothing."""
+    strides and the binary search, the 1-pixel re-march, the second depth layer and jitter; a second size compiles
+    nothing."""
     import dataclasses
 
     from torch._dynamo.utils import counters
 
     from ssbench.passes import compiled as C
-    from tests.passes.ssr_scenes import room
+    from tests.passes.ssr_scenes import room, with_second_layer
     settings = [DDASSRParams(pixel_stride=3.0), DDASSRParams(pixel_stride=2.0, refinement="remarch", jitter=1.0),
-                DDASSRParams(use_back_face_depth=True, z_thickness=0.05)]
+                DDASSRParams(use_second_layer=True, z_thickness=0.05)]
     for w, h in ((40, 30), (48, 36)):
-        g = room(w, h, torch.float32, slat=True)
+        g = with_second_layer(room(w, h, torch.float32, slat=True))
         for p in settings:
             with C.compiling(False):
                 eager = ssr_dda(g, p, debug=True)

@@ -67,13 +67,18 @@ def texel_of(u: torch.Tensor, v: torch.Tensor, height: int, width: int, *,
 
     A NaN coordinate (a degenerate projection) reads index 0 of its axis, never ``INT64_MIN``; ``nan_free=True``
     says the caller already replaced NaNs and skips that test (one less select per sample in a compiled loop).
-    ``dtype``: of the indices (``torch.int32`` halves a compiled loop's integer work on AVX2, which has no
-    64-bit vector multiply; the caller makes sure the flat indices it builds fit).
+    ``dtype``: of the indices (:func:`index_dtype` of the flat indices the caller builds from them).
     """
     col, row = torch.floor(u * width), torch.floor((1.0 - v) * height)
     if not nan_free:
         col, row = nan_to_zero(col), nan_to_zero(row)
     return col.clamp(0, width - 1).to(dtype), row.clamp(0, height - 1).to(dtype)
+
+
+def index_dtype(texels: int) -> torch.dtype:
+    """The dtype of flat texel indices into ``texels`` texels: int32 where they fit (half a compiled loop's integer
+    work on AVX2, which has no 64-bit vector multiply), else int64."""
+    return torch.int32 if texels < 2 ** 31 else torch.int64
 
 
 def gl_texel_index(u: torch.Tensor, v: torch.Tensor, height: int, width: int) -> torch.Tensor:

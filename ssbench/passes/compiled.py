@@ -15,12 +15,13 @@ there, 9.2× with cosine weighting) and SAO's tap loop (bit-equal at the default
 with G-buffer normals and radius 2, 2 of 230 400 pixels differ by ≤ 4.5e-5: inductor contracts ``ssR·cos`` to an
 FMA, and a tap within an ulp of a pixel edge truncates to the neighbour) and HBAO's band (compiled, its march skips
 the early exit, which would break the graph — ``torch.compiler.is_compiling()`` — and the steps it skipped are masked
-anyway: the same AO bit for bit, only the debug ``horizons`` differ by an ulp of ``atan``) and the linear SSR
-march: its step and its bisection probe are size-dynamic kernels (``@kernel(dynamic=True)``: one compilation for
-every working-set size; rays that stop ride along masked until a quarter of the set has stopped), bit for bit equal
-to eager, tested. Not compiled: the other SSR marchers (the DDAs, Hi-Z and three.js march compact their rays with
-data-dependent shapes inside the step), and the linear march's per-pixel ray set-up: compiled, its normalised
-reflection directions differ from ATen's in the last bit (1.8e-7), which moved refined hit points by up to 0.8 px.
+anyway: the same AO bit for bit, only the debug ``horizons`` differ by an ulp of ``atan``) and two SSR marchers:
+the linear march's step and bisection probe and the DDA's step are size-dynamic kernels (``@kernel(dynamic=True)``:
+one compilation for every working-set size; rays that stop ride along masked until the set is compacted), bit for
+bit equal to eager, tested. Not compiled: the supercover DDA, Hi-Z and three.js marchers (their steps compact rays
+with data-dependent shapes), the DDA's hit refinement, and the linear march's per-pixel ray set-up: compiled, its
+normalised reflection directions differ from ATen's in the last bit (1.8e-7), which moved refined hit points by up
+to 0.8 px.
 
 The switch, in order of precedence: :func:`compiling` (a context manager), else the environment variable
 ``SSBENCH_COMPILE`` (``1``/``true``: on; ``ssbench --compile …`` sets it, so sweep processes inherit it).

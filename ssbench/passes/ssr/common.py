@@ -114,6 +114,12 @@ def empty_result(like: torch.Tensor, debug: Optional[dict] = None) -> SSRResult:
                      fade=z(1) + 1, raw_color=z(3), debug=debug or {})
 
 
+def nan_off_mask(z: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """Depth ``z`` with NaN where ``mask`` is False: a marcher's depth test against it reads hit and mask at once,
+    as every comparison with NaN is false (a cleared texel is never hit)."""
+    return torch.where(mask, z, torch.full_like(z, float("nan")))
+
+
 def flat(t: torch.Tensor) -> torch.Tensor:
     """:math:`(B, C, H, W)` → :math:`(B·H·W, C)`, pixels in row-major order, contiguous (for ``B = 1`` the
     reshape is a strided view, and ``index_select`` of its rows took 19 ms at 640×360 against 1.4 ms)."""

@@ -10,7 +10,8 @@ from typing import TYPE_CHECKING, Optional
 import torch
 
 from ..compiled import kernel
-from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS
+from ..common import index_dtype
+from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS, nan_off_mask
 from .dda_state import DDARays, MarchOutput
 
 if TYPE_CHECKING:                                        # (ssr_dda imports this module)
@@ -147,10 +148,9 @@ def dda_march(s: DDARays, tex, params: "DDASSRParams", H: int, W: int, visits: O
     Each step is :func:`dda_step`; hits are refined (:func:`refine_hits`) and outputs written here."""
     N = s.count
     out = MarchOutput.empty(N, s.k.dtype, s.k.device, OUT_OF_STEPS)
-    dead, nan = 0, float("nan")
-    step_tex = tuple(None if x is None else torch.where(tex[1], x, nan) for x in (tex[0], tex[2], tex[3]))
-    index = torch.int32 if tex[0].numel() < 2 ** 31 else torch.int64
-    b, permute, clipped = s.b.to(index), s.permute.to(torch.int32), s.clipped.to(torch.int32)
+    dead = 0
+    step_tex = tuple(None if x is None else nan_off_mask(x, tex[1]) for x in (tex[0], tex[2], tex[3]))
+    b, permute, clipped = s.b.to(index_dtype(tex[0].numel())), s.permute.to(torch.int32), s.clipped.to(torch.int32)
     alive = torch.ones(N, dtype=torch.int32, device=s.k.device)
     for _ in range(params.max_steps):
         if s.count == dead:

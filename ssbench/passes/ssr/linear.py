@@ -43,10 +43,9 @@ from torch import nn
 from ...gbuffer import GBuffer
 from ..common import check_positive
 from ..gbuffer_checks import check_gbuffer, half_in_float32
-from .common import HIT, NO_RAY, SSRResult
+from .common import HIT, NO_RAY, SSRResult, flat
 from .fade import FadeParams
 from .linear_march import MarchLog, march, refine
-from .common import flat
 from .linear_rays import linear_rays
 from ..registry import Method, SpeedPanel
 

@@ -5,16 +5,17 @@ builds the rays (§1.1), calls these, and assembles the images (§1.4–1.5); :c
 buffers (visit counts, one pixel's samples) only when they are asked for."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Optional
 
 import torch
 
 from ...camera import Camera
-from ..common import texel_of, uv_to_texel
+from ..common import index_dtype, texel_of, uv_to_texel
 from ..compiled import kernel
 from .dda_state import select_rows
-from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS
+from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, nan_off_mask
 
 __all__ = ["DepthTest", "MarchLog", "MarchOutcome", "LiveRays", "march_step", "march", "refine_step", "refine"]
 
@@ -46,9 +47,11 @@ class DepthTest:
         col, row = uv_to_texel(uv, self.H, self.W, dim=1)
         return uv, base + row * self.W + col
 
+    @cached_property
     def front(self) -> torch.Tensor:
-        """``scene_z`` with NaN off the mask: with it, ``dist = z − front`` tests hit and mask in one read."""
-        return torch.where(self.mask, self.scene_z, torch.full_like(self.scene_z, float("nan")))
+        """``scene_z`` with NaN off the mask (built once, for the march and the bisection): with it,
+        ``dist = z − front`` tests hit and mask in one read."""
+        return nan_off_mask(self.scene_z, self.mask)
 
 
 @dataclass
@@ -155,12 +158,10 @@ def march(test: DepthTest, log: MarchLog, Q: torch.Tensor, dS: torch.Tensor, bas
     n, dev = Q.shape[0], Q.device
     out = _Outcome(torch.full((n,), NO_RAY, dtype=torch.int8, device=dev), torch.zeros(n, dtype=torch.int32, device=dev),
                    torch.full((n,), -1, device=dev), torch.zeros(n, 3, dtype=Q.dtype, device=dev))
-    front = test.front()
-    index = torch.int32 if front.numel() < 2 ** 31 else torch.int64
+    front = test.front
     flags = torch.zeros(n, dtype=torch.int32, device=dev)                          # live, hit, steps: int32
-    ws = LiveRays(torch.arange(n, device=dev), *Q.unbind(1), *dS.unbind(1), base.to(index), flags + 1, flags,
-                  flags.clone())
-    ws = replace(ws, **{k: getattr(ws, k).contiguous() for k in ("qx", "qy", "qz", "dx", "dy", "dz")})
+    ws = LiveRays(torch.arange(n, device=dev), *(c.contiguous() for c in (*Q.unbind(1), *dS.unbind(1))),
+                  base.to(index_dtype(front.numel())), flags + 1, flags, flags.clone())
     scale, debug = test.camera.ndc_scale(), bool(log.trace_ids) or log.counting
     n_run = min(iterations, max_iterations)
     for _ in range(n_run):
@@ -170,7 +171,7 @@ def march(test: DepthTest, log: MarchLog, Q: torch.Tensor, dS: torch.Tensor, bas
         r = march_step(scale, (test.H, test.W), test.thickness, front, test.back, (ws.qx, ws.qy, ws.qz, ws.dx, ws.dy,
                        ws.dz, ws.base, ws.live, ws.hit, ws.steps), debug=debug)
         was = ws.live != 0
-        ws = replace(ws, qx=r[0], qy=r[1], qz=r[2], live=r[3], hit=r[4], steps=r[5])
+        ws = LiveRays(ws.ids, *r[:3], ws.dx, ws.dy, ws.dz, ws.base, *r[3:6])
         if debug:
             t, on, h = r[7:]
             marched = was.nonzero().squeeze(1)
@@ -239,9 +240,8 @@ def refine(test: DepthTest, log: MarchLog, h: torch.Tensor, O: torch.Tensor, dS:
     step = torch.where(first, best - O, dS)
     originalStride = 0.5
     stride = torch.full((h.numel(), 1), originalStride, dtype=best.dtype, device=best.device)   # (m, 1)
-    front, debug = test.front(), bool(log.trace_ids) or log.counting
-    index = torch.int32 if front.numel() < 2 ** 31 else torch.int64
-    base = base.to(index)
+    front, debug = test.front, bool(log.trace_ids) or log.counting
+    base = base.to(index_dtype(front.numel()))
     for _ in range(iterations):
         r = refine_step(test.camera.ndc_scale(), (test.H, test.W), test.thickness, front, test.back,
                         (Qb, step, stride, best), base, debug=debug)

@@ -64,7 +64,7 @@ def test_a_dynamic_kernel_counts_one_compilation_for_every_size_and_number():
 
 @pytest.mark.slow
 @pytest.mark.parametrize("method, settings", [("crytek", {}), ("ssao", {}), ("gtao", {"quality": "low"}), ("vbao", {}),
-                                              ("sao", {"radius": 4.0}), ("hbao", {}),
+                                              ("sao", {"radius": 4.0}), ("hbao", {}), ("three_gtao", {"radius": 0.5}),
                                               ("ssao", {"position_from": "view_z", "noise_channels": "r"})])
 def test_compiled_ao_passes_equal_eager(method, settings):
     from ssbench.passes import ao_method
@@ -91,6 +91,8 @@ def test_compiled_ao_passes_equal_eager(method, settings):
         assert torch.equal(eager.ao, comp.ao)                           # buffer) may differ by an ulp in inductor
         for k, v in eager.debug.items():
             assert torch.equal(v, comp.debug[k]) if k != "horizons" else float((v - comp.debug[k]).abs().max()) <= 1e-6
+    elif method == "three_gtao":   # inductor's vectorised acos and sqrt differ from ATen's by an ulp now and then
+        assert float((eager.ao - comp.ao).abs().max()) <= 1e-6          # measured <= 2.4e-7 at 1920x1080
     elif method != "gtao":
         assert torch.equal(eager.ao, comp.ao)
         for k, v in eager.debug.items():

@@ -62,6 +62,22 @@ def test_a_dynamic_kernel_counts_one_compilation_for_every_size_and_number():
     assert C._signature((torch.zeros(3), True), {}, dynamic=True) != C._signature((torch.zeros(3), False), {}, dynamic=True)
 
 
+def test_a_static_kernel_compiles_every_signature_past_dynamos_default_of_eight():
+    """Dynamo keeps 8 compilations per function and then runs it eager without a word: a sweep's ninth parameter
+    set would have timed eager code as compiled."""
+    from torch._dynamo.utils import counters
+
+    @C.kernel
+    def shifted(x, k):
+        return x * k + 1
+
+    with C.compiling(True):
+        graphs = counters["stats"]["unique_graphs"]
+        for k in range(12):                                          # 12 values of a baked-in number: 12 signatures
+            assert torch.equal(shifted(torch.arange(4.0), float(k)), torch.arange(4.0) * k + 1)
+        assert counters["stats"]["unique_graphs"] - graphs == 12     # each one compiled, none run eager
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("method, settings", [("crytek", {}), ("ssao", {}), ("gtao", {"quality": "low"}), ("vbao", {}),
                                               ("sao", {"radius": 4.0}), ("hbao", {}), ("three_gtao", {"radius": 0.5}),

@@ -28,11 +28,12 @@ max_traversal_intersections`` holds on every exit, so it reports those rays as h
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional
+from typing import NamedTuple, Optional
 
 import torch
 
 from ...gbuffer import GBuffer
+from ..compiled import kernel
 from .common import BEHIND_CAMERA, BEHIND_SURFACE, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS, ray_segments
 from .dda_state import MarchOutput
 from .hiz_pyramid import DepthPyramid
@@ -166,6 +167,58 @@ def _validate(ray_dir: torch.Tensor, texel: torch.Tensor, z: torch.Tensor, near:
     return ok | in2, front2, torch.where(front2, near / -z2.clamp_max(-torch.finfo(z.dtype).tiny), 0.0)
 
 
+class PyramidLevels(NamedTuple):
+    """The pyramid as :func:`hiz_step` reads it: ``flat`` :math:`(B·T,)` every image's levels; ``scales`` and
+    ``inv_scales`` :math:`(L,)` a level's cell size in pixels and its inverse; ``offsets``, ``widths`` :math:`(L,)`
+    long (:class:`~.hiz_pyramid.DepthPyramid`); ``total`` = ``T``, the cells of one image."""
+
+    flat: torch.Tensor
+    scales: torch.Tensor
+    inv_scales: torch.Tensor
+    offsets: torch.Tensor
+    widths: torch.Tensor
+    total: int
+
+
+class StepGeometry(NamedTuple):
+    """What one iteration computes per live ray, :math:`(N,)` each: the position ``x, y, z`` (``z`` = ``rz``), whether
+    it left the screen (``off``), its cell ``cx, cy`` at its level, ``side`` (``min(t_x, t_y)``), and the ``t`` and
+    level ``AdvanceRay`` gives it (level −1: a hit candidate)."""
+
+    x: torch.Tensor
+    y: torch.Tensor
+    z: torch.Tensor
+    off: torch.Tensor
+    cx: torch.Tensor
+    cy: torch.Tensor
+    side: torch.Tensor
+    t_new: torch.Tensor
+    mip: torch.Tensor
+
+
+@kernel(dynamic=True)
+def hiz_step(c: torch.Tensor, t: torch.Tensor, mip: torch.Tensor, b: torch.Tensor, levels: PyramidLevels, W: int,
+             H: int, top: int) -> StepGeometry:
+    """Step 2 of the module docstring for the live rays (constants ``c`` :math:`(13, N)`, :data:`COLUMNS`; ``t``,
+    ``mip``, image ``b`` :math:`(N,)`): one read of the pyramid and ``AdvanceRay`` (levels up to ``top``); a
+    size-dynamic compiled kernel (:mod:`ssbench.passes.compiled`)."""
+    x, y, z = c[OX] + t * c[VX], c[OY] + t * c[VY], c[OZ] + t * c[VZ]
+    off = ~((x >= 0) & (x < W) & (y >= 0) & (y < H))                        # NaN (degenerate input) too
+    inv_s, scale = levels.inv_scales.index_select(0, mip), levels.scales.index_select(0, mip)
+    cx, cy = (x * inv_s).long(), (y * inv_s).long()                           # x, y ≥ 0 on screen: trunc = floor
+    index = (b * levels.total + levels.offsets.index_select(0, mip) + cy * levels.widths.index_select(0, mip)
+             + cx).clamp(0, levels.flat.numel() - 1)
+    surface = torch.take(levels.flat, index)                                  # garbage only for `off` rays
+    tx = cell_exit(c[OX], c[INVX], c[OFFX], c[EPSX], cx, scale)              # AdvanceRay: the borders
+    ty = cell_exit(c[OY], c[INVY], c[OFFY], c[EPSY], cy, scale)
+    tz = torch.where((c[INVZ] != 0) & (surface > 0), (surface - c[OZ]) * c[INVZ], torch.inf)   # its closest depth
+    side = torch.minimum(tx, ty)
+    above = (z > surface) | (surface <= 0)                                    # a cell of background: skip it
+    skipped = above & (side < tz)
+    t_new = torch.where(above, torch.minimum(side, tz), t)
+    return StepGeometry(x, y, z, off, cx, cy, side, t_new, torch.where(skipped, (mip + 1).clamp_max(top), mip - 1))
+
+
 def hiz_march(r: HiZRays, pyr: DepthPyramid, tex: HiZTexels, params, gbuffer: GBuffer,
               visits: Optional[torch.Tensor] = None, level_reads: Optional[torch.Tensor] = None) -> MarchOutput:
     """March ``r`` to termination; one pyramid read per iteration, at most ``params.max_traversal_intersections``.
@@ -187,17 +240,12 @@ def hiz_march(r: HiZRays, pyr: DepthPyramid, tex: HiZTexels, params, gbuffer: GB
         return r.select((~done).nonzero().squeeze(1))
 
     r = finish(r.t >= 1.0, ended[r.i])
+    levels = PyramidLevels(flat, scales, inv_scales, pyr.offsets, pyr.widths, total)
     for _ in range(params.max_traversal_intersections):
         if r.count == 0:
             break
         c, t = r.c, r.t
-        x, y, z = c[OX] + t * c[VX], c[OY] + t * c[VY], c[OZ] + t * c[VZ]
-        off = ~((x >= 0) & (x < W) & (y >= 0) & (y < H))                        # NaN (degenerate input) too
-        inv_s, scale = inv_scales.index_select(0, r.mip), scales.index_select(0, r.mip)
-        cx, cy = (x * inv_s).long(), (y * inv_s).long()                           # x, y ≥ 0 on screen: trunc = floor
-        index = (r.b * total + pyr.offsets.index_select(0, r.mip) + cy * pyr.widths.index_select(0, r.mip)
-                 + cx).clamp(0, flat.numel() - 1)
-        surface = torch.take(flat, index)                                         # garbage only for `off` rays
+        x, y, z, off, cx, cy, side, t_new, mip = hiz_step(c, t, r.mip, r.b, levels, W, H, top)
         on = ~off
         out.steps.index_add_(0, r.i, on.int())
         if level_reads is not None:
@@ -205,15 +253,7 @@ def hiz_march(r: HiZRays, pyr: DepthPyramid, tex: HiZTexels, params, gbuffer: GB
         if visits is not None:
             at0 = on & (r.mip == 0)
             visits.index_add_(0, (r.b * H * W + cy * W + cx)[at0], torch.ones_like(cx[at0], dtype=visits.dtype))
-        tx = cell_exit(c[OX], c[INVX], c[OFFX], c[EPSX], cx, scale)              # AdvanceRay: the borders
-        ty = cell_exit(c[OY], c[INVY], c[OFFY], c[EPSY], cy, scale)
-        tz = torch.where((c[INVZ] != 0) & (surface > 0), (surface - c[OZ]) * c[INVZ], torch.inf)   # its closest depth
-        side = torch.minimum(tx, ty)
-        above = (z > surface) | (surface <= 0)                                    # a cell of background: skip it
-        skipped = above & (side < tz)
-        t_new = torch.where(above, torch.minimum(side, tz), t)
-        mip = torch.where(skipped, (r.mip + 1).clamp_max(top), r.mip - 1)
-        hit = torch.zeros_like(above)
+        hit = torch.zeros_like(on)
         cand = (on & (mip < 0)).nonzero().squeeze(1)
         if cand.numel():
             ok, front2, rz2 = _validate(r.ray_dir[r.i[cand]], r.b[cand] * H * W + cy[cand] * W + cx[cand],

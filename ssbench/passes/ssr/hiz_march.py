@@ -153,15 +153,16 @@ def _validate(ray_dir: torch.Tensor, texel: torch.Tensor, z: torch.Tensor, near:
               params) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Which candidates hit: the ray within the thickness behind ``texel`` (flat index), facing it if asked, or
     within the second layer's; which are in front of the second layer (they go on), and that layer's ``rz``."""
-    zs = tex.view_z[texel]
-    bottom = (tex.back_z[texel] if tex.back_z is not None else zs) - _thickness(params, zs)
+    at = lambda v: v.index_select(0, texel)                   # noqa: E731
+    zs = at(tex.view_z)
+    bottom = (at(tex.back_z) if tex.back_z is not None else zs) - _thickness(params, zs)
     zr = -near / z.clamp_min(torch.finfo(z.dtype).tiny)
     ok = zr >= bottom
     if params.reject_backfaces:
-        ok = ok & ((ray_dir * tex.normal[texel]).sum(1) <= 0)
+        ok = ok & ((ray_dir * at(tex.normal)).sum(1) <= 0)
     if tex.second_z is None:
         return ok, torch.zeros_like(ok), torch.zeros_like(z)
-    z2 = tex.second_z[texel]
+    z2 = at(tex.second_z)
     in2 = (zr <= z2) & (zr >= z2 - _thickness(params, z2))
     front2 = ~ok & (zr > z2)
     return ok | in2, front2, torch.where(front2, near / -z2.clamp_max(-torch.finfo(z.dtype).tiny), 0.0)
@@ -204,9 +205,10 @@ def hiz_step(c: torch.Tensor, t: torch.Tensor, mip: torch.Tensor, b: torch.Tenso
     size-dynamic compiled kernel (:mod:`ssbench.passes.compiled`)."""
     x, y, z = c[OX] + t * c[VX], c[OY] + t * c[VY], c[OZ] + t * c[VZ]
     off = ~((x >= 0) & (x < W) & (y >= 0) & (y < H))                        # NaN (degenerate input) too
-    inv_s, scale = levels.inv_scales.index_select(0, mip), levels.scales.index_select(0, mip)
+    level = mip.clamp_min(0)                        # a stopped ray riding along masked may be at level −1
+    inv_s, scale = levels.inv_scales.index_select(0, level), levels.scales.index_select(0, level)
     cx, cy = (x * inv_s).long(), (y * inv_s).long()                           # x, y ≥ 0 on screen: trunc = floor
-    index = (b * levels.total + levels.offsets.index_select(0, mip) + cy * levels.widths.index_select(0, mip)
+    index = (b * levels.total + levels.offsets.index_select(0, level) + cy * levels.widths.index_select(0, level)
              + cx).clamp(0, levels.flat.numel() - 1)
     surface = torch.take(levels.flat, index)                                  # garbage only for `off` rays
     tx = cell_exit(c[OX], c[INVX], c[OFFX], c[EPSX], cx, scale)              # AdvanceRay: the borders
@@ -241,12 +243,13 @@ def hiz_march(r: HiZRays, pyr: DepthPyramid, tex: HiZTexels, params, gbuffer: GB
 
     r = finish(r.t >= 1.0, ended[r.i])
     levels = PyramidLevels(flat, scales, inv_scales, pyr.offsets, pyr.widths, total)
+    alive = torch.ones(r.count, dtype=torch.bool, device=dev)     # stopped rays ride along until a quarter stopped
     for _ in range(params.max_traversal_intersections):
         if r.count == 0:
             break
         c, t = r.c, r.t
         x, y, z, off, cx, cy, side, t_new, mip = hiz_step(c, t, r.mip, r.b, levels, W, H, top)
-        on = ~off
+        on = alive & ~off
         out.steps.index_add_(0, r.i, on.int())
         if level_reads is not None:
             level_reads += torch.bincount(r.mip[on], minlength=level_reads.numel())
@@ -256,28 +259,36 @@ def hiz_march(r: HiZRays, pyr: DepthPyramid, tex: HiZTexels, params, gbuffer: GB
         hit = torch.zeros_like(on)
         cand = (on & (mip < 0)).nonzero().squeeze(1)
         if cand.numel():
-            ok, front2, rz2 = _validate(r.ray_dir[r.i[cand]], r.b[cand] * H * W + cy[cand] * W + cx[cand],
-                                        z[cand], cam.near, tex, params)
-            cc = c[:, cand]                                   # the second layer, reached inside this texel
+            at = lambda v, dim=0: v.index_select(dim, cand)      # noqa: E731  (gathers: faster than v[cand])
+            i_c, x_c, y_c, z_c, side_c, t_new_c = at(r.i), at(x), at(y), at(z), at(side), at(t_new)
+            ok, front2, rz2 = _validate(r.ray_dir.index_select(0, i_c), at(r.b) * H * W + at(cy) * W + at(cx),
+                                        z_c, cam.near, tex, params)
+            cc = at(c, 1)                                     # the second layer, reached inside this texel
             t2 = torch.where(front2 & (cc[INVZ] != 0), (rz2 - cc[OZ]) * cc[INVZ], torch.inf)
-            reach = front2 & (rz2 > 0) & (t2 <= side[cand])                       # (no layer behind: rz2 = 0)
-            t_hit = torch.where(reach, t2, t[cand])
+            reach = front2 & (rz2 > 0) & (t2 <= side_c)                           # (no layer behind: rz2 = 0)
+            t_hit = torch.where(reach, t2, at(t))
             px_, py_, pz_ = cc[OX] + t_hit * cc[VX], cc[OY] + t_hit * cc[VY], cc[OZ] + t_hit * cc[VZ]
-            px_, py_, pz_ = (torch.where(reach, a, b) for a, b in ((px_, x[cand]), (py_, y[cand]), (pz_, z[cand])))
+            px_, py_, pz_ = (torch.where(reach, a, b) for a, b in ((px_, x_c), (py_, y_c), (pz_, z_c)))
             ok = ok | reach
             front2 = front2 & ~reach
-            hit[cand] = ok
+            hit.index_copy_(0, cand, ok)
             h = ok.nonzero().squeeze(1)
-            out.P[r.i[cand[h]]] = torch.stack([px_[h], py_[h]], 1)
-            uv = torch.stack([px_[h] / W, 1.0 - py_[h] / H], 0)
-            out.Q[r.i[cand[h]]] = cam.uv_to_view(uv, -cam.near / pz_[h], dim=0).T.to(dt)
+            px_, py_, pz_, i_h = (v.index_select(0, h) for v in (px_, py_, pz_, i_c))
+            out.P.index_copy_(0, i_h, torch.stack([px_, py_], 1))
+            uv = torch.stack([px_ / W, 1.0 - py_ / H], 0)
+            out.Q.index_copy_(0, i_h, cam.uv_to_view(uv, -cam.near / pz_, dim=0).T.to(dt))
             go = ~ok if params.trace_behind else front2                           # cross the texel at level 0
-            t_new[cand] = torch.where(go, side[cand], t_new[cand])
-            mip[cand] = torch.where(go, 0, mip[cand])
+            t_new.index_copy_(0, cand, torch.where(go, side_c, t_new_c))
+            mip.index_copy_(0, cand, torch.where(go, 0, at(mip)))
         r.t, r.mip = t_new, mip
-        done = off | hit | (mip < 0) | (t_new >= 1.0)
-        if bool(done.any()):
-            code = torch.where(off, OFF_SCREEN, torch.where(hit, HIT, torch.where(
-                mip < 0, BEHIND_SURFACE, ended[r.i].int()))).to(torch.int8)
-            r = finish(done, code)
+        done = alive & (off | hit | (mip < 0) | (t_new >= 1.0))
+        code = torch.where(off, OFF_SCREEN, torch.where(hit, HIT, torch.where(
+            mip < 0, BEHIND_SURFACE, ended[r.i].int()))).to(torch.int8)
+        stopped = done.nonzero().squeeze(1)
+        out.term.index_copy_(0, r.i.index_select(0, stopped), code.index_select(0, stopped))
+        alive = alive & ~done
+        n_alive, m = int(alive.sum()), r.count
+        if n_alive <= 3 * m // 4 and n_alive != 1:          # a quarter has stopped (a set of one ray compiles anew)
+            r = r.select(alive.nonzero().squeeze(1))
+            alive = torch.ones(r.count, dtype=torch.bool, device=dev)
     return out

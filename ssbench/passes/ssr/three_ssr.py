@@ -34,11 +34,12 @@ import torch
 from torch import nn
 
 from ...gbuffer import GBuffer
-from ..common import check_positive, gl_texel_index
+from ..common import check_positive
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..registry import Method, SpeedPanel
 from .common import HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult, flat
 from .dda_state import select_rows
+from .three_ssr_step import StepRays, StepTextures, pixel_step, unproject
 
 REQUIRES = ("view_z", "normal", "mask", "color")
 DEFAULTS_SOURCE = "three.js SSRShader / SSRPass defaults (maxDistance 180, thickness 0.018, opacity 0.5)"
@@ -76,15 +77,6 @@ class ThreeSSRParams:
         for name in ("distance_attenuation", "fresnel", "infinite_thick"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name}: expected True or False, got {getattr(self, name)!r}")
-
-
-def _unproject(cam, u: torch.Tensor, v: torch.Tensor, d: torch.Tensor, clip_w: torch.Tensor,
-               rows: int = 3) -> torch.Tensor:
-    """``getViewPosition``: ``(cameraInverseProjectionMatrix · ((uv, d) − ½)·2·clipW).xyz`` → ``(..., 3)`` (only
-    ``x`` with ``rows=1``, ``(..., 1)``)."""
-    m = cam.inverse_projection_matrix(dtype=u.dtype, device=u.device)
-    clip = ((u - 0.5) * 2.0 * clip_w, (v - 0.5) * 2.0 * clip_w, (d - 0.5) * 2.0 * clip_w, clip_w)
-    return torch.stack([sum(m[i, k] * clip[k] for k in range(4)) for i in range(rows)], -1)
 
 
 #: the march carries stopped rays along (masked) until they are this fraction of its working set, then drops them:
@@ -151,7 +143,8 @@ def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
     row, col = k // W, k % W
     d0 = torch.stack([col.to(dt) + 0.5, (H - 1 - row).to(dt) + 0.5], -1)          # gl_FragCoord.xy
     vuv = d0 / torch.tensor([W, H], dtype=dt, device=dev)
-    vp = _unproject(cam, vuv[:, 0], vuv[:, 1], depth[b, k], -vz_tex[b, k])        # viewPosition
+    vp = unproject(cam.inverse_projection_matrix(dtype=dt, device=dev), vuv[:, 0], vuv[:, 1], depth[b, k],
+                   -vz_tex[b, k])                                                 # viewPosition
     n = normal[b, k]
     inc = vp / vp.norm(dim=1, keepdim=True)                                      # viewIncidentDir
     refl = inc - 2.0 * (n * inc).sum(1, keepdim=True) * n                         # reflect(I, N)
@@ -174,34 +167,20 @@ def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
     hit_k = torch.zeros(m, dtype=torch.long, device=dev)
     hit_xy = torch.zeros(m, 2, dtype=dt, device=dev)
     hit_vp = torch.zeros(m, 3, dtype=dt, device=dev)
-    res = torch.tensor([W, H], dtype=dt, device=dev)
     ws = MarchRays(torch.arange(m, device=dev), b, d0, span, total, recip, recip_end, vp, d1v, (d1v - vp).norm(dim=1),
                    refl, n, s_step, s_step.clone())
     alive = torch.ones(m, dtype=torch.bool, device=dev)
-    depth_flat, vz_flat, normal_flat = depth.reshape(-1), vz_tex.reshape(-1), normal.reshape(B * HW, 3)
+    textures = StepTextures(depth.reshape(-1), vz_tex.reshape(-1), cam.inverse_projection_matrix(dtype=dt, device=dev))
+    normal_flat = normal.reshape(B * HW, 3)
     for i in range(1, max_step):
         if ws.ray.numel() == 0:
             break
-        end = i >= ws.total
-        xy = ws.d0 + i * ws.span
-        off = ~end & ((xy[:, 0] < 0) | (xy[:, 0] > W) | (xy[:, 1] < 0) | (xy[:, 1] > H))
-        term[ws.ray[alive & end]], term[ws.ray[alive & off]] = MAX_DISTANCE, OFF_SCREEN
-        steps[ws.ray[alive]] = (i - 1 + (~end).int())[alive]
-        alive &= ~(end | off)
-        uv = xy / res
-        tex = gl_texel_index(uv[:, 0], uv[:, 1], H, W)
-        texel = ws.b * HW + tex
-        d, vz = torch.take(depth_flat, texel), torch.take(vz_flat, texel)
-        sky = -vz >= far                                                         # continue: s does not advance
-        vpt = _unproject(cam, uv[:, 0], uv[:, 1], d, -vz)
-        ray_z = 1.0 / (ws.recip + ws.s * (ws.recip_end - ws.recip))
-        behind = alive & ~sky & (ray_z <= vz)
-        if p.infinite_thick:
-            hit = behind
-        else:
-            away = torch.linalg.cross(vpt - ws.vp, vpt - ws.d1v, dim=1).norm(dim=1) / ws.length   # pointToLineDistance
-            nb = _unproject(cam, (xy[:, 0] + 1.0) / W, uv[:, 1], d, -vz, rows=1)       # the texel to the right
-            hit = behind & (away <= torch.clamp((nb[:, 0] - vpt[:, 0]) * 3.0, min=p.thickness))
+        was = alive
+        end, off, alive, xy, tex, texel, vpt, sky, hit = pixel_step(
+            i, StepRays(ws.b, ws.d0, ws.span, ws.total, ws.recip, ws.recip_end, ws.vp, ws.d1v, ws.length, ws.s), was,
+            textures, (H, W), far, p.thickness, p.infinite_thick)
+        term[ws.ray[was & end]], term[ws.ray[was & off]] = MAX_DISTANCE, OFF_SCREEN
+        steps[ws.ray[was]] = (i - 1 + (~end).int())[was]
         h = hit.nonzero().squeeze(1)              # every hit ends the ray: a true hit, or a back face / too far
         if h.numel():
             nh, vph = ws.n[h], vpt[h]

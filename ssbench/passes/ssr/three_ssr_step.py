@@ -1,0 +1,92 @@
+"""One step of three.js ``SSRShader``'s pixel DDA (steps 3–4 of :mod:`ssbench.passes.ssr.three_ssr`) over the
+march's working set, as a size-dynamic compiled kernel (:mod:`ssbench.passes.compiled`): the sample, its texel
+fetch and unprojection, the ray's perspective-correct depth and the hit test.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import torch
+
+from ..common import gl_texel_index
+from ..compiled import kernel
+
+__all__ = ["StepTextures", "StepRays", "StepResult", "unproject", "pixel_step"]
+
+
+def unproject(minv: torch.Tensor, u: torch.Tensor, v: torch.Tensor, d: torch.Tensor, clip_w: torch.Tensor,
+              rows: int = 3) -> torch.Tensor:
+    """``getViewPosition``: ``(cameraInverseProjectionMatrix · ((uv, d) − ½)·2·clipW).xyz`` → ``(..., 3)`` (only
+    ``x`` with ``rows=1``, ``(..., 1)``); ``minv`` the inverse projection matrix."""
+    clip = ((u - 0.5) * 2.0 * clip_w, (v - 0.5) * 2.0 * clip_w, (d - 0.5) * 2.0 * clip_w, clip_w)
+    return torch.stack([sum(minv[i, k] * clip[k] for k in range(4)) for i in range(rows)], -1)
+
+
+class StepTextures(NamedTuple):
+    """What a step reads, flat over ``B·H·W``: the GL depth (``tDepth``) and ``getViewZ`` of every texel, and the
+    inverse projection matrix :math:`(4, 4)`."""
+
+    depth: torch.Tensor
+    view_z: torch.Tensor
+    minv: torch.Tensor
+
+
+class StepRays(NamedTuple):
+    """The working set's per-ray values a step reads (:class:`~.three_ssr.MarchRays`), :math:`(N,)` or
+    :math:`(N, k)`: its image ``b``, ``d0``, ``span``, ``totalStep``, ``1/z`` at both ends, ``viewPosition``,
+    ``d1viewPosition``, the ray's length and ``s``."""
+
+    b: torch.Tensor
+    d0: torch.Tensor
+    span: torch.Tensor
+    total: torch.Tensor
+    recip: torch.Tensor
+    recip_end: torch.Tensor
+    vp: torch.Tensor
+    d1v: torch.Tensor
+    length: torch.Tensor
+    s: torch.Tensor
+
+
+class StepResult(NamedTuple):
+    """One step's outcome per ray: ``end`` (``i ≥ totalStep``), ``off`` (left the screen), ``alive`` (after those
+    two), the sample ``xy`` :math:`(N, 2)`, its texel ``tex`` (in the image) and ``texel`` (flat), the texel's
+    view point ``vpt`` :math:`(N, 3)`, ``sky`` (a background texel: ``s`` does not advance) and ``hit``."""
+
+    end: torch.Tensor
+    off: torch.Tensor
+    alive: torch.Tensor
+    xy: torch.Tensor
+    tex: torch.Tensor
+    texel: torch.Tensor
+    vpt: torch.Tensor
+    sky: torch.Tensor
+    hit: torch.Tensor
+
+
+@kernel(dynamic=True)
+def pixel_step(i: int, ws: StepRays, alive: torch.Tensor, tex: StepTextures, size: tuple[int, int], far: float,
+               thickness: float, infinite_thick: bool) -> StepResult:
+    """Step ``i`` of the pixel DDA for the live rays (``alive``); ``size`` = ``(H, W)``. A ray is hit when it is
+    behind a texel that is not background and, unless ``infinite_thick``, that texel's view point lies within
+    ``max(thickness, 3 × the texel's width in view units)`` of the ray's line (``pointToLineDistance``)."""
+    H, W = size
+    end = i >= ws.total
+    xy = ws.d0 + i * ws.span
+    off = ~end & ((xy[:, 0] < 0) | (xy[:, 0] > W) | (xy[:, 1] < 0) | (xy[:, 1] > H))
+    alive = alive & ~(end | off)
+    uv = xy / torch.tensor([W, H], dtype=xy.dtype, device=xy.device)
+    t = gl_texel_index(uv[:, 0], uv[:, 1], H, W)
+    texel = ws.b * (H * W) + t
+    d, vz = torch.take(tex.depth, texel), torch.take(tex.view_z, texel)
+    sky = -vz >= far                                                         # continue: s does not advance
+    vpt = unproject(tex.minv, uv[:, 0], uv[:, 1], d, -vz)
+    ray_z = 1.0 / (ws.recip + ws.s * (ws.recip_end - ws.recip))
+    behind = alive & ~sky & (ray_z <= vz)
+    if infinite_thick:
+        hit = behind
+    else:
+        away = torch.linalg.cross(vpt - ws.vp, vpt - ws.d1v, dim=1).norm(dim=1) / ws.length   # pointToLineDistance
+        nb = unproject(tex.minv, (xy[:, 0] + 1.0) / W, uv[:, 1], d, -vz, rows=1)           # the texel to the right
+        hit = behind & (away <= torch.clamp((nb[:, 0] - vpt[:, 0]) * 3.0, min=thickness))
+    return StepResult(end, off, alive, xy, t, texel, vpt, sky, hit)

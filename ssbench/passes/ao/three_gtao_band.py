@@ -4,7 +4,6 @@ steps 2–4 of :mod:`ssbench.passes.ao.three_gtao`, which runs it band by band (
 """
 from __future__ import annotations
 
-import math
 from typing import TYPE_CHECKING, NamedTuple
 
 import torch

@@ -38,8 +38,7 @@ from ..common import check_positive
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..registry import Method, SpeedPanel
 from .common import HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult, flat
-from .dda_state import select_rows
-from .three_ssr_step import StepRays, StepTextures, pixel_step, unproject
+from .three_ssr_step import MarchRays, StepTextures, pixel_step, unproject
 
 REQUIRES = ("view_z", "normal", "mask", "color")
 DEFAULTS_SOURCE = "three.js SSRShader / SSRPass defaults (maxDistance 180, thickness 0.018, opacity 0.5)"
@@ -82,33 +81,6 @@ class ThreeSSRParams:
 #: the march carries stopped rays along (masked) until they are this fraction of its working set, then drops them:
 #: gathering every ray's constants anew each step cost more than marching a few stopped rays
 COMPACT_BELOW = 0.75
-
-
-@dataclass(frozen=True)
-class MarchRays:
-    """The working set of the pixel DDA: ray ids (``ray``, into the rays the shader casts) and each ray's constants
-    (batch index ``b``, ``d0``, ``span``, ``totalStep``, ``1/z`` at both ends, ``viewPosition``, the far end
-    ``d1viewPosition``, the ray's length, ``viewReflectDir``, ``viewNormal``, ``sStep``) and its state ``s``, all
-    compacted together."""
-
-    ray: torch.Tensor
-    b: torch.Tensor
-    d0: torch.Tensor
-    span: torch.Tensor
-    total: torch.Tensor
-    recip: torch.Tensor
-    recip_end: torch.Tensor
-    vp: torch.Tensor
-    d1v: torch.Tensor
-    length: torch.Tensor
-    refl: torch.Tensor
-    n: torch.Tensor
-    s_step: torch.Tensor
-    s: torch.Tensor
-
-    def take(self, keep: torch.Tensor) -> "MarchRays":
-        """The rays at positions ``keep`` of this set."""
-        return select_rows(self, keep)
 
 
 @half_in_float32
@@ -177,8 +149,7 @@ def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
             break
         was = alive
         end, off, alive, xy, tex, texel, vpt, sky, hit = pixel_step(
-            i, StepRays(ws.b, ws.d0, ws.span, ws.total, ws.recip, ws.recip_end, ws.vp, ws.d1v, ws.length, ws.s), was,
-            textures, (H, W), far, p.thickness, p.infinite_thick)
+            i, ws, was, textures, (H, W), far, p.thickness, p.infinite_thick)
         term[ws.ray[was & end]], term[ws.ray[was & off]] = MAX_DISTANCE, OFF_SCREEN
         steps[ws.ray[was]] = (i - 1 + (~end).int())[was]
         h = hit.nonzero().squeeze(1)              # every hit ends the ray: a true hit, or a back face / too far

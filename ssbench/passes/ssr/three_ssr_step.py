@@ -11,7 +11,7 @@ import torch
 from ..common import gl_texel_index
 from ..compiled import kernel
 
-__all__ = ["StepTextures", "StepRays", "StepResult", "unproject", "pixel_step"]
+__all__ = ["StepTextures", "MarchRays", "StepResult", "unproject", "pixel_step"]
 
 
 def unproject(minv: torch.Tensor, u: torch.Tensor, v: torch.Tensor, d: torch.Tensor, clip_w: torch.Tensor,
@@ -31,11 +31,13 @@ class StepTextures(NamedTuple):
     minv: torch.Tensor
 
 
-class StepRays(NamedTuple):
-    """The working set's per-ray values a step reads (:class:`~.three_ssr.MarchRays`), :math:`(N,)` or
-    :math:`(N, k)`: its image ``b``, ``d0``, ``span``, ``totalStep``, ``1/z`` at both ends, ``viewPosition``,
-    ``d1viewPosition``, the ray's length and ``s``."""
+class MarchRays(NamedTuple):
+    """The working set of the pixel DDA, :math:`(N,)` or :math:`(N, k)` per field: ray ids (``ray``, into the rays
+    the shader casts) and each ray's constants (batch index ``b``, ``d0``, ``span``, ``totalStep``, ``1/z`` at both
+    ends, ``viewPosition``, the far end ``d1viewPosition``, the ray's length, ``viewReflectDir``, ``viewNormal``,
+    ``sStep``) and its state ``s``, all compacted together."""
 
+    ray: torch.Tensor
     b: torch.Tensor
     d0: torch.Tensor
     span: torch.Tensor
@@ -45,7 +47,14 @@ class StepRays(NamedTuple):
     vp: torch.Tensor
     d1v: torch.Tensor
     length: torch.Tensor
+    refl: torch.Tensor
+    n: torch.Tensor
+    s_step: torch.Tensor
     s: torch.Tensor
+
+    def take(self, keep: torch.Tensor) -> "MarchRays":
+        """The rays at positions ``keep`` of this set."""
+        return MarchRays(*(v.index_select(0, keep) for v in self))
 
 
 class StepResult(NamedTuple):
@@ -65,7 +74,7 @@ class StepResult(NamedTuple):
 
 
 @kernel(dynamic=True)
-def pixel_step(i: int, ws: StepRays, alive: torch.Tensor, tex: StepTextures, size: tuple[int, int], far: float,
+def pixel_step(i: int, ws: MarchRays, alive: torch.Tensor, tex: StepTextures, size: tuple[int, int], far: float,
                thickness: float, infinite_thick: bool) -> StepResult:
     """Step ``i`` of the pixel DDA for the live rays (``alive``); ``size`` = ``(H, W)``. A ray is hit when it is
     behind a texel that is not background and, unless ``infinite_thick``, that texel's view point lies within

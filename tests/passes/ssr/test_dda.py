@@ -440,26 +440,9 @@ def test_the_compiled_dda_step_gives_the_eager_bits_at_two_sizes_without_recompi
     """The DDA step through ``torch.compile`` (size-dynamic): every output and the visit map equal eager, with
     strides and the binary search, the 1-pixel re-march, the second depth layer and jitter; a second size compiles
     nothing."""
-    import dataclasses
-
-    from torch._dynamo.utils import counters
-
-    from ssbench.passes import compiled as C
+    from tests.passes.compiled_check import check_compiled_at_two_sizes
     from tests.passes.ssr_scenes import room, with_second_layer
     settings = [DDASSRParams(pixel_stride=3.0), DDASSRParams(pixel_stride=2.0, refinement="remarch", jitter=1.0),
                 DDASSRParams(use_second_layer=True, z_thickness=0.05)]
-    for w, h in ((40, 30), (48, 36)):
-        g = with_second_layer(room(w, h, torch.float32, slat=True))
-        for p in settings:
-            with C.compiling(False):
-                eager = ssr_dda(g, p, debug=True)
-            with C.compiling(True):
-                comp = ssr_dda(g, p, debug=True)
-            assert bool(eager.hit.any())
-            for f in dataclasses.fields(eager):
-                if f.name != "debug":
-                    assert torch.equal(getattr(eager, f.name), getattr(comp, f.name)), f.name
-            assert torch.equal(eager.debug["visits"], comp.debug["visits"])
-        if w == 40:
-            graphs = counters["stats"]["unique_graphs"]
-    assert graphs >= 1 and counters["stats"]["unique_graphs"] == graphs          # the second size: nothing new
+    check_compiled_at_two_sizes(lambda w, h: with_second_layer(room(w, h, torch.float32, slat=True)),
+                                lambda g, p: ssr_dda(g, p, debug=True), settings, ((40, 30), (48, 36)))

@@ -236,32 +236,13 @@ def test_the_compiled_hiz_step_gives_the_eager_bits_at_two_sizes_without_recompi
     """The traversal step through ``torch.compile`` (size-dynamic): every output, the visit map and the reads per
     level equal eager (FidelityFX mode, tracing behind, the second layer, relative thickness); a second image size
     reuses the compiled step."""
-    import dataclasses
-
-    from torch._dynamo.utils import counters
-
-    from ssbench.passes import compiled as C
     from ssbench.passes.ssr.hiz_march import hiz_step
+    from tests.passes.compiled_check import check_compiled_at_two_sizes
     from tests.passes.ssr_scenes import with_second_layer
     settings = [HiZSSRParams(max_ray_distance=30.0),
                 HiZSSRParams(max_ray_distance=30.0, trace_behind=True, max_mip=2, max_traversal_intersections=40),
                 HiZSSRParams(max_ray_distance=30.0, use_second_layer=True, thickness_mode="relative",
                              depth_buffer_thickness=0.05)]
-    for w, h in ((32, 24), (40, 30)):
-        g = with_second_layer(room(w, h, torch.float32, slat=True))
-        for p in settings:
-            with C.compiling(False):
-                eager = ssr_hiz(g, p, debug=True)
-            with C.compiling(True):
-                comp = ssr_hiz(g, p, debug=True)
-            assert bool(eager.hit.any()) and bool((eager.termination != HIT).any())
-            for f in dataclasses.fields(eager):
-                if f.name != "debug":
-                    assert torch.equal(getattr(eager, f.name), getattr(comp, f.name)), f.name
-            for k, v in eager.debug.items():
-                assert torch.equal(v, comp.debug[k]), k
-        if w == 32:
-            seconds, graphs = C.compile_seconds(), counters["stats"]["unique_graphs"]
-    assert graphs >= 1 and counters["stats"]["unique_graphs"] == graphs          # the second size: nothing new
-    assert C.compile_seconds() == seconds
+    check_compiled_at_two_sizes(lambda w, h: with_second_layer(room(w, h, torch.float32, slat=True)),
+                                lambda g, p: ssr_hiz(g, p, debug=True), settings, ((32, 24), (40, 30)))
     assert hiz_step.eager is not hiz_step

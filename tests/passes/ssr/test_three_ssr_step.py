@@ -33,27 +33,19 @@ def test_the_compiled_step_gives_the_eager_outputs_at_two_sizes_without_recompil
     cross product without the FMA ATen's kernel may use, an ulp apart in a quarter of the rays, so a ray exactly on
     the thickness bound could end differently: allowed in one pixel in 200 (none here, nor on 189 outputs of the
     built-in scenes, measured)."""
-    from torch._dynamo.utils import counters
-
-    from ssbench.passes import compiled as C
+    from tests.passes.compiled_check import check_compiled_at_two_sizes
     settings = [ThreeSSRParams(max_distance=30.0, thickness=0.05), ThreeSSRParams(max_distance=30.0, infinite_thick=True),
                 ThreeSSRParams(max_distance=8.0, thickness=0.3, fresnel=False, max_step=20)]
-    for w, h in ((32, 24), (40, 30)):
-        g = room(w, h, torch.float32, slat=True)
-        for p in settings:
-            with C.compiling(False):
-                eager = ssr_three(g, p, debug=True)
-            with C.compiling(True):
-                comp = ssr_three(g, p, debug=True)
-            assert bool(eager.hit.any()) and bool((eager.termination != HIT).any())
-            same = (eager.termination == comp.termination)[:, 0]
-            assert float((~same).float().mean()) <= 1 / 200
-            for f in dataclasses.fields(eager):
-                if f.name != "debug":
-                    a, b = getattr(eager, f.name), getattr(comp, f.name)
-                    assert torch.equal(a.movedim(1, -1)[same], b.movedim(1, -1)[same]), f.name
-        if w == 32:
-            seconds, graphs = C.compile_seconds(), counters["stats"]["unique_graphs"]
-    assert graphs >= 1 and counters["stats"]["unique_graphs"] == graphs          # the second size: nothing new
-    assert C.compile_seconds() == seconds
+
+    def compare(eager, comp):
+        assert bool((eager.termination != HIT).any())
+        same = (eager.termination == comp.termination)[:, 0]
+        assert float((~same).float().mean()) <= 1 / 200
+        for f in dataclasses.fields(eager):
+            if f.name != "debug":
+                a, b = getattr(eager, f.name), getattr(comp, f.name)
+                assert torch.equal(a.movedim(1, -1)[same], b.movedim(1, -1)[same]), f.name
+
+    check_compiled_at_two_sizes(lambda w, h: room(w, h, torch.float32, slat=True),
+                                lambda g, p: ssr_three(g, p, debug=True), settings, ((32, 24), (40, 30)), compare)
     assert pixel_step.eager is not pixel_step

@@ -145,7 +145,7 @@ def three_gtao(gbuffer: GBuffer, params: ThreeGTAOParams = ThreeGTAOParams(), *,
     nu = torch.floor(torch.frac(uv[:, 0] * W / n_tile) * n_tile).long().clamp(0, n_tile - 1)
     nv = torch.floor(torch.frac(uv[:, 1] * H / n_tile) * n_tile).long().clamp(0, n_tile - 1)
     noise = tile[:, nv, nu].permute(1, 0, 2, 3)                                  # (B, 4, H, W)
-    # ---- the image in bands of rows: a band's (B, 3, h, W) intermediates stay in the cache ----
+    # ---- the image in bands of rows: intermediates stay O(band), not O(image) ----
     directions = 3 if p.samples < 30 else 5
     rotations = [torch.tensor([math.cos(i / directions * math.pi), math.sin(i / directions * math.pi)], dtype=dt,
                               device=dev) for i in range(directions)]

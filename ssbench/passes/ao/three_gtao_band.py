@@ -1,6 +1,7 @@
-"""three.js ``GTAOShader`` on a band of image rows: the slice frame, the horizon march and the arc integral of
-steps 2–4 of :mod:`ssbench.passes.ao.three_gtao`, which runs it band by band (its compilable kernel,
-:mod:`ssbench.passes.compiled`).
+"""three.js ``GTAOShader`` on a band of image rows, as :mod:`ssbench.passes.ao.three_gtao` runs it band by band:
+the band's per-pixel frame (step 1, :func:`band_frame`) and, one direction at a time, the slice, its horizon march
+and the arc integral (steps 2–4, :func:`slice_visibility`). Both are the pass's compilable kernels
+(:mod:`ssbench.passes.compiled`); the direction's rotation is a tensor argument, so one compilation serves all.
 """
 from __future__ import annotations
 

@@ -38,7 +38,8 @@ from .common import BEHIND_CAMERA, BEHIND_SURFACE, HIT, MAX_DISTANCE, OFF_SCREEN
 from .dda_state import MarchOutput
 from .hiz_pyramid import DepthPyramid
 
-__all__ = ["HiZRays", "HiZTexels", "EPSILON", "BIG", "RAY_CHUNK", "hiz_rays", "hiz_march", "cell_exit", "inverse"]
+__all__ = ["HiZRays", "HiZTexels", "PyramidLevels", "StepGeometry", "EPSILON", "BIG", "RAY_CHUNK", "hiz_rays",
+           "hiz_step", "hiz_march", "cell_exit", "inverse"]
 
 #: how far past a cell border a crossing lands, in pixels (FidelityFX: ``0.005 · 2^most_detailed_mip`` texels)
 EPSILON = 0.005
@@ -223,9 +224,10 @@ def hiz_step(c: torch.Tensor, t: torch.Tensor, mip: torch.Tensor, b: torch.Tenso
 
 def hiz_march(r: HiZRays, pyr: DepthPyramid, tex: HiZTexels, params, gbuffer: GBuffer,
               visits: Optional[torch.Tensor] = None, level_reads: Optional[torch.Tensor] = None) -> MarchOutput:
-    """March ``r`` to termination; one pyramid read per iteration, at most ``params.max_traversal_intersections``.
-    ``visits`` :math:`(BHW,)` counts level-0 reads per texel and ``level_reads`` :math:`(L,)` reads per level,
-    when given."""
+    """March ``r`` to termination; one pyramid read per iteration (:func:`hiz_step`), at most
+    ``params.max_traversal_intersections``. Stopped rays ride along masked until a quarter of the working set has
+    stopped, then it is compacted. ``visits`` :math:`(BHW,)` counts level-0 reads per texel and ``level_reads``
+    :math:`(L,)` reads per level, when given."""
     cam = gbuffer.camera
     B, _, H, W = gbuffer.view_z.shape
     dt, dev = r.c.dtype, r.c.device

@@ -73,6 +73,16 @@ class ThreeGTAOParams:
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise ValueError(f"{name}: must be an integer >= 1, got {v!r}")
 
+    @property
+    def directions(self) -> int:
+        """``DIRECTIONS``: 3, or 5 from 30 samples."""
+        return 3 if self.samples < 30 else 5
+
+    @property
+    def steps(self) -> int:
+        """``STEPS = ⌈SAMPLES / DIRECTIONS⌉`` per side of each direction."""
+        return (self.samples + self.directions - 1) // self.directions
+
 
 def magic_square(size: int) -> list[int]:
     """The odd-order magic square ``GTAOPass`` builds its noise from (an even ``size`` becomes ``size + 1``): the
@@ -146,7 +156,7 @@ def three_gtao(gbuffer: GBuffer, params: ThreeGTAOParams = ThreeGTAOParams(), *,
     nv = torch.floor(torch.frac(uv[:, 1] * H / n_tile) * n_tile).long().clamp(0, n_tile - 1)
     noise = tile[:, nv, nu].permute(1, 0, 2, 3)                                  # (B, 4, H, W)
     # ---- the image in bands of rows: intermediates stay O(band), not O(image) ----
-    directions = 3 if p.samples < 30 else 5
+    directions = p.directions
     rotations = [torch.tensor([math.cos(i / directions * math.pi), math.sin(i / directions * math.pi)], dtype=dt,
                               device=dev) for i in range(directions)]
     bands = []
@@ -174,8 +184,7 @@ class ThreeGTAO(nn.Module):
 
 def samples_per_pixel(params) -> int:
     """Depth texels the main loop reads per pixel (both sides of every step of every direction)."""
-    directions = 3 if params.samples < 30 else 5
-    return int(2 * directions * ((params.samples + directions - 1) // directions))
+    return int(2 * params.directions * params.steps)
 
 
 #: this module's declaration: ssbench.passes finds the method here (ssbench.passes.registry)

@@ -79,8 +79,7 @@ def slice_visibility(frame: BandFrame, depth: torch.Tensor, proj: torch.Tensor, 
     p, f = params, frame
     B, _, H, W = depth.shape
     depth_tex = depth.reshape(B, H * W)
-    directions = 3 if p.samples < 30 else 5
-    steps = (p.samples + directions - 1) // directions
+    steps = p.steps
     sample_dir = normalize(f.tangent * rotation[0] + f.bitangent * rotation[1])
     slice_bitangent = normalize(torch.linalg.cross(sample_dir, f.view_dir, dim=1))
     slice_tangent = torch.linalg.cross(slice_bitangent, f.view_dir, dim=1)

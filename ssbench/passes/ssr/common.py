@@ -120,6 +120,18 @@ def nan_off_mask(z: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
     return torch.where(mask, z, torch.full_like(z, float("nan")))
 
 
+def compact_now(live: int, size: int) -> bool:
+    """Whether a marcher drops its stopped rays now: once a quarter of its working set of ``size`` rays has stopped
+    (gathering every ray's constants anew each step cost more than marching a few stopped rays along, masked), and
+    never down to a set of one ray, which a size-dynamic compiled step would compile anew.
+
+    Example:
+        >>> compact_now(75, 100), compact_now(76, 100), compact_now(1, 4), compact_now(0, 4)
+        (True, False, False, True)
+    """
+    return live <= 3 * size // 4 and live != 1
+
+
 def flat(t: torch.Tensor) -> torch.Tensor:
     """:math:`(B, C, H, W)` → :math:`(B·H·W, C)`, pixels in row-major order, contiguous (for ``B = 1`` the
     reshape is a strided view, and ``index_select`` of its rows took 19 ms at 640×360 against 1.4 ms)."""

@@ -34,7 +34,8 @@ import torch
 
 from ...gbuffer import GBuffer
 from ..compiled import kernel
-from .common import BEHIND_CAMERA, BEHIND_SURFACE, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS, ray_segments
+from .common import (BEHIND_CAMERA, BEHIND_SURFACE, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS, compact_now,
+                     ray_segments)
 from .dda_state import MarchOutput
 from .hiz_pyramid import DepthPyramid
 
@@ -289,8 +290,7 @@ def hiz_march(r: HiZRays, pyr: DepthPyramid, tex: HiZTexels, params, gbuffer: GB
         stopped = done.nonzero().squeeze(1)
         out.term.index_copy_(0, r.i.index_select(0, stopped), code.index_select(0, stopped))
         alive = alive & ~done
-        n_alive, m = int(alive.sum()), r.count
-        if n_alive <= 3 * m // 4 and n_alive != 1:          # a quarter has stopped (a set of one ray compiles anew)
+        if compact_now(int(alive.sum()), r.count):
             r = r.select(alive.nonzero().squeeze(1))
             alive = torch.ones(r.count, dtype=torch.bool, device=dev)
     return out

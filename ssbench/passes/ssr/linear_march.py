@@ -15,7 +15,7 @@ from ...camera import Camera
 from ..common import index_dtype, texel_of, uv_to_texel
 from ..compiled import kernel
 from .dda_state import select_rows
-from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, nan_off_mask
+from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, compact_now, nan_off_mask
 
 __all__ = ["DepthTest", "MarchLog", "MarchOutcome", "LiveRays", "march_step", "march", "refine_step", "refine"]
 
@@ -179,7 +179,7 @@ def march(test: DepthTest, log: MarchLog, Q: torch.Tensor, dS: torch.Tensor, bas
                 log.record(ws.ids[marched], torch.stack([ws.qx, ws.qy, ws.qz], 1)[marched], h[marched], False)
             log.read(t[was & on].long())
         n_live = int(r[6])
-        if n_live <= 3 * m // 4 and n_live != 1:           # a quarter has stopped (a set of one ray compiles anew)
+        if compact_now(n_live, m):
             out.flush(ws, (ws.live == 0).nonzero().squeeze(1))
             ws = select_rows(ws, ws.live.nonzero().squeeze(1))
     out.flush(ws, (ws.live == 0).nonzero().squeeze(1))

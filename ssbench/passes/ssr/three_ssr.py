@@ -37,7 +37,7 @@ from ...gbuffer import GBuffer
 from ..common import check_positive
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..registry import Method, SpeedPanel
-from .common import HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult, flat
+from .common import HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult, compact_now, flat
 from .three_ssr_step import MarchRays, StepTextures, pixel_step, unproject
 
 REQUIRES = ("view_z", "normal", "mask", "color")
@@ -78,11 +78,6 @@ class ThreeSSRParams:
                 raise ValueError(f"{name}: expected True or False, got {getattr(self, name)!r}")
 
 
-#: the march carries stopped rays along (masked) until they are this fraction of its working set, then drops them:
-#: gathering every ray's constants anew each step cost more than marching a few stopped rays
-COMPACT_BELOW = 0.75
-
-
 @half_in_float32
 def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
               generator: Optional[torch.Generator] = None, debug: bool = False) -> SSRResult:
@@ -115,8 +110,8 @@ def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
     row, col = k // W, k % W
     d0 = torch.stack([col.to(dt) + 0.5, (H - 1 - row).to(dt) + 0.5], -1)          # gl_FragCoord.xy
     vuv = d0 / torch.tensor([W, H], dtype=dt, device=dev)
-    vp = unproject(cam.inverse_projection_matrix(dtype=dt, device=dev), vuv[:, 0], vuv[:, 1], depth[b, k],
-                   -vz_tex[b, k])                                                 # viewPosition
+    minv = cam.inverse_projection_matrix(dtype=dt, device=dev)
+    vp = unproject(minv, vuv[:, 0], vuv[:, 1], depth[b, k], -vz_tex[b, k])       # viewPosition
     n = normal[b, k]
     inc = vp / vp.norm(dim=1, keepdim=True)                                      # viewIncidentDir
     refl = inc - 2.0 * (n * inc).sum(1, keepdim=True) * n                         # reflect(I, N)
@@ -142,7 +137,7 @@ def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
     ws = MarchRays(torch.arange(m, device=dev), b, d0, span, total, recip, recip_end, vp, d1v, (d1v - vp).norm(dim=1),
                    refl, n, s_step, s_step.clone())
     alive = torch.ones(m, dtype=torch.bool, device=dev)
-    textures = StepTextures(depth.reshape(-1), vz_tex.reshape(-1), cam.inverse_projection_matrix(dtype=dt, device=dev))
+    textures = StepTextures(depth.reshape(-1), vz_tex.reshape(-1), minv)
     normal_flat = normal.reshape(B * HW, 3)
     for i in range(1, max_step):
         if ws.ray.numel() == 0:
@@ -163,7 +158,7 @@ def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
             hit_k[ray_h[done]], hit_xy[ray_h[done]], hit_vp[ray_h[done]] = tex[h][done], xy[h][done], vph[done]
         ws.s.add_(torch.where(sky | hit, 0.0, ws.s_step))
         alive &= ~hit
-        if int(alive.sum()) < COMPACT_BELOW * ws.ray.numel():         # drop the stopped rays now and then
+        if compact_now(int(alive.sum()), ws.ray.numel()):             # drop the stopped rays now and then
             keep = alive.nonzero().squeeze(1)
             ws, alive = ws.take(keep), alive.index_select(0, keep)
 

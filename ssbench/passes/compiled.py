@@ -120,6 +120,11 @@ def _room_for_variants() -> contextlib.AbstractContextManager:
                                       fail_on_recompile_limit_hit=True)
 
 
+#: inductor options of every kernel: no bounds check on gathered indices (a kernel clamps its texel indices
+#: itself, and is tested equal to its eager form, where ATen checks them); the check cost SAO's tap loop a fifth
+_OPTIONS = {"assert_indirect_indexing": False}
+
+
 def kernel(fn: Optional[Callable] = None, *, dynamic: bool = False) -> Callable:
     """Mark ``fn`` (a pure tensor function, the body a pass runs per band) as the pass's compilable kernel:
     eager while the switch is off, ``torch.compile(fn)`` while it is on; ``wrapper.eager`` is ``fn`` itself.
@@ -135,7 +140,7 @@ def kernel(fn: Optional[Callable] = None, *, dynamic: bool = False) -> Callable:
         if not enabled():
             return fn(*args, **kwargs)
         if not compiled:
-            compiled.append(torch.compile(fn, dynamic=dynamic))
+            compiled.append(torch.compile(fn, dynamic=dynamic, options=_OPTIONS))
         key = (fn.__qualname__, fn.__module__, _signature(args, kwargs, dynamic))
         with _room_for_variants():
             if key in _first_calls:

@@ -34,6 +34,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from ..compiled import kernel
+
 _EDGE_BIAS = 1.25
 _EDGE_SCALE = 0.011
 _DIAG_WEIGHT = 0.85 * 0.5
@@ -59,11 +61,16 @@ def _check_inputs(view_z, mask) -> None:
         raise ValueError(f"mask: expected dtype torch.bool, got {mask.dtype}")
 
 
-def _shift(x: torch.Tensor, dx: int, dy: int, fill=0) -> torch.Tensor:
-    """``out[..., i, j] = x[..., i + dy, j + dx]`` (``fill`` off screen), by padding and slicing."""
-    H, W = x.shape[-2:]
-    xp = F.pad(x, (1, 1, 1, 1), value=fill) if x.dtype != torch.bool else F.pad(x.to(torch.uint8), (1, 1, 1, 1),
-                                                                                value=int(fill)).bool()
+def _pad(x: torch.Tensor, fill=0) -> torch.Tensor:
+    """``x`` with a border of one texel of ``fill`` (what a neighbour off screen reads)."""
+    if x.dtype == torch.bool:
+        return F.pad(x.to(torch.uint8), (1, 1, 1, 1), value=int(fill)).bool()
+    return F.pad(x, (1, 1, 1, 1), value=fill)
+
+
+def _at(xp: torch.Tensor, dx: int, dy: int) -> torch.Tensor:
+    """``out[..., i, j] = x[..., i + dy, j + dx]`` of a :func:`_pad`-ded ``xp``: a slice, no copy."""
+    H, W = xp.shape[-2] - 2, xp.shape[-1] - 2
     return xp[..., 1 + dy:1 + dy + H, 1 + dx:1 + dx + W]
 
 
@@ -84,21 +91,34 @@ def gtao_edges(view_z: torch.Tensor, mask: torch.Tensor, quantize: bool = True) 
         [1.0, 0.0, 1.0, 1.0]
     """
     _check_inputs(view_z, mask)
+    return torch.cat(edge_planes.eager(*_padded_depth(view_z, mask), quantize), 1)
+
+
+def _padded_depth(view_z: torch.Tensor, mask: torch.Tensor) -> tuple:
+    """Padded ``z = −view_z`` (1 on background and off screen) and padded ``mask`` (False off screen)."""
     z = torch.where(mask, -view_z, torch.ones_like(view_z))           # finite stand-in on background
-    zn, ok = [], []
-    for dx, dy in _DIRS:
-        zn.append(_shift(z, dx, dy, 1.0))
-        ok.append(_shift(mask, dx, dy, False) & mask)
+    return _pad(z, 1.0), _pad(mask, False)
+
+
+@kernel
+def edge_planes(zp: torch.Tensor, maskp: torch.Tensor, quantize: bool = True) -> tuple:
+    """The four edge planes :math:`(B, 1, H, W)` (left, right, top, bottom) of :func:`gtao_edges` from
+    :func:`_padded_depth`."""
+    z, mask = _at(zp, 0, 0), _at(maskp, 0, 0)
+    zn = [_at(zp, dx, dy) for dx, dy in _DIRS]
+    ok = [_at(maskp, dx, dy) & mask for dx, dy in _DIRS]
     d = [n - z for n in zn]
     slope_lr = torch.where(ok[0] & ok[1], (d[1] - d[0]) * 0.5, torch.zeros_like(z))
     slope_tb = torch.where(ok[2] & ok[3], (d[3] - d[2]) * 0.5, torch.zeros_like(z))
     adj = (d[0] + slope_lr, d[1] - slope_lr, d[2] + slope_tb, d[3] - slope_tb)
     scale = _EDGE_SCALE * z.clamp_min(torch.finfo(z.dtype).tiny)
-    e = torch.cat([torch.minimum(a.abs(), b.abs()) for a, b in zip(d, adj)], 1)
-    e = (_EDGE_BIAS - e / scale).clamp(0.0, 1.0)
-    if quantize:
-        e = torch.round(e * 2.9) / 3.0
-    return e * torch.cat(ok, 1).to(e.dtype)
+    out = []
+    for a, b, k in zip(d, adj, ok):
+        e = (_EDGE_BIAS - torch.minimum(a.abs(), b.abs()) / scale).clamp(0.0, 1.0)
+        if quantize:
+            e = torch.round(e * 2.9) / 3.0
+        out.append(e * k.to(e.dtype))
+    return tuple(out)
 
 
 def gtao_denoise(ao: torch.Tensor, view_z: torch.Tensor, mask: torch.Tensor, passes: int = 1,
@@ -132,32 +152,50 @@ def gtao_denoise(ao: torch.Tensor, view_z: torch.Tensor, mask: torch.Tensor, pas
         raise ValueError(f"passes: expected an int >= 0, got {passes!r}")
     if isinstance(beta, bool) or not isinstance(beta, (int, float)) or not math.isfinite(beta) or beta <= 0:
         raise ValueError(f"beta: expected a finite number > 0, got {beta!r}")
-
-    edges = gtao_edges(view_z, mask).to(ao.dtype)                          # (B, 4, H, W)
-    eL, eR, eT, eB = (_shift(edges, dx, dy) for dx, dy in _DIRS)          # neighbours' edges (0 off screen)
-    c = edges * torch.cat([eL[:, 1:2], eR[:, 0:1], eT[:, 3:4], eB[:, 2:3]], 1)   # symmetric
-    leak = ((4.0 - _LEAK_THRESHOLD - c.sum(1, keepdim=True)).clamp(0.0, 1.0) / (4.0 - _LEAK_THRESHOLD)
-            * _LEAK_STRENGTH)
-    valid = torch.cat([_shift(mask, dx, dy, False) & mask for dx, dy in _DIRS], 1).to(ao.dtype)
-    c = (c + leak).clamp(0.0, 1.0) * valid                                 # never from background/off screen
-    cl, cr, ct, cb = c.unbind(1)
-    w_diag = {(-1, -1): cl * eL[:, 2] + ct * eT[:, 0],                    # top-left
-              (1, -1): ct * eT[:, 1] + cr * eR[:, 2],                     # top-right
-              (-1, 1): cb * eB[:, 0] + cl * eL[:, 3],                     # bottom-left
-              (1, 1): cr * eR[:, 3] + cb * eB[:, 1]}                      # bottom-right
-    taps = [((dx, dy), c[:, i:i + 1]) for i, (dx, dy) in enumerate(_DIRS)]
-    taps += [(k, (_DIAG_WEIGHT * w).unsqueeze(1)) for k, w in w_diag.items()]
-
-    one = torch.ones_like(ao)
-    out = torch.where(mask, ao, one)                                       # sanitise background
+    zp, maskp = _padded_depth(view_z, mask)
+    edges = tuple(_pad(e.to(ao.dtype)) for e in edge_planes(zp, maskp))    # padded with 0: no edge off screen
+    taps = tap_weights(edges, maskp)
+    out = torch.where(mask, ao, torch.ones_like(ao))                       # sanitise background
     for p in range(passes):
-        centre = beta if p == passes - 1 else beta / 5.0
-        total, wsum = out * centre, torch.full_like(out, centre)
-        for (dx, dy), w in taps:
-            total = total + w * _shift(out, dx, dy)
-            wsum = wsum + w
-        out = torch.where(mask, total / wsum, one)
+        out = denoise_pass(_pad(out), taps, mask, beta if p == passes - 1 else beta / 5.0)
     return out
+
+
+# The two kernels (ssbench.passes.compiled) take planes (B, 1, H, W), which inductor fuses without transposes, and
+# are kept apart so that it stores the weights instead of recomputing them for every neighbour that reads them.
+# They use only exact operations and divisions: compiled, the same bits.
+@kernel
+def tap_weights(edges: tuple, maskp: torch.Tensor) -> tuple:
+    """The 8 neighbour weights of the 3×3 mean (cross, then diagonals: the order of ``_TAPS``) from the pixels'
+    padded :func:`edge_planes` (L, R, T, B) and padded mask."""
+    mask, dtype = _at(maskp, 0, 0), edges[0].dtype
+    eL, eR, eT, eB = ([_at(e, dx, dy) for e in edges] for dx, dy in _DIRS)   # neighbours' edges (0 off screen)
+    edges = [_at(e, 0, 0) for e in edges]
+    c = [e * n for e, n in zip(edges, (eL[1], eR[0], eT[3], eB[2]))]      # symmetric
+    leak = ((4.0 - _LEAK_THRESHOLD - (c[0] + c[1] + c[2] + c[3])).clamp(0.0, 1.0) / (4.0 - _LEAK_THRESHOLD)
+            * _LEAK_STRENGTH)
+    c = [(ci + leak).clamp(0.0, 1.0) * (_at(maskp, dx, dy) & mask).to(dtype)   # never from
+         for ci, (dx, dy) in zip(c, _DIRS)]                                 # background/off screen
+    cl, cr, ct, cb = c
+    w_diag = {(-1, -1): cl * eL[2] + ct * eT[0],                          # top-left
+              (1, -1): ct * eT[1] + cr * eR[2],                           # top-right
+              (-1, 1): cb * eB[0] + cl * eL[3],                           # bottom-left
+              (1, 1): cr * eR[3] + cb * eB[1]}                            # bottom-right
+    return tuple(c) + tuple(_DIAG_WEIGHT * w for w in w_diag.values())
+
+
+_TAPS = _DIRS + ((-1, -1), (1, -1), (-1, 1), (1, 1))       # the neighbours of tap_weights' planes, in order
+
+
+@kernel
+def denoise_pass(outp: torch.Tensor, taps: tuple, mask: torch.Tensor, centre: float) -> torch.Tensor:
+    """One pass: the weighted 3×3 mean of the padded ``outp`` with centre weight ``centre``, 1 on background."""
+    out = _at(outp, 0, 0)
+    total, wsum = out * centre, torch.full_like(out, centre)
+    for (dx, dy), w in zip(_TAPS, taps):
+        total = total + w * _at(outp, dx, dy)
+        wsum = wsum + w
+    return torch.where(mask, total / wsum, torch.ones_like(out))
 
 
 class GTAODenoise(nn.Module):

@@ -6,6 +6,7 @@ the per-pixel slice and step noise: XeGTAO's Hilbert index × R2 sequence, a has
 """
 from __future__ import annotations
 
+import functools
 from typing import TYPE_CHECKING, Optional
 
 import torch
@@ -70,6 +71,16 @@ def hilbert_index(x: torch.Tensor, y: torch.Tensor, width: int = 64) -> torch.Te
     return index
 
 
+@functools.lru_cache(maxsize=64)
+def hilbert_tile(frame: int) -> torch.Tensor:
+    """:math:`(2, 64, 64)` float64 XeGTAO noise of one frame (``frame`` in [0, 64)) over one 64×64 tile: the R2
+    sequence at the pixel's Hilbert index, ``frac(0.5 + (HilbertIndex + 288·frame)·R2)``."""
+    col = torch.arange(64).view(1, 64).expand(64, 64)
+    idx = hilbert_index(col, col.t()).to(torch.float64) + 288 * frame                 # (64, 64), XeGTAO
+    r2 = torch.tensor(_R2, dtype=torch.float64).view(2, 1, 1)
+    return torch.frac(0.5 + idx * r2)
+
+
 def noise_buffer(params: GTAOParams, batch: int, height: int, width: int,
                  generator: Optional[torch.Generator] = None) -> torch.Tensor:
     """:math:`(B, 2, H, W)` float64 ``(slice noise, step noise)`` in [0, 1) as chosen by ``params.noise``."""
@@ -79,14 +90,12 @@ def noise_buffer(params: GTAOParams, batch: int, height: int, width: int,
         return torch.rand(shape, generator=g, dtype=torch.float64, device=g.device).cpu()
     if kind == "none":
         return torch.full(shape, 0.5, dtype=torch.float64)
-    row = torch.arange(height).view(height, 1).expand(height, width)
-    col = torch.arange(width).view(1, width).expand(height, width)
-    if kind == "hilbert":
-        idx = hilbert_index(col, row).to(torch.float64) + 288 * (params.frame % 64)   # (H, W), XeGTAO
-        r2 = torch.tensor(_R2, dtype=torch.float64).view(2, 1, 1)
-        return torch.frac(0.5 + idx * r2).expand(shape)
-    tile = torch.as_tensor(params.noise, dtype=torch.float64).expand(2, 4, 4)     # (2, 4, 4)
-    return tile[:, row % 4, col % 4].expand(shape)
+    if kind == "hilbert":                      # the index repeats every 64 pixels: one tile
+        tile = hilbert_tile(params.frame % 64)
+    else:
+        tile = torch.as_tensor(params.noise, dtype=torch.float64).expand(2, 4, 4)     # (2, 4, 4)
+    n = tile.shape[-1]                        # the tile repeated over the image
+    return tile.repeat(1, -(-height // n), -(-width // n))[:, :height, :width].expand(shape)
 
 
 def dot3(a: tuple, b: tuple) -> torch.Tensor:                 # 3-vectors are (x, y, z) tuples of tensors

@@ -112,15 +112,28 @@ def _quad_diff(c: torch.Tensor, dim: int) -> torch.Tensor:
     return c.index_select(dim, odd) - c.index_select(dim, even)
 
 
-def face_normals(position: torch.Tensor) -> torch.Tensor:
-    """``reconstructCSFaceNormal``: unit ``cross(dFdx(C), dFdy(C))`` of :math:`(B, 3, H, W)` camera-space
-    positions in GL rows (``y`` up), so a surface facing the camera gets ``+z``; 0 where degenerate or
-    overflowed."""
-    dx, dy = _quad_diff(position, 3), _quad_diff(position, 2)
-    n = torch.linalg.cross(dx, dy, dim=1)
+@kernel
+def quad_derivatives(position: torch.Tensor) -> tuple:
+    """``(dFdx(C), dFdy(C))`` of :math:`(B, 3, H, W)` positions (exact differences: compiled, the same bits)."""
+    return _quad_diff(position, 3), _quad_diff(position, 2)
+
+
+@kernel
+def unit_or_zero(n: torch.Tensor) -> torch.Tensor:
+    """``n / |n|`` over dim 1, 0 where ``|n|`` is 0 or not finite (compiled: inductor's norm and division are
+    ATen's bit for bit)."""
     norm = n.norm(dim=1, keepdim=True)
     ok = torch.isfinite(norm) & (norm > 0)
     return torch.where(ok, n / torch.where(ok, norm, torch.ones_like(norm)), torch.zeros_like(n))
+
+
+def face_normals(position: torch.Tensor) -> torch.Tensor:
+    """``reconstructCSFaceNormal``: unit ``cross(dFdx(C), dFdy(C))`` of :math:`(B, 3, H, W)` camera-space
+    positions in GL rows (``y`` up), so a surface facing the camera gets ``+z``; 0 where degenerate or
+    overflowed. The cross product stays eager: ATen computes each component as one FMA, which inductor's C++
+    does not, and the quad's nearly parallel differences would magnify that ulp."""
+    dx, dy = quad_derivatives(position)
+    return unit_or_zero(torch.linalg.cross(dx, dy, dim=1))
 
 
 @kernel
@@ -141,7 +154,7 @@ def sao_taps(c: tuple, n: tuple, spin: torch.Tensor, ss_disk: torch.Tensor, xy: 
         level each tap read (else ``None``).
     """
     (cx, cy, cz), (nx, ny, nz), (x, y) = c, n, xy
-    flat, sizes, starts = mips
+    flat = mips
     a0, a1, b0, b1 = uv_to_view
     B, _, H, W = cz.shape
     r2 = p.radius * p.radius
@@ -153,10 +166,11 @@ def sao_taps(c: tuple, n: tuple, spin: torch.Tensor, ss_disk: torch.Tensor, xy: 
         lv = mip_level(ss_r, p.log_max_offset, p.max_mip_level) if p.use_mips else torch.zeros_like(cz, dtype=torch.long)
         px = torch.trunc(ss_r * ux).long() + x
         py = torch.trunc(ss_r * uy).long() + y
-        w_l, h_l = sizes[lv, 0], sizes[lv, 1]
+        w_l = torch.bitwise_right_shift(W, lv).clamp(min=1)                       # level lv's size
+        h_l = torch.bitwise_right_shift(H, lv).clamp(min=1)
         tx = torch.minimum(torch.bitwise_right_shift(px, lv).clamp(min=0), w_l - 1)
         ty = torch.minimum(torch.bitwise_right_shift(py, lv).clamp(min=0), h_l - 1)
-        zq = torch.gather(flat, 1, (starts[lv] + ty * w_l + tx).reshape(B, -1)).view_as(cz)
+        zq = torch.gather(flat, 1, ((lv * H + ty) * W + tx).reshape(B, -1)).view_as(cz)
         vx = (a0 * ((px.to(cz.dtype) + 0.5) / W) + b0) * zq - cx                       # v = Q − C
         vy = (a1 * ((py.to(cz.dtype) + 0.5) / H) + b1) * zq - cy
         vz = zq - cz
@@ -213,11 +227,12 @@ def sao(gbuffer: GBuffer, params: SAOParams = SAOParams(), *, generator: Optiona
     spin = spin_angle(x, y).to(dtype)
     ss_disk = -pixels_per_meter(cam) * p.radius / z
     mips = depth_mips(z, p.max_mip_level if p.use_mips else 0)
-    flat = torch.cat([m.reshape(B, -1) for m in mips], 1)
-    sizes = torch.tensor([[m.shape[-1], m.shape[-2]] for m in mips], device=dev)        # (levels, 2) W, H
-    starts = torch.cumsum(torch.cat([torch.zeros(1, dtype=torch.long, device=dev), sizes[:-1].prod(1)]), 0)
-    total, levels = sao_taps(c, tuple(n[:, k:k + 1] for k in range(3)), spin, ss_disk, (x, y),
-                             (flat, sizes, starts), (a0, a1, b0, b1), p, debug)
+    pyramid = z.new_zeros(B, len(mips), H, W)                # level l in the corner of layer l: no size tables
+    for level, m in enumerate(mips):
+        pyramid[:, level, :m.shape[-2], :m.shape[-1]] = m[:, 0]
+    full = (x.expand(1, 1, H, W).contiguous(), y.expand(1, 1, H, W).contiguous())   # one loop nest in the kernel
+    total, levels = sao_taps(c, tuple(n[:, k:k + 1] for k in range(3)), spin, ss_disk, full,
+                             pyramid.reshape(B, -1), (a0, a1, b0, b1), p, debug)
     r2 = p.radius * p.radius
     a = (1.0 - total * (p.intensity / r2 ** 3) * (5.0 / p.num_samples)).clamp(min=0.0)
     if p.quad_filter:

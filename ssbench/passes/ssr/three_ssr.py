@@ -137,6 +137,7 @@ def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
     ws = MarchRays(torch.arange(m, device=dev), b, d0, span, total, recip, recip_end, vp, d1v, (d1v - vp).norm(dim=1),
                    refl, n, s_step, s_step.clone())
     alive = torch.ones(m, dtype=torch.bool, device=dev)
+    term_ws, steps_ws = term.clone(), steps.clone()        # the working set's, written back when it is compacted
     textures = StepTextures(depth.reshape(-1), vz_tex.reshape(-1), minv)
     normal_flat = normal.reshape(B * HW, 3)
     for i in range(1, max_step):
@@ -145,8 +146,8 @@ def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
         was = alive
         end, off, alive, xy, tex, texel, vpt, sky, hit = pixel_step(
             i, ws, was, textures, (H, W), far, p.thickness, p.infinite_thick)
-        term[ws.ray[was & end]], term[ws.ray[was & off]] = MAX_DISTANCE, OFF_SCREEN
-        steps[ws.ray[was]] = (i - 1 + (~end).int())[was]
+        term_ws = torch.where(was & off, OFF_SCREEN, torch.where(was & end, MAX_DISTANCE, term_ws))
+        steps_ws = torch.where(was, i - 1 + (~end).int(), steps_ws)
         h = hit.nonzero().squeeze(1)              # every hit ends the ray: a true hit, or a back face / too far
         if h.numel():
             nh, vph = ws.n[h], vpt[h]
@@ -154,13 +155,18 @@ def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
             plane = (nh * vph).sum(1) - (nh * ws.vp[h]).sum(1)                  # pointPlaneDistance
             done = ~back & ~(plane > p.max_distance)
             ray_h = ws.ray[h]
-            term[ray_h] = torch.where(done, HIT, MAX_DISTANCE).to(term.dtype)
+            term_ws[h] = torch.where(done, HIT, MAX_DISTANCE).to(term.dtype)
             hit_k[ray_h[done]], hit_xy[ray_h[done]], hit_vp[ray_h[done]] = tex[h][done], xy[h][done], vph[done]
         ws.s.add_(torch.where(sky | hit, 0.0, ws.s_step))
         alive &= ~hit
         if compact_now(int(alive.sum()), ws.ray.numel()):             # drop the stopped rays now and then
             keep = alive.nonzero().squeeze(1)
+            term.index_copy_(0, ws.ray, term_ws)
+            steps.index_copy_(0, ws.ray, steps_ws)
             ws, alive = ws.take(keep), alive.index_select(0, keep)
+            term_ws, steps_ws = term_ws.index_select(0, keep), steps_ws.index_select(0, keep)
+    term.index_copy_(0, ws.ray, term_ws)
+    steps.index_copy_(0, ws.ray, steps_ws)
 
     # ---- outputs ----
     h = (term == HIT).nonzero().squeeze(1)

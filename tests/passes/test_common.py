@@ -29,7 +29,7 @@ def test_length_of_zero_vectors_is_zero_and_its_gradient_is_finite():
     assert (x.grad[0, :, 1, 1] == 0).all()
 
 
-@pytest.mark.parametrize("method", ["crytek", "ssao", "hbao", "gtao", "three_gtao"])
+@pytest.mark.parametrize("method", ["crytek", "ssao", "hbao", "gtao", "three_gtao", "sao"])
 @pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
 def test_banded_ao_passes_equal_the_whole_image_bit_for_bit(method, dtype, monkeypatch):
     """The AO passes work on bands of rows (``row_bands``) to bound their working set; a band of one row and

@@ -16,7 +16,8 @@ from ..common import make_generator
 if TYPE_CHECKING:
     from .gtao import GTAOParams
 
-_R2 = (0.75487766624669276005, 0.5698402909980532659114)   # R2 sequence (Hilbert-index noise)
+#: the R2 sequence's two steps (XeGTAO's Hilbert-index noise: slice, then step noise)
+R2 = (0.75487766624669276005, 0.5698402909980532659114)
 
 
 def slice_visibility(h0: torch.Tensor, h1: torch.Tensor, n: torch.Tensor) -> torch.Tensor:
@@ -77,7 +78,7 @@ def hilbert_tile(frame: int) -> torch.Tensor:
     sequence at the pixel's Hilbert index, ``frac(0.5 + (HilbertIndex + 288·frame)·R2)``."""
     col = torch.arange(64).view(1, 64).expand(64, 64)
     idx = hilbert_index(col, col.t()).to(torch.float64) + 288 * frame                 # (64, 64), XeGTAO
-    r2 = torch.tensor(_R2, dtype=torch.float64).view(2, 1, 1)
+    r2 = torch.tensor(R2, dtype=torch.float64).view(2, 1, 1)
     return torch.frac(0.5 + idx * r2)
 
 

@@ -39,7 +39,7 @@ import torch
 from torch import nn
 
 from ...gbuffer import GBuffer
-from ..common import AOResult, check_count, check_positive, check_radius
+from ..common import AOResult, check_count, check_positive, check_radius, row_bands
 from ..compiled import kernel
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..registry import Method, SpeedPanel
@@ -54,6 +54,9 @@ TUNABLE = {"radius": (0.25, 3.0, True), "intensity": (0.25, 4.0, False), "bias":
 DEFAULTS_SOURCE = ('McGuire, Mara & Luebke, "Scalable Ambient Obscurance", HPG 2012, the paper\'s listing: 11 samples, '
                    "7 spiral turns, LOG_MAX_OFFSET 3, MAX_MIP_LEVEL 5, bias 0.01, intensity 1; radius 0.5 (report's equal setting)")
 EPSILON = 0.01           #: the listing's ``epsilon`` in the tap's denominator
+#: the bands' rows: one :math:`(B, 3, h, W)` vector of a band fills ``ssbench.passes.common.BLOCK_BYTES`` (eager, a
+#: tap's dozen integer and float planes of the whole image left the cache at 1080p: 2× the ns per pixel of 320×240)
+BAND_VECTORS = 1
 
 
 @dataclass(frozen=True)
@@ -137,26 +140,27 @@ def face_normals(position: torch.Tensor) -> torch.Tensor:
 
 
 @kernel
-def sao_taps(c: tuple, n: tuple, spin: torch.Tensor, ss_disk: torch.Tensor, xy: tuple, mips: tuple,
-             uv_to_view: tuple, p: "SAOParams", debug: bool) -> tuple:
-    """The listing's tap loop (``sampleAO`` summed over ``NUM_SAMPLES``) on the whole image, one tap at a time,
-    per component (the pass's compilable kernel, :mod:`ssbench.passes.compiled`).
+def sao_taps(c: tuple, n: tuple, spin: torch.Tensor, ss_disk: torch.Tensor, xy: tuple, mips: torch.Tensor,
+             uv_to_view: tuple, size: tuple, p: "SAOParams", debug: bool) -> tuple:
+    """The listing's tap loop (``sampleAO`` summed over ``NUM_SAMPLES``) on a band of ``h`` rows, one tap at a
+    time, per component (the pass's compilable kernel, :mod:`ssbench.passes.compiled`).
 
     Args:
-        c: ``C``'s x, y, z :math:`(B, 1, H, W)` (GL rows); n: ``n_C``'s :math:`(B, 1, H, W)` components.
-        spin: :math:`(1, 1, H, W)` pattern angle; ss_disk: :math:`(B, 1, H, W)` ``ssDiskRadius`` in pixels.
-        xy: integer pixel ``x`` :math:`(1, 1, 1, W)` and ``y`` :math:`(1, 1, H, 1)`.
-        mips: the pyramid flattened per batch :math:`(B, N)`, each level's ``(W, H)`` and its start in it.
+        c: ``C``'s x, y, z :math:`(B, 1, h, W)` (GL rows); n: ``n_C``'s :math:`(B, 1, h, W)` components.
+        spin: :math:`(1, 1, h, W)` pattern angle; ss_disk: :math:`(B, 1, h, W)` ``ssDiskRadius`` in pixels.
+        xy: integer pixel ``x`` and ``y`` :math:`(1, 1, h, W)` (full size: one loop nest when compiled).
+        mips: the pyramid :math:`(B, L·H·W)`: level ``l`` in the top-left corner of the ``l``-th ``H × W`` layer
+            (so a tap needs no table of level sizes and starts).
         uv_to_view: ``(A₀, A₁, B₀, B₁)`` of :meth:`~ssbench.camera.Camera.uv_to_view_params`.
+        size: the image's ``(H, W)``.
 
     Returns:
-        ``(sum, levels)``: :math:`(B, 1, H, W)` the taps' sum and, with ``debug``, :math:`(B, N, H, W)` int8 the
+        ``(sum, levels)``: :math:`(B, 1, h, W)` the taps' sum and, with ``debug``, :math:`(B, N, h, W)` int8 the
         level each tap read (else ``None``).
     """
     (cx, cy, cz), (nx, ny, nz), (x, y) = c, n, xy
-    flat = mips
+    flat, (H, W), B = mips, size, cz.shape[0]
     a0, a1, b0, b1 = uv_to_view
-    B, _, H, W = cz.shape
     r2 = p.radius * p.radius
     total = torch.zeros_like(cz)
     levels = []
@@ -230,9 +234,15 @@ def sao(gbuffer: GBuffer, params: SAOParams = SAOParams(), *, generator: Optiona
     pyramid = z.new_zeros(B, len(mips), H, W)                # level l in the corner of layer l: no size tables
     for level, m in enumerate(mips):
         pyramid[:, level, :m.shape[-2], :m.shape[-1]] = m[:, 0]
-    full = (x.expand(1, 1, H, W).contiguous(), y.expand(1, 1, H, W).contiguous())   # one loop nest in the kernel
-    total, levels = sao_taps(c, tuple(n[:, k:k + 1] for k in range(3)), spin, ss_disk, full,
-                             pyramid.reshape(B, -1), (a0, a1, b0, b1), p, debug)
+    planes = (*c, *(n[:, k:k + 1] for k in range(3)), spin, ss_disk,
+              x.expand(1, 1, H, W).contiguous(), y.expand(1, 1, H, W).contiguous())   # one loop nest compiled
+    total, levels = torch.empty_like(z), []
+    for rs in row_bands(H, W, BAND_VECTORS, z.element_size(), batch=B):      # a bounded working set
+        band = [t[..., rs, :] for t in planes]
+        total[..., rs, :], lv = sao_taps(tuple(band[0:3]), tuple(band[3:6]), band[6], band[7], tuple(band[8:10]),
+                                         pyramid.reshape(B, -1), (a0, a1, b0, b1), (H, W), p, debug)
+        levels.append(lv)
+    levels = torch.cat(levels, 2) if debug else None
     r2 = p.radius * p.radius
     a = (1.0 - total * (p.intensity / r2 ** 3) * (5.0 / p.num_samples)).clamp(min=0.0)
     if p.quad_filter:

@@ -269,3 +269,16 @@ def test_teaching_twin_equals_vectorised(kw):
         b = gtao_basic(gb, p, generator=torch.Generator().manual_seed(3)).ao
         assert float((a - b).abs().max()) < 1e-12, float((a - b).abs().max())
     assert float(gtao(g, GTAOParams(radius=2.0, **kw)).ao[g.mask].min()) < 0.9          # the crease is occluded: not trivial
+
+
+@pytest.mark.parametrize("frame", [0, 5, 70])
+def test_hilbert_noise_repeats_one_tile_as_the_per_pixel_formula_does(frame):
+    """The noise is read from one cached 64×64 tile; XeGTAO computes it per pixel from the pixel's Hilbert index:
+    the same bits on a size that is no multiple of 64."""
+    from ssbench.passes.ao.gtao_parts import R2
+    H, W = 70, 131
+    row, col = torch.arange(H).view(H, 1).expand(H, W), torch.arange(W).view(1, W).expand(H, W)
+    idx = hilbert_index(col, row).to(F64) + 288 * (frame % 64)
+    expected = torch.frac(0.5 + idx * torch.tensor(R2, dtype=F64).view(2, 1, 1))
+    got = noise_buffer(GTAOParams(noise="hilbert", frame=frame), 2, H, W)
+    assert got.shape == (2, 2, H, W) and torch.equal(got[1], expected) and torch.equal(got[0], expected)

@@ -156,3 +156,21 @@ def test_denoise_inside_gtao_runs_before_the_clip():
     assert float(inside.min()) >= 0.03 and float(inside.max()) <= 1.0
     with pytest.raises(ValueError, match="denoise_passes"):
         GTAOParams(denoise_passes=-1)
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_the_compiled_denoise_gives_the_eager_bits(dtype):
+    """Its kernels (edges, tap weights, one pass) use exact operations and divisions only: compiled, the same
+    bits, background and image borders included, for several passes."""
+    from ssbench.passes.compiled import compiling
+    gen = torch.Generator().manual_seed(3)
+    vz = -(1.0 + torch.rand(2, 1, 13, 17, generator=gen, dtype=dtype))
+    vz[..., 4:9, 6:] -= 0.5                                                # a depth step: cut edges
+    mask = torch.rand(2, 1, 13, 17, generator=gen) > 0.15
+    ao = torch.rand(2, 1, 13, 17, generator=gen, dtype=dtype)
+    for passes, beta in ((1, 1.2), (3, 0.7)):
+        with compiling(False):
+            eager = gtao_denoise(ao, vz, mask, passes=passes, beta=beta)
+        with compiling(True):
+            comp = gtao_denoise(ao, vz, mask, passes=passes, beta=beta)
+        assert torch.equal(eager, comp) and not torch.equal(eager, torch.where(mask, ao, torch.ones_like(ao)))

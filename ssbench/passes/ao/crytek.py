@@ -91,8 +91,10 @@ def sphere_band(cam, position: torch.Tensor, rnd: torch.Tensor, k: torch.Tensor,
     ``position`` :math:`(B, 3, h, W)`, ``rnd`` :math:`(1, 3, 1, h, W)`, ``k`` :math:`(1, 3, K, 1, 1)`; returns the
     :math:`(B, 1, h, W)` count (the pass's compilable kernel, :mod:`ssbench.passes.compiled`).
     """
-    reflected = k - 2.0 * (k * rnd).sum(1, keepdim=True) * rnd                      # (1, 3, K, h, W)
-    sample_point = tuple(position[:, c:c + 1, None] + reflected[:, c:c + 1] * p.kernel_radius
+    kc, rc = [k[:, c:c + 1] for c in range(3)], [rnd[:, c:c + 1] for c in range(3)]
+    dot = kc[0] * rc[0] + kc[1] * rc[1] + kc[2] * rc[2]                              # (1, 1, K, h, W)
+    reflected = [kc[c] - 2.0 * dot * rc[c] for c in range(3)]       # per component: one fused loop compiled
+    sample_point = tuple(position[:, c:c + 1, None] + reflected[c] * p.kernel_radius
                          for c in range(3))                                            # 3 × (B, 1, K, h, W)
     return range_check_count(cam, sample_point, texture, False, p.min_distance, p.max_distance)
 

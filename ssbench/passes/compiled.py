@@ -11,9 +11,12 @@ equal to eager, tested) and GTAO (the one exception to
 vectorised cos/acos differ from ATen's by an ulp and ``acos`` near ±1 magnifies that; float64 agrees to 1e-14) and
 the visibility-bitmask AO (the same ulp now and then moves a sample across a sector edge: one bit of one slice,
 1/(sectors·slices) = 1/128 at the defaults, in 0.03 % of the pixels of stairs at 640×360; 4.3× faster than eager
-there, 9.2× with cosine weighting) and SAO's tap loop (bit-equal at the defaults on stairs at 640×360, 2.0× faster;
-with G-buffer normals and radius 2, 2 of 230 400 pixels differ by ≤ 4.5e-5: inductor contracts ``ssR·cos`` to an
-FMA, and a tap within an ulp of a pixel edge truncates to the neighbour) and HBAO's band (compiled, its march skips
+there, 9.2× with cosine weighting) and SAO's tap loop and the norm of its face normals (bit-equal at the defaults on
+stairs at 640×360; with G-buffer normals and radius 2, 2 of 230 400 pixels differ by ≤ 4.5e-5: inductor contracts
+``ssR·cos`` to an FMA, and a tap within an ulp of a pixel edge truncates to the neighbour; the normals' cross
+product stays eager, because ATen computes each component with one FMA and inductor's C++ does not) and GTAO's
+denoise (its edges, tap weights and one pass, each a kernel on pre-padded planes: exact operations and divisions
+only, so the same bits, tested) and HBAO's band (compiled, its march skips
 the early exit, which would break the graph — ``torch.compiler.is_compiling()`` — and the steps it skipped are masked
 anyway: the same AO bit for bit, only the debug ``horizons`` differ by an ulp of ``atan``) and three.js GTAO (its
 band's frame and one kernel per slice direction, called for each: ≤ 2.4e-7 from eager in float32, measured at
@@ -28,6 +31,12 @@ step compacts rays with data-dependent shapes), Hi-Z's hit validation, the DDA's
 march's per-pixel ray set-up: compiled, its
 normalised reflection directions differ from ATen's in the last bit (1.8e-7), which moved refined hit points by up
 to 0.8 px.
+
+Kernels compile without inductor's bounds check on gathered indices (``assert_indirect_indexing``): every kernel
+clamps its texel indices itself and is tested equal to its eager form, where ATen checks them; the check cost the
+SAO tap loop a fifth of its time. Two inductor habits shaped the kernels (measured): ``F.pad`` inside a kernel
+compiles to masked loads slower than eager (pad outside, slice inside), and a kernel that reads a neighbour's
+value of a fused intermediate recomputes it per neighbour (split the kernel where an intermediate is read shifted).
 
 The switch, in order of precedence: :func:`compiling` (a context manager), else the environment variable
 ``SSBENCH_COMPILE`` (``1``/``true``: on; ``ssbench --compile …`` sets it, so sweep processes inherit it).

@@ -36,7 +36,7 @@ from torch import nn
 
 from ...gbuffer import GBuffer
 from ..common import AOResult, make_generator, row_bands
-from ..compiled import kernel
+from ..compiled import band_samples, kernel
 from ..sampling import noise_texel, noise_texture, sphere_kernel
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from .ssao_common import check_ssao_params, range_check_count, ssao_result, view_position
@@ -152,7 +152,7 @@ def crytek_ssao(gbuffer: GBuffer, params: CrytekSSAOParams = CrytekSSAOParams(),
     position, texture, random, row, col = sphere_frame(cam, gbuffer.view_z, noise, p)
     k = kernel.T.reshape(1, 3, -1, 1, 1)                                           # (1, 3, K, 1, 1)
     count = torch.empty(position.shape[0], 1, cam.height, cam.width, dtype=torch.int64, device=device)
-    for rs in row_bands(cam.height, cam.width, p.kernel_size, position.element_size()):   # cache-sized bands
+    for rs in row_bands(cam.height, cam.width, band_samples(p.kernel_size), position.element_size()):   # cache-sized bands
         count[..., rs, :] = sphere_band(cam, position[..., rs, :], random[..., rs, :], k, texture, p)
     return ssao_result(count, p, mask, dtype=dtype, debug=debug, row=row, col=col, kernel=kernel, noise=noise)
 

@@ -37,6 +37,7 @@ from torch import nn
 
 from ...gbuffer import GBuffer
 from ..common import AOResult, check_count, check_positive, check_radius, row_bands
+from ..compiled import band_samples
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from .gtao import NoiseSpec
 from .gtao_parts import check_noise, noise_buffer, unit3
@@ -141,7 +142,7 @@ def vbao(gbuffer: GBuffer, params: VBAOParams = VBAOParams(), *, generator: Opti
     z = torch.where(mask, gbuffer.view_z, torch.full_like(gbuffer.view_z, -cam.far))  # the depth texture
     rows = torch.arange(H, dtype=dtype, device=dev)
     parts = [vbao_rows(cam, z, rows[rs], gbuffer.normal[:, :, rs], mask[:, :, rs], noise[:, :, rs], params, debug,
-                       bent_normals) for rs in row_bands(H, W, 4 * params.steps, z.element_size(), batch=B)]
+                       bent_normals) for rs in row_bands(H, W, band_samples(4 * params.steps), z.element_size(), batch=B)]
     vis = torch.cat([p[0] for p in parts], 2).clamp(0.0, 1.0)
     ao = torch.where(mask, vis, torch.ones_like(vis))
     extra = {"bits": torch.cat([p[1][0] for p in parts], 2),

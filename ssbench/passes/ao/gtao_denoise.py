@@ -161,8 +161,9 @@ def gtao_denoise(ao: torch.Tensor, view_z: torch.Tensor, mask: torch.Tensor, pas
     return out
 
 
-# The two kernels (ssbench.passes.compiled) take planes (B, 1, H, W), which inductor fuses without transposes, and
-# are kept apart so that it stores the weights instead of recomputing them for every neighbour that reads them.
+# The denoise's kernels (ssbench.passes.compiled: edge_planes, tap_weights, denoise_pass) take planes (B, 1, H, W),
+# which inductor fuses without transposes, and are kept apart so that it stores the edges and weights instead of
+# recomputing them for every neighbour that reads them.
 # They use only exact operations and divisions: compiled, the same bits.
 @kernel
 def tap_weights(edges: tuple, maskp: torch.Tensor) -> tuple:

@@ -234,13 +234,14 @@ def sao(gbuffer: GBuffer, params: SAOParams = SAOParams(), *, generator: Optiona
     pyramid = z.new_zeros(B, len(mips), H, W)                # level l in the corner of layer l: no size tables
     for level, m in enumerate(mips):
         pyramid[:, level, :m.shape[-2], :m.shape[-1]] = m[:, 0]
+    texels = pyramid.reshape(B, -1)
     planes = (*c, *(n[:, k:k + 1] for k in range(3)), spin, ss_disk,
               x.expand(1, 1, H, W).contiguous(), y.expand(1, 1, H, W).contiguous())   # one loop nest compiled
     total, levels = torch.empty_like(z), []
     for rs in row_bands(H, W, BAND_VECTORS, z.element_size(), batch=B):      # a bounded working set
         band = [t[..., rs, :] for t in planes]
         total[..., rs, :], lv = sao_taps(tuple(band[0:3]), tuple(band[3:6]), band[6], band[7], tuple(band[8:10]),
-                                         pyramid.reshape(B, -1), (a0, a1, b0, b1), (H, W), p, debug)
+                                         texels, (a0, a1, b0, b1), (H, W), p, debug)
         levels.append(lv)
     levels = torch.cat(levels, 2) if debug else None
     r2 = p.radius * p.radius

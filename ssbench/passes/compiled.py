@@ -21,13 +21,14 @@ the early exit, which would break the graph — ``torch.compiler.is_compiling()`
 anyway: the same AO bit for bit, only the debug ``horizons`` differ by an ulp of ``atan``) and three.js GTAO (its
 band's frame and one kernel per slice direction, called for each: ≤ 2.4e-7 from eager in float32, measured at
 1920×1080, where inductor's vectorised ``acos`` and ``sqrt`` differ from ATen's by an ulp) and four SSR marchers:
-the linear march's step and bisection probe, the DDA's step and Hi-Z's traversal step (its pyramid read and
-``AdvanceRay``) are size-dynamic kernels (``@kernel(dynamic=True)``: one compilation for every working-set size;
+the linear march's step and bisection probe, the DDA's step and Hi-Z's whole iteration (its pyramid read,
+``AdvanceRay``, the hit test and the ray's state; compiled, it judges every ray and keeps the candidates' verdicts,
+where eager judges only the candidates) are size-dynamic kernels (``@kernel(dynamic=True)``: one compilation for every working-set size;
 rays that stop ride along masked until the set is compacted), bit for bit equal to eager, tested; and
 the three.js march's step (``three_ssr_step.pixel_step``: equal to eager on every output tested, but its
 ``pointToLineDistance`` is an ulp apart from ATen's in a quarter of the rays, whose cross product ATen may compute
 with FMA, so a ray exactly on the thickness bound could end differently). Not compiled: the supercover DDA (its
-step compacts rays with data-dependent shapes), Hi-Z's hit validation, the DDA's hit refinement, and the linear
+step compacts rays with data-dependent shapes), the DDA's hit refinement, and the linear
 march's per-pixel ray set-up: compiled, its
 normalised reflection directions differ from ATen's in the last bit (1.8e-7), which moved refined hit points by up
 to 0.8 px.

@@ -35,7 +35,7 @@ from ...gbuffer import GBuffer
 from ..common import check_count, check_positive
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..registry import Method, SpeedPanel
-from .common import SSRResult, flat
+from .common import SSRResult
 from .dda import ray_pixels
 from .dda_assemble import assemble
 from .dda_state import march_in_chunks
@@ -119,7 +119,7 @@ def texels(gbuffer: GBuffer, params: HiZSSRParams) -> HiZTexels:
     dt = gbuffer.view_z.dtype
     back = gbuffer.back_z.to(dt).reshape(-1) if params.use_back_face_depth else None
     second = gbuffer.second_z.to(dt).reshape(-1) if params.use_second_layer else None
-    return HiZTexels(view_z=gbuffer.view_z.reshape(-1), normal=flat(gbuffer.normal.to(dt)),
+    return HiZTexels(view_z=gbuffer.view_z.reshape(-1), normal=gbuffer.normal.to(dt).transpose(0, 1).reshape(3, -1),
                      back_z=back, second_z=second)
 
 

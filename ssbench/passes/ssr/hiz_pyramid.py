@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import torch
 import torch.nn.functional as F
 
-__all__ = ["DepthPyramid", "reversed_depth", "depth_pyramid"]
+__all__ = ["DepthPyramid", "reversed_depth", "depth_pyramid", "padded_levels"]
 
 
 @dataclass(frozen=True)
@@ -82,3 +82,21 @@ def depth_pyramid(rz: torch.Tensor) -> DepthPyramid:
     widths = torch.tensor([lv.shape[-1] for lv in levels], device=rz.device)
     return DepthPyramid(levels=tuple(levels), flat=torch.cat([lv.reshape(B, -1) for lv in levels], 1),
                         offsets=offsets, widths=widths)
+
+
+def padded_levels(pyr: DepthPyramid, count: int) -> torch.Tensor:
+    """Levels ``0 … count − 1`` of ``pyr`` as :math:`(B, count, H, W)`: level ``m`` in the top-left corner of layer
+    ``m``, zeros (background) around it. Level ``m``'s cell ``(cx, cy)`` is then at ``[b, m, cy, cx]``.
+
+    Example:
+        >>> p = depth_pyramid(torch.tensor([[[[0.1, 0.5, 0.2], [0.3, 0.0, 0.9]]]]))
+        >>> padded_levels(p, 2)[0, 1].tolist()
+        [[0.5, 0.8999999761581421, 0.0], [0.0, 0.0, 0.0]]
+    """
+    if not 1 <= count <= pyr.count:
+        raise ValueError(f"count: expected 1 to {pyr.count} levels, got {count}")
+    base = pyr.levels[0]
+    out = base.new_zeros(base.shape[0], count, *base.shape[-2:])
+    for m, level in enumerate(pyr.levels[:count]):
+        out[:, m, :level.shape[-2], :level.shape[-1]] = level[:, 0]
+    return out

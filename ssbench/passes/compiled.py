@@ -23,7 +23,8 @@ band's frame and one kernel per slice direction, called for each: ≤ 2.4e-7 fro
 1920×1080, where inductor's vectorised ``acos`` and ``sqrt`` differ from ATen's by an ulp) and four SSR marchers:
 the linear march's step and bisection probe, the DDA's step and Hi-Z's whole iteration (its pyramid read,
 ``AdvanceRay``, the hit test and the ray's state; compiled, it judges every ray and keeps the candidates' verdicts,
-where eager judges only the candidates) are size-dynamic kernels (``@kernel(dynamic=True)``: one compilation for every working-set size;
+where eager judges only the candidates) are size-dynamic kernels (the DDA and Hi-Z run eight steps per
+compiled call, one fused loop that keeps each ray's state in registers between them: ``fuse_whole``) (``@kernel(dynamic=True)``: one compilation for every working-set size;
 rays that stop ride along masked until the set is compacted), bit for bit equal to eager, tested; and
 the three.js march's step (``three_ssr_step.pixel_step``: equal to eager on every output tested, but its
 ``pointToLineDistance`` is an ulp apart from ATen's in a quarter of the rays, whose cross product ATen may compute
@@ -59,7 +60,8 @@ from typing import Any, Callable, Iterator, Optional
 
 import torch
 
-__all__ = ["enabled", "compiling", "kernel", "compile_seconds", "band_samples", "ENV", "KERNEL_VARIANTS"]
+__all__ = ["enabled", "compiling", "kernel", "compile_seconds", "band_samples", "ENV", "KERNEL_VARIANTS",
+           "WHOLE_FUSION_SIZE"]
 
 #: environment variable of the switch
 ENV = "SSBENCH_COMPILE"
@@ -135,14 +137,23 @@ def _room_for_variants() -> contextlib.AbstractContextManager:
 _OPTIONS = {"assert_indirect_indexing": False}
 
 
-def kernel(fn: Optional[Callable] = None, *, dynamic: bool = False) -> Callable:
+#: inductor's limit on the nodes of one fused loop, for a kernel that asks to fuse whole (``fuse_whole=True``): past
+#: the default (64) inductor splits a long kernel into loops that store their intermediates
+WHOLE_FUSION_SIZE = 4096
+
+
+def kernel(fn: Optional[Callable] = None, *, dynamic: bool = False, fuse_whole: bool = False) -> Callable:
     """Mark ``fn`` (a pure tensor function, the body a pass runs per band) as the pass's compilable kernel:
     eager while the switch is off, ``torch.compile(fn)`` while it is on; ``wrapper.eager`` is ``fn`` itself.
 
     ``@kernel(dynamic=True)`` compiles with symbolic sizes and numbers (``torch.compile(dynamic=True)``): for a
-    marcher's step, whose working set shrinks as rays stop, one compilation serves every size."""
+    marcher's step, whose working set shrinks as rays stop, one compilation serves every size. ``fuse_whole=True``
+    lifts inductor's limit on the size of one fused loop (:data:`WHOLE_FUSION_SIZE`), for a kernel that unrolls
+    several steps: it then compiles to one loop that keeps the rays' state in registers between its steps (kernels
+    without it measured the same or slower with the limit lifted)."""
     if fn is None:
-        return functools.partial(kernel, dynamic=dynamic)
+        return functools.partial(kernel, dynamic=dynamic, fuse_whole=fuse_whole)
+    options = dict(_OPTIONS, **({"max_fusion_size": WHOLE_FUSION_SIZE} if fuse_whole else {}))
     compiled: list = []
 
     @functools.wraps(fn)
@@ -150,7 +161,7 @@ def kernel(fn: Optional[Callable] = None, *, dynamic: bool = False) -> Callable:
         if not enabled():
             return fn(*args, **kwargs)
         if not compiled:
-            compiled.append(torch.compile(fn, dynamic=dynamic, options=_OPTIONS))
+            compiled.append(torch.compile(fn, dynamic=dynamic, options=options))
         key = (fn.__qualname__, fn.__module__, _signature(args, kwargs, dynamic))
         with _room_for_variants():
             if key in _first_calls:

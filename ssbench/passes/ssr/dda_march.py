@@ -5,11 +5,13 @@ re-march). The supercover DDA (:mod:`.dda_supercover`) shares ``ray_view_z`` and
 """
 from __future__ import annotations
 
+import dataclasses
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Optional
 
 import torch
 
-from ..compiled import kernel
+from ..compiled import enabled, kernel
 from ..common import index_dtype
 from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS, nan_off_mask
 from .dda_state import DDARays, MarchOutput
@@ -86,30 +88,30 @@ def refine_hits(h: DDARays, tex, params: "DDASSRParams", H: int, W: int, out: Ma
         setattr(h, key, best[key])
 
 
-@kernel(dynamic=True)
-def dda_step(state: tuple, ray: tuple, tex: tuple, size: tuple, z_thickness: float) -> tuple:
-    """One DDA step of :func:`dda_march` for every ray of the working set (the march's size-dynamic compilable
-    kernel): advance by a stride, shorten the last footprint at ``stop``, ``texelFetch`` and the depth test.
+def dda_step(state: tuple, ray: tuple, tex: tuple, size: tuple, z_thickness: float, go: torch.Tensor) -> tuple:
+    """One DDA step of :func:`dda_march` for every ray of the working set: advance by a stride, shorten the last
+    footprint at ``stop``, ``texelFetch`` and the depth test. A ray that has stopped keeps its state (a hit ray:
+    where it hit, for the refinement); so does every ray where ``go`` (a 0-d bool) is false.
 
     Args:
-        state: ``(Px, Py, Qz, k, n, prevZ, alive)``, ``alive`` int32 (a compiled kernel loads bool arrays lane by
-            lane); ray: ``(dPx, dPy, dQz, dk, stride, stepDir, stop, end, zlo, zhi, permute, clipped, b)``,
-            ``permute`` and ``clipped`` int32.
+        state: ``(Px, Py, Qz, k, n, prevZ, alive, steps, term)``, ``alive`` and ``steps`` (fetches) int32 (a
+            compiled kernel loads bool arrays lane by lane), ``term`` the int8 termination code (``OUT_OF_STEPS``
+            until the ray stops); ray: ``(dPx, dPy, dQz, dk, stride, stepDir, stop, end, zlo, zhi, permute,
+            clipped, b)``, ``permute`` and ``clipped`` int32.
         tex: ``(front, back, second)`` flat: the scene view z with NaN off the mask (a NaN compares false, so a
             cleared texel is never hit), the back-face and second-layer z (or ``None``) likewise.
 
     Returns:
-        ``(Px, Py, Qz, k, n, prevZ, alive, t, live, hit, done, term)``: the new state (a ray that ends here is no
-        longer ``alive``), the fetched texel and, int32, the rays that fetched and that hit, the rays that ended
-        here (a hit, off screen, past ``stop`` or on their shortened last footprint) and their termination code.
+        ``(state, done, t, live)``: the new state, the rays that stopped here, the fetched texels and the rays that
+        fetched them.
     """
-    Px, Py, Qz, k, n, prevZ, alive = state
+    Px0, Py0, Qz0, k0, n0, prevZ0, alive, steps, term0 = state
     dPx, dPy, dQz, dk, stride, stepDir, stop, end, zlo, zhi, permute, clipped, b = ray
     front, back_z, second_z = tex
     H, W = size
-    marching = alive != 0
-    Px, Py, Qz, k = Px + dPx, Py + dPy, Qz + dQz, k + dk
-    n = n + 1.0
+    marching = (alive != 0) & go
+    Px, Py, Qz, k = Px0 + dPx, Py0 + dPy, Qz0 + dQz, k0 + dk
+    n = n0 + 1.0
     u = Px * stepDir
     beyond = marching & (u > stop)                                                # centre past P1 / the edge
     f = ((stop - u) / stride + 0.5).clamp(0.0, 1.0)                               # footprint share before stop
@@ -125,7 +127,7 @@ def dda_step(state: tuple, ray: tuple, tex: tuple, size: tuple, z_thickness: flo
     t = b * (H * W) + py.floor().clamp(0, H - 1).to(b.dtype) * W + px.floor().clamp(0, W - 1).to(b.dtype)
     sceneZMax = front.index_select(0, t)
     off, live = marching & ~past & ~on, marching & ~past & on                    # live: this sample is fetched
-    rayZMin = prevZ
+    rayZMin = prevZ0
     rayZMax = ray_view_z(dQz * half + Qz, dk * half + k, zlo, zhi)                # footprint end
     prevZ = rayZMax
     rayZMin, rayZMax = torch.minimum(rayZMin, rayZMax), torch.maximum(rayZMin, rayZMax)   # swap
@@ -138,41 +140,94 @@ def dda_step(state: tuple, ray: tuple, tex: tuple, size: tuple, z_thickness: flo
     term = torch.where(u > end, ended, OFF_SCREEN)                                # the full step's centre
     term = torch.where(off, OFF_SCREEN, torch.where(hit, HIT, term))
     done = past | off | hit | partial
-    alive = torch.where(done, 0, alive)
-    return (Px, Py, Qz, k, n, prevZ, alive, t, live.to(torch.int32), hit.to(torch.int32), done.to(torch.int32),
-            term.to(torch.int8))
+    new = tuple(torch.where(marching, a, a0) for a, a0 in ((Px, Px0), (Py, Py0), (Qz, Qz0), (k, k0), (n, n0),
+                                                           (prevZ, prevZ0)))
+    state = new + (torch.where(done, 0, alive), steps + live.to(torch.int32),
+                   torch.where(done, term.to(torch.int8), term0))
+    return state, done, t, live
+
+
+#: DDA steps per compiled call: their state stays in registers, where one step per call streams the working set's
+#: ~120 bytes per ray through memory each step (eager runs one step per call)
+STEPS_PER_CALL = 8
+
+
+@kernel(dynamic=True, fuse_whole=True)
+def dda_steps(state: tuple, ray: tuple, tex: tuple, size: tuple, z_thickness: float, count: int,
+              left: torch.Tensor, debug: bool = False) -> tuple:
+    """``count`` steps of :func:`dda_step` for every ray of the working set (the march's size-dynamic compilable
+    kernel), the ``j``-th only while ``j < left`` (a 0-d count of the steps the march has left).
+
+    Returns:
+        The new state, how many rays stopped (0-d) and, with ``debug`` (``count`` 1), the fetched texels and which
+        rays fetched them (int32).
+    """
+    done = torch.zeros_like(state[6])
+    for j in range(count):
+        state, d, t, live = dda_step(state, ray, tex, size, z_thickness, left > j)
+        done = done | d.to(done.dtype)
+    return (state, done.sum()) + ((t, live.to(torch.int32)) if debug else ())
+
+
+def flush(out: MarchOutput, s: DDARays, rows: torch.Tensor, tex, params: "DDASSRParams", H: int, W: int,
+          visits: Optional[torch.Tensor]) -> None:
+    """Write the termination and fetches of the working set's ``rows`` (stopped rays, or every ray at the end)
+    into ``out``; refine the hits among them (:func:`refine_hits`) and write their hit points."""
+    i, term = s.i.index_select(0, rows), s.term.index_select(0, rows)
+    out.term.index_copy_(0, i, term)
+    out.steps.index_copy_(0, i, s.steps.index_select(0, rows))
+    hi = rows[term == HIT]
+    if hi.numel():
+        h = s.select(hi)
+        refine_hits(h, tex, params, H, W, out, visits)
+        out.P[h.i] = torch.where(h.permute[:, None], torch.stack([h.Py, h.Px], 1), torch.stack([h.Px, h.Py], 1))
+        out.Q[h.i] = torch.stack([h.Q0x + h.dQx * h.n, h.Q0y + h.dQy * h.n, h.Qz], 1)
+        out.k[h.i] = h.k
 
 
 def dda_march(s: DDARays, tex, params: "DDASSRParams", H: int, W: int, visits: Optional[torch.Tensor]) -> MarchOutput:
-    """The DDA loop; per-ray outputs by ``s.i``. Finished rays freeze (``alive``), dropped when 1/8 of ``s``.
-    Each step is :func:`dda_step`; hits are refined (:func:`refine_hits`) and outputs written here."""
+    """The DDA loop; per-ray outputs by ``s.i``. Each step is :func:`dda_step`; stopped rays keep their state,
+    masked, until 1/8 of the working set has stopped; then they are written back, their hits refined
+    (:func:`refine_hits`), and the set compacted."""
     N = s.count
     out = MarchOutput.empty(N, s.k.dtype, s.k.device, OUT_OF_STEPS)
     dead = 0
     step_tex = tuple(None if x is None else nan_off_mask(x, tex[1]) for x in (tex[0], tex[2], tex[3]))
-    b, permute, clipped = s.b.to(index_dtype(tex[0].numel())), s.permute.to(torch.int32), s.clipped.to(torch.int32)
-    alive = torch.ones(N, dtype=torch.int32, device=s.k.device)
-    for _ in range(params.max_steps):
+    s = MarchingRays(**{f.name: v.contiguous() if isinstance(v := getattr(s, f.name), torch.Tensor) else v
+                        for f in dataclasses.fields(s)},            # (columns of the set-up's tensors: strided)
+                     b_index=s.b.to(index_dtype(tex[0].numel())), permute32=s.permute.to(torch.int32),
+                     clipped32=s.clipped.to(torch.int32), alive32=torch.ones(N, dtype=torch.int32, device=s.k.device),
+                     steps=torch.zeros(N, dtype=torch.int32, device=s.k.device),
+                     term=torch.full((N,), OUT_OF_STEPS, dtype=torch.int8, device=s.k.device))
+    count = STEPS_PER_CALL if enabled() and visits is None else 1
+    for first in range(0, params.max_steps, count):
         if s.count == dead:
             break
-        r = dda_step((s.Px, s.Py, s.Qz, s.k, s.n, s.prevZ, alive), (s.dPx, s.dPy, s.dQz, s.dk, s.stride, s.stepDir,
-                     s.stop, s.end, s.zlo, s.zhi, permute, clipped, b), step_tex, (H, W), params.z_thickness)
-        s.Px, s.Py, s.Qz, s.k, s.n, s.prevZ, alive, t, live, hit, done, term = r
-        count_visits(out, visits, s.i, t, live)
-        hi = hit.nonzero().squeeze(1)
-        if hi.numel():
-            h = s.select(hi)
-            refine_hits(h, tex, params, H, W, out, visits)
-            out.P[h.i] = torch.where(h.permute[:, None], torch.stack([h.Py, h.Px], 1), torch.stack([h.Px, h.Py], 1))
-            out.Q[h.i] = torch.stack([h.Q0x + h.dQx * h.n, h.Q0y + h.dQy * h.n, h.Qz], 1)
-            out.k[h.i] = h.k
-        di = done.nonzero().squeeze(1)
-        if di.numel():
-            out.term.index_copy_(0, s.i.index_select(0, di), term.index_select(0, di))
-            dead += di.numel()
-            if 8 * dead >= s.count:                                                 # compact
-                keep = alive.nonzero().squeeze(1)
-                s, dead = s.select(keep), 0
-                b, permute, clipped, alive = (x.index_select(0, keep) for x in (b, permute, clipped, alive))
-    s.alive = alive != 0
+        left = torch.tensor(params.max_steps - first, device=s.k.device)
+        r = dda_steps((s.Px, s.Py, s.Qz, s.k, s.n, s.prevZ, s.alive32, s.steps, s.term),
+                     (s.dPx, s.dPy, s.dQz, s.dk, s.stride, s.stepDir, s.stop, s.end, s.zlo, s.zhi, s.permute32,
+                      s.clipped32, s.b_index), step_tex, (H, W), params.z_thickness, count, left, visits is not None)
+        s.Px, s.Py, s.Qz, s.k, s.n, s.prevZ, s.alive32, s.steps, s.term = r[0]
+        if visits is not None:
+            t, live = r[2:]
+            visits.index_add_(0, t[live != 0], torch.ones_like(t[live != 0], dtype=visits.dtype))
+        dead += int(r[1])
+        if 8 * dead >= s.count and dead:                                            # compact
+            flush(out, s, (s.alive32 == 0).nonzero().squeeze(1), tex, params, H, W, visits)
+            s, dead = s.select(s.alive32.nonzero().squeeze(1)), 0
+    flush(out, s, torch.arange(s.count, device=s.k.device), tex, params, H, W, visits)
     return out
+
+
+@dataclass
+class MarchingRays(DDARays):
+    """:class:`DDARays` as :func:`dda_march` marches them: the batch index in the texel index dtype, ``permute``,
+    ``clipped`` and ``alive`` as int32 (for the compiled step), and each ray's fetches ``steps`` (int32) and
+    termination code ``term`` (int8), written back when the ray is dropped."""
+
+    b_index: Optional[torch.Tensor] = None
+    permute32: Optional[torch.Tensor] = None
+    clipped32: Optional[torch.Tensor] = None
+    alive32: Optional[torch.Tensor] = None
+    steps: Optional[torch.Tensor] = None
+    term: Optional[torch.Tensor] = None

@@ -33,11 +33,13 @@ from typing import Optional
 import torch
 
 from ...gbuffer import GBuffer
+from ..compiled import enabled
 from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OUT_OF_STEPS, compact_now, ray_segments
 from .dda_state import MarchOutput
 from .hiz_pyramid import DepthPyramid, padded_levels
 from .hiz_step import (BIG, COLUMNS, EPSILON, OFFX, OFFY, EPSX, EPSY, INVX, INVY, OX, OY, OZ, VX, VY, VZ, HiZRules,
-                       HiZTexels, MarchState, PyramidLayers, cell_exit, hiz_iteration, inverse)
+                       HiZTexels, MarchState, PyramidLayers, ITERATIONS_PER_CALL, cell_exit, hiz_iterations,
+                       inverse)
 
 __all__ = ["HiZRays", "HiZTexels", "EPSILON", "BIG", "COLUMNS", "RAY_CHUNK", "hiz_rays", "hiz_march"]
 
@@ -129,7 +131,7 @@ def write_back(out: MarchOutput, r: HiZRays, rows: torch.Tensor, gbuffer: GBuffe
 
 def hiz_march(r: HiZRays, pyr: DepthPyramid, tex: HiZTexels, params, gbuffer: GBuffer,
               visits: Optional[torch.Tensor] = None, level_reads: Optional[torch.Tensor] = None) -> MarchOutput:
-    """March ``r`` to termination; one pyramid read per iteration (:func:`~.hiz_step.hiz_iteration`), at most
+    """March ``r`` to termination; one pyramid read per iteration (:func:`~.hiz_step.hiz_iterations`), at most
     ``params.max_traversal_intersections``. Stopped rays ride along masked until a quarter of the working set has
     stopped; then the set is compacted and the stopped rays are written back. ``visits`` :math:`(BHW,)` counts
     level-0 reads per texel and ``level_reads`` :math:`(L,)` reads per level, when given."""
@@ -145,12 +147,14 @@ def hiz_march(r: HiZRays, pyr: DepthPyramid, tex: HiZTexels, params, gbuffer: GB
     done = r.state.t >= 1.0                                              # the initial advance left the segment
     out.term[r.i[done]] = r.ended[done]
     r = r.select((~done).nonzero().squeeze(1))
-    for _ in range(params.max_traversal_intersections):
+    count = ITERATIONS_PER_CALL if enabled() and not debug else 1
+    for first in range(0, params.max_traversal_intersections, count):
         if r.count == 0:
             break
         level = r.state.mip
-        r.state, seen = hiz_iteration(r.state, r.c, r.b, r.ray_dir, r.ended, pyramid, tex, rules, thickness, W, H,
-                                      top, debug)
+        left = torch.tensor(params.max_traversal_intersections - first, device=dev)
+        r.state, seen = hiz_iterations(r.state, r.c, r.b, r.ray_dir, r.ended, pyramid, tex, rules, thickness, W, H,
+                                       top, count, left, debug)
         if seen is not None:
             on, cx, cy = seen
             if level_reads is not None:

@@ -436,13 +436,16 @@ def test_second_layer_sees_behind_the_bar():
 
 
 @pytest.mark.slow
-def test_the_compiled_dda_step_gives_the_eager_bits_at_two_sizes_without_recompiling():
-    """The DDA step through ``torch.compile`` (size-dynamic): every output and the visit map equal eager, with
-    strides and the binary search, the 1-pixel re-march, the second depth layer and jitter; a second size compiles
-    nothing."""
+def test_the_compiled_dda_steps_give_the_eager_bits_at_two_sizes_without_recompiling():
+    """The DDA steps through ``torch.compile`` (size-dynamic; eight steps per call, one with ``debug``): every output
+    and the visit map equal eager, with strides and the binary search, the 1-pixel re-march, the second depth
+    layer, jitter and a step budget that is not a multiple of eight; a second size compiles nothing."""
+    from ssbench.passes.ssr.dda_march import STEPS_PER_CALL, dda_steps
     from tests.passes.compiled_check import check_compiled_at_two_sizes
     from tests.passes.ssr_scenes import room, with_second_layer
     settings = [DDASSRParams(pixel_stride=3.0), DDASSRParams(pixel_stride=2.0, refinement="remarch", jitter=1.0),
-                DDASSRParams(use_second_layer=True, z_thickness=0.05)]
-    check_compiled_at_two_sizes(lambda w, h: with_second_layer(room(w, h, torch.float32, slat=True)),
-                                lambda g, p: ssr_dda(g, p, debug=True), settings, ((40, 30), (48, 36)))
+                DDASSRParams(use_second_layer=True, z_thickness=0.05, max_steps=21)]
+    assert settings[-1].max_steps % STEPS_PER_CALL and dda_steps.eager is not dda_steps
+    for debug, which in ((True, settings), (False, settings[1:])):        # (each flag set compiles its own kernel)
+        check_compiled_at_two_sizes(lambda w, h: with_second_layer(room(w, h, torch.float32, slat=True)),
+                                    lambda g, p: ssr_dda(g, p, debug=debug), which, ((40, 30), (48, 36)))

@@ -232,16 +232,17 @@ def test_second_layer_sees_behind_the_bar():
         ssr_hiz(room(8, 6), HiZSSRParams(use_second_layer=True))
 
 
-def test_the_compiled_hiz_iteration_gives_the_eager_bits_at_two_sizes_without_recompiling():
-    """The traversal's iteration through ``torch.compile`` (size-dynamic; every ray judged, where eager judges only
-    the candidates): every output, the visit map and the reads per level equal eager (FidelityFX mode, tracing
-    behind, the second layer, relative thickness, layered depth); a second image size reuses the compiled kernel."""
+def test_the_compiled_hiz_iterations_give_the_eager_bits_at_two_sizes_without_recompiling():
+    """The traversal's iterations through ``torch.compile`` (size-dynamic; every ray judged, where eager judges only
+    the candidates; eight iterations per call, one with ``debug``): every output, the visit map and the reads per
+    level equal eager (FidelityFX mode, tracing behind with a budget that is not a multiple of eight, the second
+    layer, relative thickness, layered depth); a second image size reuses the compiled kernel."""
     import dataclasses
-    from ssbench.passes.ssr.hiz_step import hiz_iteration
+    from ssbench.passes.ssr.hiz_step import ITERATIONS_PER_CALL, hiz_iterations
     from tests.passes.compiled_check import check_compiled_at_two_sizes
     from tests.passes.ssr_scenes import with_second_layer
     settings = [HiZSSRParams(max_ray_distance=30.0),
-                HiZSSRParams(max_ray_distance=30.0, trace_behind=True, max_mip=2, max_traversal_intersections=40),
+                HiZSSRParams(max_ray_distance=30.0, trace_behind=True, max_mip=2, max_traversal_intersections=37),
                 HiZSSRParams(max_ray_distance=30.0, use_second_layer=True, thickness_mode="relative",
                              depth_buffer_thickness=0.05),
                 HiZSSRParams(max_ray_distance=30.0, use_back_face_depth=True, depth_buffer_thickness=0.0,
@@ -250,5 +251,6 @@ def test_the_compiled_hiz_iteration_gives_the_eager_bits_at_two_sizes_without_re
     def layered(w, h):
         g = with_second_layer(room(w, h, torch.float32, slat=True))
         return dataclasses.replace(g, back_z=torch.where(g.mask, g.view_z - 0.3, -math.inf))
-    check_compiled_at_two_sizes(layered, lambda g, p: ssr_hiz(g, p, debug=True), settings, ((32, 24), (40, 30)))
-    assert hiz_iteration.eager is not hiz_iteration
+    assert settings[1].max_traversal_intersections % ITERATIONS_PER_CALL and hiz_iterations.eager is not hiz_iterations
+    for debug, which in ((True, settings), (False, settings[1:3])):       # (each flag set compiles its own kernel)
+        check_compiled_at_two_sizes(layered, lambda g, p: ssr_hiz(g, p, debug=debug), which, ((32, 24), (40, 30)))

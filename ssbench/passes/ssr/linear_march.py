@@ -13,11 +13,12 @@ import torch
 
 from ...camera import Camera
 from ..common import index_dtype, texel_of, uv_to_texel
-from ..compiled import kernel
+from ..compiled import enabled, kernel
 from .dda_state import select_rows
 from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, compact_now, nan_off_mask
 
-__all__ = ["DepthTest", "MarchLog", "MarchOutcome", "LiveRays", "march_step", "march", "refine_step", "refine"]
+__all__ = ["DepthTest", "MarchLog", "MarchOutcome", "LiveRays", "march_step", "march_steps", "march", "refine_step",
+           "refine", "STEPS_PER_CALL"]
 
 
 @dataclass(frozen=True)
@@ -120,32 +121,53 @@ def _probe(scale: tuple, size: tuple, thickness: float, front: torch.Tensor, bac
     return u, v, t, (dist < 0) & (z > back.index_select(0, t) - thickness)
 
 
-@kernel(dynamic=True)
 def march_step(scale: tuple, size: tuple, thickness: float, front: torch.Tensor, back: Optional[torch.Tensor],
-               rays: tuple, debug: bool = False) -> tuple:
+               rays: tuple, go: Optional[torch.Tensor] = None) -> tuple:
     """One step of §1.2 for every ray of a working set: ``Q += deltaStep``, project (:meth:`DepthTest.project`, op
     for op), read ``front`` (the scene z, NaN off the mask: a cleared texel is never hit) and test
-    ``rayIntersectsDepth``; a live ray stops on a hit or off screen. Rays that stopped earlier keep their state.
+    ``rayIntersectsDepth``; a live ray stops on a hit or off screen. Rays that stopped earlier keep their state, and
+    so does every ray where ``go`` (a 0-d bool) is false.
 
     Args:
         scale: the camera's :meth:`~ssbench.camera.Camera.ndc_scale`; size: ``(H, W)``.
         rays: ``(qx, qy, qz, dx, dy, dz, base, live, hit, steps)`` of :class:`LiveRays`, each :math:`(m,)`.
 
     Returns:
-        ``(qx, qy, qz, live, hit, steps, n_live)`` (``n_live`` a 0-d count), plus the texel index, the on-screen
-        test and this step's hits with ``debug`` (the pass's compilable, size-dynamic step kernel).
+        ``(rays, t, on, h)``: the rays with their new ``(qx, qy, qz, live, hit, steps)``, the texel index, the
+        on-screen test and this step's hits.
     """
     qx, qy, qz, dx, dy, dz, base, live, hit, steps = rays
     x, y, z = qx + dx, qy + dy, qz + dz                                           # Q += deltaStep
     u, v, t, h = _probe(scale, size, thickness, front, back, (x, y, z), base)
     on = (u >= 0) & (u <= 1) & (v >= 0) & (v <= 1)
     h = on & h
-    marching = live != 0
+    act = live if go is None else torch.where(go, live, 0)                       # marching this step: 1
+    marching = act != 0
     stop = marching & (h | ~on)
-    steps = steps + live                                                          # this sample counts too
+    steps = steps + act                                                           # this sample counts too
     hit = torch.where(stop & h, 1, hit)
     qx, qy, qz = torch.where(marching, x, qx), torch.where(marching, y, qy), torch.where(marching, z, qz)
     live = torch.where(stop, 0, live)
+    return (qx, qy, qz, dx, dy, dz, base, live, hit, steps), t, on, h
+
+
+#: march steps per compiled call: the rays' state stays in registers between them (eager and debug: one per call)
+STEPS_PER_CALL = 8
+
+
+@kernel(dynamic=True, fuse_whole=True)
+def march_steps(scale: tuple, size: tuple, thickness: float, front: torch.Tensor, back: Optional[torch.Tensor],
+                rays: tuple, count: int = 1, left: Optional[torch.Tensor] = None, debug: bool = False) -> tuple:
+    """``count`` :func:`march_step` s, the ``j``-th only while ``j < left`` (a 0-d count of the steps the march has
+    left; ``None``: all): the march's compilable, size-dynamic kernel.
+
+    Returns:
+        ``(qx, qy, qz, live, hit, steps, n_live)`` (``n_live`` a 0-d count), plus the texel index, the on-screen
+        test and this step's hits with ``debug`` (``count`` 1).
+    """
+    for j in range(count):
+        rays, t, on, h = march_step(scale, size, thickness, front, back, rays, None if left is None else left > j)
+    qx, qy, qz, _, _, _, _, live, hit, steps = rays
     return (qx, qy, qz, live, hit, steps, live.sum()) + ((t, on, h) if debug else ())
 
 
@@ -164,12 +186,14 @@ def march(test: DepthTest, log: MarchLog, Q: torch.Tensor, dS: torch.Tensor, bas
                   base.to(index_dtype(front.numel())), flags + 1, flags, flags.clone())
     scale, debug = test.camera.ndc_scale(), bool(log.trace_ids) or log.counting
     n_run = min(iterations, max_iterations)
-    for _ in range(n_run):
+    count = STEPS_PER_CALL if enabled() and not debug else 1
+    for first in range(0, n_run, count):
         m = ws.ids.numel()
         if m == 0:
             break
-        r = march_step(scale, (test.H, test.W), test.thickness, front, test.back, (ws.qx, ws.qy, ws.qz, ws.dx, ws.dy,
-                       ws.dz, ws.base, ws.live, ws.hit, ws.steps), debug=debug)
+        left = torch.tensor(n_run - first, device=dev) if count > 1 else None
+        r = march_steps(scale, (test.H, test.W), test.thickness, front, test.back, (ws.qx, ws.qy, ws.qz, ws.dx, ws.dy,
+                        ws.dz, ws.base, ws.live, ws.hit, ws.steps), count, left, debug=debug)
         was = ws.live != 0
         ws = LiveRays(ws.ids, *r[:3], ws.dx, ws.dy, ws.dz, ws.base, *r[3:6])
         if debug:

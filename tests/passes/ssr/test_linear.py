@@ -293,16 +293,18 @@ def test_bad_gbuffer():
 
 @pytest.mark.slow
 def test_the_compiled_march_gives_the_eager_bits_at_two_sizes_without_recompiling():
-    """The march step through ``torch.compile`` (size-dynamic): every output, the visit map and a traced pixel's
-    samples equal eager, with back faces and jitter too; a second image size reuses the compiled step."""
+    """The march steps through ``torch.compile`` (size-dynamic; eight per call, one with debug buffers): every
+    output, the visit map and a traced pixel's samples equal eager, with back faces and jitter too, and a step
+    budget that is not a multiple of eight; a second image size reuses the compiled steps."""
     import dataclasses
 
     from torch._dynamo.utils import counters
 
     from ssbench.passes import compiled as C
-    from ssbench.passes.ssr.linear_march import march_step
+    from ssbench.passes.ssr.linear_march import STEPS_PER_CALL, march_steps
     settings = [LinearSSRParams(thickness=0.3), LinearSSRParams(use_back_face_depth=True, thickness=0.3),
-                LinearSSRParams(jitter=1.0, iterations=16)]
+                LinearSSRParams(jitter=1.0, iterations=21)]
+    assert settings[-1].iterations % STEPS_PER_CALL
     for w, h in ((32, 24), (40, 30)):
         g = scene(w, h, walls=((-5.0, 0.4, 1.2), (-7.0, 1.0, None)), dtype=torch.float32)
         for p in settings:
@@ -317,9 +319,17 @@ def test_the_compiled_march_gives_the_eager_bits_at_two_sizes_without_recompilin
             assert torch.equal(eager.debug["visits"], comp.debug["visits"])
             for k, v in eager.debug["trace"][0].items():
                 assert torch.equal(v, comp.debug["trace"][0][k]), k
+        for p in settings[1:]:                        # no debug buffers: eight steps per compiled call
+            with C.compiling(False):
+                eager = ssr_linear(g, p)
+            with C.compiling(True):
+                comp = ssr_linear(g, p)
+            for f in dataclasses.fields(eager):
+                if f.name != "debug":
+                    assert torch.equal(getattr(eager, f.name), getattr(comp, f.name)), f.name
         if w == 32:
             seconds, graphs = C.compile_seconds(), counters["stats"]["unique_graphs"]
     assert graphs >= 1 and counters["stats"]["unique_graphs"] == graphs          # the second size: nothing new
     assert C.compile_seconds() == seconds
-    assert march_step.eager is not march_step
+    assert march_steps.eager is not march_steps
 

@@ -139,7 +139,7 @@ def hiz_march(r: HiZRays, pyr: DepthPyramid, tex: HiZTexels, params, gbuffer: GB
     dt, dev = r.c.dtype, r.c.device
     out = MarchOutput.empty(r.count, dt, dev, OUT_OF_STEPS)
     top = min(params.max_mip, pyr.count - 1)
-    pyramid = PyramidLayers(padded_levels(pyr, top + 1).reshape(-1), top + 1)
+    pyramid = PyramidLayers(padded_levels(pyr, top + 1), top + 1, gbuffer.view_z.numel())
     rules = HiZRules(params.reject_backfaces, params.trace_behind, params.thickness_mode == "relative",
                      float(gbuffer.camera.near))
     thickness = torch.tensor(params.depth_buffer_thickness, dtype=dt, device=dev)

@@ -85,18 +85,22 @@ def depth_pyramid(rz: torch.Tensor) -> DepthPyramid:
 
 
 def padded_levels(pyr: DepthPyramid, count: int) -> torch.Tensor:
-    """Levels ``0 … count − 1`` of ``pyr`` as :math:`(B, count, H, W)`: level ``m`` in the top-left corner of layer
-    ``m``, zeros (background) around it. Level ``m``'s cell ``(cx, cy)`` is then at ``[b, m, cy, cx]``.
+    """Levels ``0 … count − 1`` of ``pyr`` flat, each cell at an index computed without a table: level 0 as
+    :math:`(B, H, W)`, then levels ``1 … count − 1`` as :math:`(B, count − 1, ⌈H/2⌉, ⌈W/2⌉)`, level ``m`` in the
+    top-left corner of block ``m − 1`` (zeros, background, around it): ``(2.5 + …)·HW`` values, where a full-size
+    layer per level would take ``count·HW``. Level ``m``'s cell ``(cx, cy)`` of image ``b`` is at ``(b·H + cy)·W
+    + cx`` for ``m = 0``, else ``B·H·W + ((b·(count − 1) + m − 1)·⌈H/2⌉ + cy)·⌈W/2⌉ + cx``.
 
     Example:
         >>> p = depth_pyramid(torch.tensor([[[[0.1, 0.5, 0.2], [0.3, 0.0, 0.9]]]]))
-        >>> padded_levels(p, 2)[0, 1].tolist()
-        [[0.5, 0.8999999761581421, 0.0], [0.0, 0.0, 0.0]]
+        >>> [round(v, 1) for v in padded_levels(p, 2).tolist()]   # level 0 (2×3), then level 1 (1×2): a 1×2 block
+        [0.1, 0.5, 0.2, 0.3, 0.0, 0.9, 0.5, 0.9]
     """
     if not 1 <= count <= pyr.count:
         raise ValueError(f"count: expected 1 to {pyr.count} levels, got {count}")
     base = pyr.levels[0]
-    out = base.new_zeros(base.shape[0], count, *base.shape[-2:])
-    for m, level in enumerate(pyr.levels[:count]):
-        out[:, m, :level.shape[-2], :level.shape[-1]] = level[:, 0]
-    return out
+    B, _, H, W = base.shape
+    blocks = base.new_zeros(B, count - 1, (H + 1) // 2, (W + 1) // 2)
+    for m, level in enumerate(pyr.levels[1:count]):
+        blocks[:, m, :level.shape[-2], :level.shape[-1]] = level[:, 0]
+    return torch.cat([base.reshape(-1), blocks.reshape(-1)])

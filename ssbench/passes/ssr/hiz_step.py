@@ -32,12 +32,13 @@ OX, OY, OZ, VX, VY, VZ, INVX, INVY, INVZ, OFFX, OFFY, EPSX, EPSY = range(len(COL
 
 
 class PyramidLayers(NamedTuple):
-    """The pyramid as :func:`hiz_step` reads it: ``cells`` :math:`(B·L·H·W,)`, level ``m`` in the corner of layer
-    ``m`` of its image (:func:`~.hiz_pyramid.padded_levels`), ``L`` = ``layers``: a cell's index is arithmetic
-    (a compiled kernel emulates a lookup in a small table of level offsets lane by lane)."""
+    """The pyramid as :func:`hiz_step` reads it: ``cells`` the levels ``0 … layers − 1`` of every image, laid out
+    by :func:`~.hiz_pyramid.padded_levels`, so that a cell's index is arithmetic (a compiled kernel emulates a
+    lookup in a small table of level offsets lane by lane); ``base`` = ``B·H·W``, where level 1 starts."""
 
     cells: torch.Tensor
     layers: int
+    base: int
 
 
 class StepGeometry(NamedTuple):
@@ -122,7 +123,10 @@ def hiz_step(c: torch.Tensor, t: torch.Tensor, mip: torch.Tensor, b: torch.Tenso
     scale = torch.bitwise_left_shift(torch.ones_like(level), level).to(x.dtype)       # 2^m pixels, exactly
     inv_s = 1.0 / scale
     cx, cy = (x * inv_s).long(), (y * inv_s).long()                           # x, y ≥ 0 on screen: trunc = floor
-    index = (((b * pyramid.layers + level) * H + cy) * W + cx).clamp(0, pyramid.cells.numel() - 1)
+    H2, W2 = (H + 1) // 2, (W + 1) // 2                                       # level ≥ 1: a half-size block each
+    index = torch.where(level == 0, (b * H + cy) * W + cx,
+                        pyramid.base + ((b * (pyramid.layers - 1) + level - 1) * H2 + cy) * W2 + cx)
+    index = index.clamp(0, pyramid.cells.numel() - 1)
     surface = torch.take(pyramid.cells, index)                                # garbage only for `off` rays
     tx = cell_exit(c[OX], c[INVX], c[OFFX], c[EPSX], cx, scale)              # AdvanceRay: the borders
     ty = cell_exit(c[OY], c[INVY], c[OFFY], c[EPSY], cy, scale)

@@ -194,42 +194,46 @@ def dda_rays(gbuffer: GBuffer, params: DDASSRParams, jitter: torch.Tensor, sel: 
     sel = ray_pixels(gbuffer) if sel is None else sel
     b, _, o, d, end = ray_segments(gbuffer, sel, params.max_ray_distance)          # rayOrg, rayDir, rayEnd
     M = project_to_pixel_matrix(cam, dt, dev)
-    hom = lambda c: c[:, :1] * M[:, 0] + c[:, 1:2] * M[:, 1] + c[:, 2:3] * M[:, 2] + M[:, 3]   # noqa: E731  M·(c, 1)
-    H0, H1 = hom(o), hom(end)                                                     # (N, 4) homogeneous
-    k0, k1 = 1.0 / H0[:, 3], 1.0 / H1[:, 3]
-    Q0, Q1 = o * k0[:, None], end * k1[:, None]
-    P0, P1 = H0[:, :2] * k0[:, None], H1[:, :2] * k1[:, None]                     # pixels (py down)
-    P1 = P1 + torch.where(((P1 - P0) ** 2).sum(1) < 0.0001, 0.01, 0.0)[:, None]  # degenerate-line nudge
-    delta = P1 - P0
-    permute = delta[:, 0].abs() < delta[:, 1].abs()                               # more-vertical line
-    sw = lambda v: torch.where(permute[:, None], v.flip(1), v)                    # noqa: E731  (.yx)
+    o, end = o.T.contiguous(), end.T.contiguous()             # a row per component: columns of (N, 3) are strided
+    hom = lambda c: [c[0] * M[r, 0] + c[1] * M[r, 1] + c[2] * M[r, 2] + M[r, 3] for r in range(4)]  # noqa: E731
+    H0, H1 = hom(o), hom(end)                                                     # M·(c, 1), four rows
+    k0, k1 = 1.0 / H0[3], 1.0 / H1[3]
+    Q0, Q1 = [c * k0 for c in o], [c * k1 for c in end]
+    P0, P1 = [c * k0 for c in H0[:2]], [c * k1 for c in H1[:2]]                   # pixels (py down)
+    nudge = torch.where((P1[0] - P0[0]) ** 2 + (P1[1] - P0[1]) ** 2 < 0.0001, 0.01, 0.0)   # degenerate line
+    P1 = [c + nudge for c in P1]
+    delta = [P1[0] - P0[0], P1[1] - P0[1]]
+    permute = delta[0].abs() < delta[1].abs()                                     # more-vertical line
+    sw = lambda v: (torch.where(permute, v[1], v[0]), torch.where(permute, v[0], v[1]))   # noqa: E731  (.yx)
     delta, P0p, P1p = sw(delta), sw(P0), sw(P1)
-    stepDir = torch.sign(delta[:, 0])
-    invdx = stepDir / delta[:, 0]
-    dQ, dk = (Q1 - Q0) * invdx[:, None], (k1 - k0) * invdx
-    dP = torch.stack([stepDir, delta[:, 1] * invdx], 1)
+    stepDir = torch.sign(delta[0])
+    invdx = stepDir / delta[0]
+    dQ, dk = [(a - c) * invdx for a, c in zip(Q1, Q0)], (k1 - k0) * invdx
+    slope = delta[1] * invdx                                                      # minor px per unit of u
+    dP = [stepDir, slope]
     # where the segment leaves the viewport, as a signed major coordinate u = P.x·stepDir (permuted frame)
     Wm, Hm = torch.where(permute, float(H), float(W)), torch.where(permute, float(W), float(H))
-    u0, y0, slope = P0p[:, 0] * stepDir, P0p[:, 1], delta[:, 1] * invdx            # minor px per unit of u
+    u0, y0 = P0p[0] * stepDir, P0p[1]
     exit_ = torch.minimum(torch.where(stepDir > 0, Wm, 0.0) * stepDir,
                           torch.where(slope > 0, u0 + (Hm - y0) / slope,
                                       torch.where(slope < 0, u0 - y0 / slope, math.inf)))
-    strideScalar = 1.0 - torch.clamp(-o[:, 2] / params.pixel_stride_z_cutoff, max=1.0)
+    strideScalar = 1.0 - torch.clamp(-o[2] / params.pixel_stride_z_cutoff, max=1.0)
     pixelStride = 1.0 + strideScalar * (params.pixel_stride - 1.0)
     if params.fit_stride_to_steps:                                                # max_steps samples reach P1
-        pixelStride = torch.maximum(pixelStride, torch.ceil(delta[:, 0].abs() / params.max_steps))
-    dP, dQ, dk = dP * pixelStride[:, None], dQ * pixelStride[:, None], dk * pixelStride
+        pixelStride = torch.maximum(pixelStride, torch.ceil(delta[0].abs() / params.max_steps))
+    dP, dQ, dk = [c * pixelStride for c in dP], [c * pixelStride for c in dQ], dk * pixelStride
     j = jitter.to(dtype=dt, device=dev).reshape(-1)[sel]
-    P0p, Q0, k0 = P0p + dP * j[:, None], Q0 + dQ * j[:, None], k0 + dk * j
-    zlo, zhi = torch.minimum(o[:, 2], end[:, 2]), torch.maximum(o[:, 2], end[:, 2])
-    end = P1p[:, 0] * stepDir
-    s = DDARays(i=torch.arange(sel.numel(), device=dev), b=b, Px=P0p[:, 0], Py=P0p[:, 1], Qz=Q0[:, 2],
-                k=k0, n=torch.zeros_like(k0), dPx=dP[:, 0], dPy=dP[:, 1], dQz=dQ[:, 2], dk=dk, stride=pixelStride,
-                Q0x=Q0[:, 0], Q0y=Q0[:, 1], dQx=dQ[:, 0], dQy=dQ[:, 1], end=end,
+    P0p, Q0, k0 = [a + c * j for a, c in zip(P0p, dP)], [a + c * j for a, c in zip(Q0, dQ)], k0 + dk * j
+    zlo, zhi = torch.minimum(o[2], end[2]), torch.maximum(o[2], end[2])
+    end = P1p[0] * stepDir
+    s = DDARays(i=torch.arange(sel.numel(), device=dev), b=b, Px=P0p[0], Py=P0p[1], Qz=Q0[2],
+                k=k0, n=torch.zeros_like(k0), dPx=dP[0], dPy=dP[1], dQz=dQ[2], dk=dk, stride=pixelStride,
+                Q0x=Q0[0], Q0y=Q0[1], dQx=dQ[0], dQy=dQ[1], end=end,
                 stop=torch.minimum(end, exit_),                                   # P1 or the viewport edge
                 stepDir=stepDir, permute=permute, zlo=zlo, zhi=zhi,
-                prevZ=ray_view_z(Q0[:, 2] + 0.5 * dQ[:, 2], k0 + 0.5 * dk, zlo, zhi),   # footprint edge of sample 1
-                clipped=o[:, 2] + d[:, 2] * params.max_ray_distance > -cam.near)
+                prevZ=ray_view_z(Q0[2] + 0.5 * dQ[2], k0 + 0.5 * dk, zlo, zhi),   # footprint edge of sample 1
+                clipped=o[2] + d[:, 2] * params.max_ray_distance > -cam.near)
+    P0, P1 = torch.stack(P0, 1), torch.stack(P1, 1)
     return s, sel, P0, P1
 
 

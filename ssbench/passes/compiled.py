@@ -23,9 +23,9 @@ band's frame and one kernel per slice direction, called for each: ≤ 2.4e-7 fro
 1920×1080, where inductor's vectorised ``acos`` and ``sqrt`` differ from ATen's by an ulp) and four SSR marchers:
 the linear march's step and bisection probe, the DDA's step and Hi-Z's whole iteration (its pyramid read,
 ``AdvanceRay``, the hit test and the ray's state; compiled, it judges every ray and keeps the candidates' verdicts,
-where eager judges only the candidates) are size-dynamic kernels (the DDA and Hi-Z run eight steps per
-compiled call, one fused loop that keeps each ray's state in registers between them: ``fuse_whole``) (``@kernel(dynamic=True)``: one compilation for every working-set size;
-rays that stop ride along masked until the set is compacted), bit for bit equal to eager, tested; and
+where eager judges only the candidates) are size-dynamic kernels (``@kernel(dynamic=True)``: one compilation for
+every working-set size; rays that stop ride along masked until the set is compacted; compiled, the DDA, Hi-Z and
+the linear march run :data:`STEPS_PER_CALL` steps per call in one fused loop, ``fuse_whole``, :func:`step_blocks`), bit for bit equal to eager, tested; and
 the three.js march's step (``three_ssr_step.pixel_step``: equal to eager on every output tested, but its
 ``pointToLineDistance`` is an ulp apart from ATen's in a quarter of the rays, whose cross product ATen may compute
 with FMA, so a ray exactly on the thickness bound could end differently). Not compiled: the supercover DDA (its
@@ -60,8 +60,8 @@ from typing import Any, Callable, Iterator, Optional
 
 import torch
 
-__all__ = ["enabled", "compiling", "kernel", "compile_seconds", "band_samples", "ENV", "KERNEL_VARIANTS",
-           "WHOLE_FUSION_SIZE"]
+__all__ = ["enabled", "compiling", "kernel", "compile_seconds", "band_samples", "step_blocks", "ENV",
+           "KERNEL_VARIANTS", "WHOLE_FUSION_SIZE", "STEPS_PER_CALL"]
 
 #: environment variable of the switch
 ENV = "SSBENCH_COMPILE"
@@ -189,6 +189,28 @@ def band_samples(samples: int) -> int:
         32
     """
     return 1 if enabled() else samples
+
+
+#: steps a marcher's ``fuse_whole`` kernel runs per compiled call (the DDA, Hi-Z and the linear march), their rays'
+#: state in registers between them; measured on the DDA at 640×360, 1 / 4 / 8 / 16 per call: 470 / 370 / 334 /
+#: 334 ms, sixteen compiling twice as long
+STEPS_PER_CALL = 8
+
+
+def step_blocks(total: int, one_by_one: bool = False, device=None) -> Iterator[tuple[int, Optional[torch.Tensor]]]:
+    """The calls of a marcher's step kernel over ``total`` steps, ``(count, left)`` each: ``count`` steps per call
+    (:data:`STEPS_PER_CALL` compiled; 1 eager, or ``one_by_one`` where debug buffers read every step) and ``left``
+    the steps the march has left, a 0-d tensor (the kernel masks its ``j``-th step unless ``j < left``: one graph
+    for any budget), ``None`` with one step per call.
+
+    Example:
+        >>> with compiling(False):
+        ...     list(step_blocks(3))
+        [(1, None), (1, None), (1, None)]
+    """
+    count = STEPS_PER_CALL if enabled() and not one_by_one else 1
+    for first in range(0, total, count):
+        yield count, (torch.tensor(total - first, device=device) if count > 1 else None)
 
 
 def compile_seconds() -> float:

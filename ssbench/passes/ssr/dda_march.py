@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Optional
 
 import torch
 
-from ..compiled import enabled, kernel
+from ..compiled import kernel, step_blocks
 from ..common import index_dtype
 from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS, nan_off_mask
 from .dda_state import DDARays, MarchOutput
@@ -39,8 +39,13 @@ def count_visits(out: MarchOutput, visits, i, t, active) -> None:
     """Add the fetches of ``active`` rays (bool, or int32 0/1) to their step counts and to the visit map."""
     out.steps.index_add_(0, i, active.int())
     if visits is not None:
-        on = active if active.dtype == torch.bool else active != 0
-        visits.index_add_(0, t[on], torch.ones_like(t[on], dtype=visits.dtype))
+        add_visits(visits, t, active)
+
+
+def add_visits(visits: torch.Tensor, t: torch.Tensor, active: torch.Tensor) -> None:
+    """Count one fetch of texel ``t`` in the visit map for each ``active`` ray (bool, or int32 0/1)."""
+    on = active if active.dtype == torch.bool else active != 0
+    visits.index_add_(0, t[on], torch.ones_like(t[on], dtype=visits.dtype))
 
 
 def refine_hits(h: DDARays, tex, params: "DDASSRParams", H: int, W: int, out: MarchOutput, visits) -> None:
@@ -88,10 +93,11 @@ def refine_hits(h: DDARays, tex, params: "DDASSRParams", H: int, W: int, out: Ma
         setattr(h, key, best[key])
 
 
-def dda_step(state: tuple, ray: tuple, tex: tuple, size: tuple, z_thickness: float, go: torch.Tensor) -> tuple:
+def dda_step(state: tuple, ray: tuple, tex: tuple, size: tuple, z_thickness: float,
+             go: Optional[torch.Tensor] = None) -> tuple:
     """One DDA step of :func:`dda_march` for every ray of the working set: advance by a stride, shorten the last
     footprint at ``stop``, ``texelFetch`` and the depth test. A ray that has stopped keeps its state (a hit ray:
-    where it hit, for the refinement); so does every ray where ``go`` (a 0-d bool) is false.
+    where it hit, for the refinement); so does every ray where ``go`` (a 0-d bool, if given) is false.
 
     Args:
         state: ``(Px, Py, Qz, k, n, prevZ, alive, steps, term)``, ``alive`` and ``steps`` (fetches) int32 (a
@@ -109,7 +115,7 @@ def dda_step(state: tuple, ray: tuple, tex: tuple, size: tuple, z_thickness: flo
     dPx, dPy, dQz, dk, stride, stepDir, stop, end, zlo, zhi, permute, clipped, b = ray
     front, back_z, second_z = tex
     H, W = size
-    marching = (alive != 0) & go
+    marching = alive != 0 if go is None else (alive != 0) & go
     Px, Py, Qz, k = Px0 + dPx, Py0 + dPy, Qz0 + dQz, k0 + dk
     n = n0 + 1.0
     u = Px * stepDir
@@ -147,16 +153,13 @@ def dda_step(state: tuple, ray: tuple, tex: tuple, size: tuple, z_thickness: flo
     return state, done, t, live
 
 
-#: DDA steps per compiled call: their state stays in registers, where one step per call streams the working set's
-#: ~120 bytes per ray through memory each step (eager runs one step per call)
-STEPS_PER_CALL = 8
-
-
 @kernel(dynamic=True, fuse_whole=True)
 def dda_steps(state: tuple, ray: tuple, tex: tuple, size: tuple, z_thickness: float, count: int,
-              left: torch.Tensor, debug: bool = False) -> tuple:
+              left: Optional[torch.Tensor], debug: bool = False) -> tuple:
     """``count`` steps of :func:`dda_step` for every ray of the working set (the march's size-dynamic compilable
-    kernel), the ``j``-th only while ``j < left`` (a 0-d count of the steps the march has left).
+    kernel), the ``j``-th only while ``j < left`` (a 0-d count of the steps the march has left; ``None``: all;
+    :func:`~ssbench.passes.compiled.step_blocks`). One step per call streams the working set's ~120 bytes per
+    ray through memory; eight keep them in registers in between.
 
     Returns:
         The new state, how many rays stopped (0-d) and, with ``debug`` (``count`` 1), the fetched texels and which
@@ -164,7 +167,7 @@ def dda_steps(state: tuple, ray: tuple, tex: tuple, size: tuple, z_thickness: fl
     """
     done = torch.zeros_like(state[6])
     for j in range(count):
-        state, d, t, live = dda_step(state, ray, tex, size, z_thickness, left > j)
+        state, d, t, live = dda_step(state, ray, tex, size, z_thickness, None if left is None else left > j)
         done = done | d.to(done.dtype)
     return (state, done.sum()) + ((t, live.to(torch.int32)) if debug else ())
 
@@ -199,18 +202,15 @@ def dda_march(s: DDARays, tex, params: "DDASSRParams", H: int, W: int, visits: O
                      clipped32=s.clipped.to(torch.int32), alive32=torch.ones(N, dtype=torch.int32, device=s.k.device),
                      steps=torch.zeros(N, dtype=torch.int32, device=s.k.device),
                      term=torch.full((N,), OUT_OF_STEPS, dtype=torch.int8, device=s.k.device))
-    count = STEPS_PER_CALL if enabled() and visits is None else 1
-    for first in range(0, params.max_steps, count):
+    for count, left in step_blocks(params.max_steps, visits is not None, s.k.device):
         if s.count == dead:
             break
-        left = torch.tensor(params.max_steps - first, device=s.k.device)
         r = dda_steps((s.Px, s.Py, s.Qz, s.k, s.n, s.prevZ, s.alive32, s.steps, s.term),
                      (s.dPx, s.dPy, s.dQz, s.dk, s.stride, s.stepDir, s.stop, s.end, s.zlo, s.zhi, s.permute32,
                       s.clipped32, s.b_index), step_tex, (H, W), params.z_thickness, count, left, visits is not None)
         s.Px, s.Py, s.Qz, s.k, s.n, s.prevZ, s.alive32, s.steps, s.term = r[0]
         if visits is not None:
-            t, live = r[2:]
-            visits.index_add_(0, t[live != 0], torch.ones_like(t[live != 0], dtype=visits.dtype))
+            add_visits(visits, *r[2:])
         dead += int(r[1])
         if 8 * dead >= s.count and dead:                                            # compact
             flush(out, s, (s.alive32 == 0).nonzero().squeeze(1), tex, params, H, W, visits)

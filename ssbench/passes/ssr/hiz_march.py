@@ -33,13 +33,12 @@ from typing import Optional
 import torch
 
 from ...gbuffer import GBuffer
-from ..compiled import enabled
+from ..compiled import step_blocks
 from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OUT_OF_STEPS, compact_now, ray_segments
 from .dda_state import MarchOutput
 from .hiz_pyramid import DepthPyramid, padded_levels
 from .hiz_step import (BIG, COLUMNS, EPSILON, OFFX, OFFY, EPSX, EPSY, INVX, INVY, OX, OY, OZ, VX, VY, VZ, HiZRules,
-                       HiZTexels, MarchState, PyramidLayers, ITERATIONS_PER_CALL, cell_exit, hiz_iterations,
-                       inverse)
+                       HiZTexels, MarchState, PyramidLayers, cell_exit, hiz_iterations, inverse)
 
 __all__ = ["HiZRays", "HiZTexels", "EPSILON", "BIG", "COLUMNS", "RAY_CHUNK", "hiz_rays", "hiz_march"]
 
@@ -147,12 +146,10 @@ def hiz_march(r: HiZRays, pyr: DepthPyramid, tex: HiZTexels, params, gbuffer: GB
     done = r.state.t >= 1.0                                              # the initial advance left the segment
     out.term[r.i[done]] = r.ended[done]
     r = r.select((~done).nonzero().squeeze(1))
-    count = ITERATIONS_PER_CALL if enabled() and not debug else 1
-    for first in range(0, params.max_traversal_intersections, count):
+    for count, left in step_blocks(params.max_traversal_intersections, debug, dev):
         if r.count == 0:
             break
         level = r.state.mip
-        left = torch.tensor(params.max_traversal_intersections - first, device=dev)
         r.state, seen = hiz_iterations(r.state, r.c, r.b, r.ray_dir, r.ended, pyramid, tex, rules, thickness, W, H,
                                        top, count, left, debug)
         if seen is not None:

@@ -18,8 +18,7 @@ from ..compiled import kernel
 from .common import BEHIND_SURFACE, HIT, OFF_SCREEN
 
 __all__ = ["EPSILON", "BIG", "COLUMNS", "PyramidLayers", "StepGeometry", "HiZTexels", "HiZRules", "MarchState",
-           "inverse", "cell_exit", "hiz_step", "validate", "judge", "hiz_iteration", "hiz_iterations",
-           "ITERATIONS_PER_CALL"]
+           "inverse", "cell_exit", "hiz_step", "validate", "judge", "hiz_iteration", "hiz_iterations"]
 
 #: how far past a cell border a crossing lands, in pixels (FidelityFX: ``0.005 · 2^most_detailed_mip`` texels)
 EPSILON = 0.005
@@ -177,14 +176,15 @@ def judge(c: torch.Tensor, t: torch.Tensor, z: torch.Tensor, side: torch.Tensor,
 
 def hiz_iteration(s: MarchState, c: torch.Tensor, b: torch.Tensor, ray_dir: torch.Tensor, ended: torch.Tensor,
                   pyramid: PyramidLayers, tex: HiZTexels, rules: HiZRules, thickness: torch.Tensor, W: int, H: int,
-                  top: int, go: torch.Tensor) -> tuple[MarchState, torch.Tensor, torch.Tensor, torch.Tensor]:
+                  top: int, go: Optional[torch.Tensor] = None) -> tuple[MarchState, torch.Tensor, torch.Tensor,
+                                                                          torch.Tensor]:
     """One iteration for every ray of the working set (state ``s``, constants ``c`` :math:`(13, N)`, image ``b``,
     ``ray_dir`` :math:`(3, N)`, ``ended``: the int8 code of reaching the segment's end), for no ray where ``go``
-    (0-d bool) is false: :func:`hiz_step`, then :func:`validate` of the candidates. A rejected candidate crosses
+    (a 0-d bool, if given) is false: :func:`hiz_step`, then :func:`validate` of the candidates. A rejected candidate crosses
     its texel at level 0 and goes on with ``trace_behind``, or when it is in front of the second layer. Returns
     the new state, which rays read on screen and the cell ``cx, cy`` they read (for the debug counters)."""
     g = hiz_step(c, s.t, s.mip, b, pyramid, W, H, top)
-    alive = s.alive & go
+    alive = s.alive if go is None else s.alive & go
     on = alive & ~g.off
     cand = on & (g.mip < 0)
     texel = b * H * W + g.cy * W + g.cx
@@ -207,19 +207,17 @@ def hiz_iteration(s: MarchState, c: torch.Tensor, b: torch.Tensor, ray_dir: torc
     return state, on, g.cx, g.cy
 
 
-#: Hi-Z iterations per compiled call: their state stays in registers, where one per call streams the working
-#: set's ~110 bytes per ray through memory each iteration (eager and debug runs: one per call)
-ITERATIONS_PER_CALL = 8
-
-
 @kernel(dynamic=True, fuse_whole=True)
 def hiz_iterations(s: MarchState, c: torch.Tensor, b: torch.Tensor, ray_dir: torch.Tensor, ended: torch.Tensor,
                    pyramid: PyramidLayers, tex: HiZTexels, rules: HiZRules, thickness: torch.Tensor, W: int, H: int,
-                   top: int, count: int, left: torch.Tensor,
+                   top: int, count: int, left: Optional[torch.Tensor],
                    debug: bool = False) -> tuple[MarchState, Optional[tuple[torch.Tensor, ...]]]:
     """``count`` :func:`hiz_iteration` s, the ``j``-th only while ``j < left`` (a 0-d count of the iterations the
-    march has left): the march's size-dynamic compiled kernel. Returns the new state and, with ``debug``
+    march has left; ``None``: all; :func:`~ssbench.passes.compiled.step_blocks`): the march's size-dynamic compiled
+    kernel. One iteration per call streams the working set's ~110 bytes per ray through memory; eight keep them in
+    registers in between. Returns the new state and, with ``debug``
     (``count`` 1), the rays that read on screen and their cells."""
     for j in range(count):
-        s, on, cx, cy = hiz_iteration(s, c, b, ray_dir, ended, pyramid, tex, rules, thickness, W, H, top, left > j)
+        s, on, cx, cy = hiz_iteration(s, c, b, ray_dir, ended, pyramid, tex, rules, thickness, W, H, top,
+                                      None if left is None else left > j)
     return s, ((on, cx, cy) if debug else None)

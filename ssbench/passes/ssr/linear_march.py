@@ -13,12 +13,12 @@ import torch
 
 from ...camera import Camera
 from ..common import index_dtype, texel_of, uv_to_texel
-from ..compiled import enabled, kernel
+from ..compiled import kernel, step_blocks
 from .dda_state import select_rows
 from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, compact_now, nan_off_mask
 
 __all__ = ["DepthTest", "MarchLog", "MarchOutcome", "LiveRays", "march_step", "march_steps", "march", "refine_step",
-           "refine", "STEPS_PER_CALL"]
+           "refine"]
 
 
 @dataclass(frozen=True)
@@ -151,15 +151,11 @@ def march_step(scale: tuple, size: tuple, thickness: float, front: torch.Tensor,
     return (qx, qy, qz, dx, dy, dz, base, live, hit, steps), t, on, h
 
 
-#: march steps per compiled call: the rays' state stays in registers between them (eager and debug: one per call)
-STEPS_PER_CALL = 8
-
-
 @kernel(dynamic=True, fuse_whole=True)
 def march_steps(scale: tuple, size: tuple, thickness: float, front: torch.Tensor, back: Optional[torch.Tensor],
                 rays: tuple, count: int = 1, left: Optional[torch.Tensor] = None, debug: bool = False) -> tuple:
     """``count`` :func:`march_step` s, the ``j``-th only while ``j < left`` (a 0-d count of the steps the march has
-    left; ``None``: all): the march's compilable, size-dynamic kernel.
+    left; ``None``: all; :func:`~ssbench.passes.compiled.step_blocks`): the march's compilable, size-dynamic kernel.
 
     Returns:
         ``(qx, qy, qz, live, hit, steps, n_live)`` (``n_live`` a 0-d count), plus the texel index, the on-screen
@@ -186,12 +182,10 @@ def march(test: DepthTest, log: MarchLog, Q: torch.Tensor, dS: torch.Tensor, bas
                   base.to(index_dtype(front.numel())), flags + 1, flags, flags.clone())
     scale, debug = test.camera.ndc_scale(), bool(log.trace_ids) or log.counting
     n_run = min(iterations, max_iterations)
-    count = STEPS_PER_CALL if enabled() and not debug else 1
-    for first in range(0, n_run, count):
+    for count, left in step_blocks(n_run, debug, dev):
         m = ws.ids.numel()
         if m == 0:
             break
-        left = torch.tensor(n_run - first, device=dev) if count > 1 else None
         r = march_steps(scale, (test.H, test.W), test.thickness, front, test.back, (ws.qx, ws.qy, ws.qz, ws.dx, ws.dy,
                         ws.dz, ws.base, ws.live, ws.hit, ws.steps), count, left, debug=debug)
         was = ws.live != 0

@@ -440,7 +440,8 @@ def test_the_compiled_dda_steps_give_the_eager_bits_at_two_sizes_without_recompi
     """The DDA steps through ``torch.compile`` (size-dynamic; eight steps per call, one with ``debug``): every output
     and the visit map equal eager, with strides and the binary search, the 1-pixel re-march, the second depth
     layer, jitter and a step budget that is not a multiple of eight; a second size compiles nothing."""
-    from ssbench.passes.ssr.dda_march import STEPS_PER_CALL, dda_steps
+    from ssbench.passes.compiled import STEPS_PER_CALL
+    from ssbench.passes.ssr.dda_march import dda_steps
     from tests.passes.compiled_check import check_compiled_at_two_sizes
     from tests.passes.ssr_scenes import room, with_second_layer
     settings = [DDASSRParams(pixel_stride=3.0), DDASSRParams(pixel_stride=2.0, refinement="remarch", jitter=1.0),

@@ -238,7 +238,8 @@ def test_the_compiled_hiz_iterations_give_the_eager_bits_at_two_sizes_without_re
     level equal eager (FidelityFX mode, tracing behind with a budget that is not a multiple of eight, the second
     layer, relative thickness, layered depth); a second image size reuses the compiled kernel."""
     import dataclasses
-    from ssbench.passes.ssr.hiz_step import ITERATIONS_PER_CALL, hiz_iterations
+    from ssbench.passes.compiled import STEPS_PER_CALL
+    from ssbench.passes.ssr.hiz_step import hiz_iterations
     from tests.passes.compiled_check import check_compiled_at_two_sizes
     from tests.passes.ssr_scenes import with_second_layer
     settings = [HiZSSRParams(max_ray_distance=30.0),
@@ -251,6 +252,6 @@ def test_the_compiled_hiz_iterations_give_the_eager_bits_at_two_sizes_without_re
     def layered(w, h):
         g = with_second_layer(room(w, h, torch.float32, slat=True))
         return dataclasses.replace(g, back_z=torch.where(g.mask, g.view_z - 0.3, -math.inf))
-    assert settings[1].max_traversal_intersections % ITERATIONS_PER_CALL and hiz_iterations.eager is not hiz_iterations
+    assert settings[1].max_traversal_intersections % STEPS_PER_CALL and hiz_iterations.eager is not hiz_iterations
     for debug, which in ((True, settings), (False, settings[1:3])):       # (each flag set compiles its own kernel)
         check_compiled_at_two_sizes(layered, lambda g, p: ssr_hiz(g, p, debug=debug), which, ((32, 24), (40, 30)))

@@ -301,7 +301,8 @@ def test_the_compiled_march_gives_the_eager_bits_at_two_sizes_without_recompilin
     from torch._dynamo.utils import counters
 
     from ssbench.passes import compiled as C
-    from ssbench.passes.ssr.linear_march import STEPS_PER_CALL, march_steps
+    from ssbench.passes.compiled import STEPS_PER_CALL
+    from ssbench.passes.ssr.linear_march import march_steps
     settings = [LinearSSRParams(thickness=0.3), LinearSSRParams(use_back_face_depth=True, thickness=0.3),
                 LinearSSRParams(jitter=1.0, iterations=21)]
     assert settings[-1].iterations % STEPS_PER_CALL

@@ -13,13 +13,15 @@ passes they score.
 from __future__ import annotations
 
 from dataclasses import dataclass
+import math
 from typing import Optional
 
+import numpy as np
 import torch
 
 from .camera import Camera
 
-__all__ = ["length", "CameraRays", "camera_rays"]
+__all__ = ["length", "vector_norm", "CameraRays", "camera_rays"]
 
 
 def length(x: torch.Tensor, dim: int = 1, keepdim: bool = True) -> torch.Tensor:
@@ -38,6 +40,39 @@ def length(x: torch.Tensor, dim: int = 1, keepdim: bool = True) -> torch.Tensor:
     if x.requires_grad:
         return torch.linalg.vector_norm(x, dim=dim, keepdim=keepdim)
     return (x * x).sum(dim=dim, keepdim=keepdim).sqrt()
+
+
+def vector_norm(x: torch.Tensor, dim: int = 1, keepdim: bool = True) -> torch.Tensor:
+    r"""``torch.linalg.vector_norm(x, dim=dim, keepdim=keepdim)``, bit for bit, without its slow CPU path.
+
+    On the CPU, ATen reduces a dimension that is not the innermost one an element at a time (its
+    ``binary_kernel_reduce``): over the channels of a :math:`(1, 3, 360, 640)` float32 image that takes 21 ms,
+    against 0.3 ms for the same arithmetic as whole-tensor operations. That path adds the squares in order in the
+    input's dtype, with no fused multiply-add, and takes a correctly rounded square root (``std::sqrt``). This
+    function does the same: the squares summed in order by tensor operations, the root by ``numpy.sqrt``
+    (correctly rounded, like ``std::sqrt``; torch's vectorised ``Tensor.sqrt`` is not: about 0.6 % of float32
+    roots differ by an ulp). :func:`length` is the faster, ulp-level twin used where bits need not match.
+
+    Everywhere else it calls ``torch.linalg.vector_norm``: off the CPU, for other dtypes, when ``x`` needs a
+    gradient, inside ``torch.compile`` (which generates its own loop), and when ``dim`` is the innermost
+    dimension in memory (ATen's vectorised path, which accumulates with fused multiply-adds).
+
+    Example:
+        >>> x = torch.randn(2, 3, 5, 7, generator=torch.Generator().manual_seed(0))
+        >>> torch.equal(vector_norm(x), torch.linalg.vector_norm(x, dim=1, keepdim=True))
+        True
+    """
+    dim = dim % x.dim() if x.dim() else dim
+    if (x.device.type != "cpu" or x.dtype not in (torch.float32, torch.float64) or x.requires_grad
+            or torch.compiler.is_compiling() or not x.is_contiguous() or x.shape[dim] == 0
+            or math.prod(x.shape[dim + 1:]) <= 1):
+        return torch.linalg.vector_norm(x, dim=dim, keepdim=keepdim)
+    parts = x.unbind(dim)
+    total = parts[0] * parts[0]
+    for part in parts[1:]:
+        total = total + part * part
+    np.sqrt(total.numpy(), out=total.numpy())
+    return total.unsqueeze(dim) if keepdim else total
 
 
 

@@ -33,6 +33,7 @@ from typing import Any, Optional, Union
 import torch
 
 from ..gbuffer import GBuffer
+from ..rays import vector_norm
 from ._common import params_as_dict, timed_runs, resolve_params
 
 __all__ = ["ssr", "run_ssr", "SSREvaluation", "pass_channels", "SSR_GT_CHANNELS"]
@@ -69,7 +70,7 @@ EQUAL_RAY_LENGTH, EQUAL_THICKNESS = 1.0, 0.02
 def scene_scale(gbuffer: GBuffer) -> float:
     """The scene's size as the camera sees it: the median distance from the eye to the visible geometry."""
     gbuffer.require("position", "mask")
-    d = gbuffer.position.double().norm(dim=1, keepdim=True)[gbuffer.mask]
+    d = vector_norm(gbuffer.position.double())[gbuffer.mask]
     if d.numel() == 0:
         raise ValueError("gbuffer: no valid pixel, so the scene has no size to scale the settings by")
     return float(d.median())

@@ -9,6 +9,7 @@ from typing import Optional
 import torch
 
 from .. import checks
+from ..rays import vector_norm
 
 __all__ = ["bent_normal_angle", "bent_normal_error"]
 
@@ -25,7 +26,7 @@ def bent_normal_angle(pred: torch.Tensor, truth: torch.Tensor) -> torch.Tensor:
     checks.check_shape(pred, ["B", "3", "H", "W"], "pred")
     checks.check_same_size(pred, truth, "pred", "truth")
     a, b = pred.double(), truth.double()
-    na, nb = a.norm(dim=1, keepdim=True), b.norm(dim=1, keepdim=True)
+    na, nb = vector_norm(a), vector_norm(b)
     cos = (a * b).sum(1, keepdim=True) / (na * nb)
     cos = torch.where((na > 0) & (nb > 0), cos.clamp(-1.0, 1.0), torch.full_like(cos, math.nan))
     return torch.rad2deg(torch.acos(cos))

@@ -39,7 +39,7 @@ import torch
 from torch import nn
 
 from ...gbuffer import GBuffer
-from ..common import AOResult, check_count, check_positive, check_radius, row_bands
+from ..common import AOResult, check_count, check_positive, check_radius, row_bands, vector_norm
 from ..compiled import kernel
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..registry import Method, SpeedPanel
@@ -125,7 +125,7 @@ def quad_derivatives(position: torch.Tensor) -> tuple:
 def unit_or_zero(n: torch.Tensor) -> torch.Tensor:
     """``n / |n|`` over dim 1, 0 where ``|n|`` is 0 or not finite (compiled: inductor's norm and division are
     ATen's bit for bit)."""
-    norm = n.norm(dim=1, keepdim=True)
+    norm = vector_norm(n)
     ok = torch.isfinite(norm) & (norm > 0)
     return torch.where(ok, n / torch.where(ok, norm, torch.ones_like(norm)), torch.zeros_like(n))
 

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import torch
 
-from ..common import gl_texel_index, nan_to_zero
+from ..common import gl_texel_index, nan_to_zero, vector_norm
 from ..compiled import kernel
 
 if TYPE_CHECKING:
@@ -32,7 +32,7 @@ def dot(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
 
 def normalize(a: torch.Tensor) -> torch.Tensor:
     """``normalize`` of ``(B, 3, *S)`` vectors (a zero vector gives NaN, as in GLSL)."""
-    return a / a.norm(dim=1, keepdim=True)
+    return a / vector_norm(a)
 
 
 class BandFrame(NamedTuple):

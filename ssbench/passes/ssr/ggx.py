@@ -20,6 +20,8 @@ import math
 
 import torch
 
+from ..common import vector_norm
+
 __all__ = ["alpha_of", "frame", "to_local", "from_local", "sample_vndf", "ggx_d", "smith_g1", "reflection_pdf",
            "MIN_ALPHA"]
 
@@ -71,7 +73,7 @@ def sample_vndf(v: torch.Tensor, alpha: torch.Tensor, u1: torch.Tensor, u2: torc
     """
     vx, vy, vz = v.unbind(dim)
     vh = torch.stack([alpha * vx, alpha * vy, vz], dim)
-    vh = vh / vh.norm(dim=dim, keepdim=True).clamp_min(torch.finfo(v.dtype).tiny)
+    vh = vh / vector_norm(vh, dim).clamp_min(torch.finfo(v.dtype).tiny)
     hx, hy, hz = vh.unbind(dim)
     lensq = hx * hx + hy * hy
     inv = torch.rsqrt(lensq.clamp_min(torch.finfo(v.dtype).tiny))
@@ -86,7 +88,7 @@ def sample_vndf(v: torch.Tensor, alpha: torch.Tensor, u1: torch.Tensor, u2: torc
         torch.sqrt((1.0 - p1 * p1 - p2 * p2).clamp_min(0.0)).unsqueeze(dim) * vh
     nx, ny, nz = nh.unbind(dim)
     m = torch.stack([alpha * nx, alpha * ny, nz.clamp_min(0.0)], dim)
-    return m / m.norm(dim=dim, keepdim=True).clamp_min(torch.finfo(v.dtype).tiny)
+    return m / vector_norm(m, dim).clamp_min(torch.finfo(v.dtype).tiny)
 
 
 def ggx_d(cos_m: torch.Tensor, alpha: torch.Tensor) -> torch.Tensor:

@@ -32,7 +32,7 @@ import torch
 from torch import nn
 
 from ...gbuffer import GBuffer
-from ..common import check_count, make_generator
+from ..common import check_count, make_generator, vector_norm
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..registry import Method, SpeedPanel
 from .common import SSRResult
@@ -134,7 +134,7 @@ def ssr_glossy_stochastic(gbuffer: GBuffer, params: StochasticSSRParams = Stocha
     dt, dev = gbuffer.view_z.dtype, gbuffer.view_z.device
     gen = make_generator(p.seed, generator)
     pos = cam.uv_to_view(cam.uv_grid(dt, dev)[None], gbuffer.view_z)
-    v = -pos / pos.norm(dim=1, keepdim=True).clamp_min(torch.finfo(dt).tiny)        # toward the eye
+    v = -pos / vector_norm(pos).clamp_min(torch.finfo(dt).tiny)        # toward the eye
     n = gbuffer.normal.to(dt)
     t, b = frame(n)
     v_loc = to_local(v, t, b, n)
@@ -166,10 +166,10 @@ def ssr_glossy_stochastic(gbuffer: GBuffer, params: StochasticSSRParams = Stocha
                 else:                                                             # w = p_i(l_ij) / p_j(l_j)
                     hit_j = sh(ok, False)
                     to_hit = sh(r.hit_view) - pos
-                    l_ij = torch.where(hit_j, to_hit / to_hit.norm(dim=1, keepdim=True).clamp_min(
+                    l_ij = torch.where(hit_j, to_hit / vector_norm(to_hit).clamp_min(
                         torch.finfo(dt).tiny), sh(l_dir))
                     h = v + l_ij
-                    h = h / h.norm(dim=1, keepdim=True).clamp_min(torch.finfo(dt).tiny)
+                    h = h / vector_norm(h).clamp_min(torch.finfo(dt).tiny)
                     p_i = reflection_pdf(v_loc[:, 2], (h * n).sum(1), alpha)[:, None]
                     p_i = torch.where((l_ij * n).sum(1, keepdim=True) > 0, p_i, 0.0)
                     w = torch.where(sh(gbuffer.mask, False) & gbuffer.mask, p_i / sh(pdf, 1.0).clamp_min(1e-12), 0.0)

@@ -28,7 +28,10 @@ every working-set size; rays that stop ride along masked until the set is compac
 the linear march run :data:`STEPS_PER_CALL` steps per call in one fused loop, ``fuse_whole``, :func:`step_blocks`), bit for bit equal to eager, tested; and
 the three.js march's step (``three_ssr_step.pixel_step``: equal to eager on every output tested, but its
 ``pointToLineDistance`` is an ulp apart from ATen's in a quarter of the rays, whose cross product ATen may compute
-with FMA, so a ray exactly on the thickness bound could end differently). Not compiled: the supercover DDA (its
+with FMA, so a ray exactly on the thickness bound could end differently). Glossy SSR's ray reuse (``glossy_reuse.reuse_ray``:
+one ray's weighted sums over the whole window in one loop, its inputs padded outside the kernel) is compiled too:
+its resolved colours are within 4.8e-7 of eager in float32 (measured on three scenes, four settings), as inductor's
+divisions and roots round differently; without reuse it gives the same bits. Not compiled: the supercover DDA (its
 step compacts rays with data-dependent shapes), the DDA's hit refinement, and the linear
 march's per-pixel ray set-up: compiled, its
 normalised reflection directions differ from ATen's in the last bit (1.8e-7), which moved refined hit points by up

@@ -16,6 +16,7 @@ After Stachowiak, "Stochastic Screen-Space Reflections" (SIGGRAPH 2015, Frostbit
      (``p`` = :func:`~ssbench.passes.ssr.ggx.reflection_pdf`), and returns ``Σ w·C / Σ w`` (a ratio estimator:
      consistent, lower variance, slightly biased). For a mirror pixel ``p_i`` is a spike and only its own ray
      counts.
+     The sums are :func:`~ssbench.passes.ssr.glossy_reuse.reuse_ray`, a compilable kernel.
 
 Outputs (:class:`~ssbench.passes.ssr.common.SSRResult`): ``raw_color`` the resolved lobe estimate, ``color`` the
 same with each ray's fades; the hit buffers (``hit``, ``hit_pixel``, ``termination`` …) are those of the first
@@ -38,6 +39,7 @@ from ..registry import Method, SpeedPanel
 from .common import SSRResult
 from .fade import FadeParams
 from .ggx import alpha_of, frame, from_local, reflection_pdf, sample_vndf, to_local
+from .glossy_reuse import RaySample, ReuseFrame, ReuseSums, padded, reuse_ray
 from .hiz import HiZSSRParams, march_hiz
 
 REQUIRES = ("view_z", "normal", "mask", "color", "roughness")
@@ -45,8 +47,6 @@ DEFAULTS_SOURCE = ("Stachowiak 2015 / FidelityFX SSSR: one GGX (VNDF) ray per pi
                    "defaults, ray reuse over the 3×3 neighbourhood")
 EQUAL_SETTINGS = {"thickness": "depth_buffer_thickness", "ray_length": "max_ray_distance"}
 REUSE = ("none", "neighbours")
-#: the largest reuse weight ``p_i / p_j``: at grazing views both densities overflow (``G1·D / 4 cos θ_v``)
-MAX_WEIGHT = 1e8
 
 
 @dataclass(frozen=True)
@@ -96,16 +96,6 @@ def required_channels(params: StochasticSSRParams) -> tuple[str, ...]:
     return REQUIRES
 
 
-def _shift(x: torch.Tensor, dy: int, dx: int, fill=0.0) -> torch.Tensor:
-    """``x`` moved so that pixel ``(y, x)`` holds the value of ``(y + dy, x + dx)`` (``fill`` past the border)."""
-    H, W = x.shape[-2:]
-    out = torch.full_like(x, fill)
-    ys, yd = (slice(dy, H), slice(0, H - dy)) if dy >= 0 else (slice(0, H + dy), slice(-dy, H))
-    xs, xd = (slice(dx, W), slice(0, W - dx)) if dx >= 0 else (slice(0, W + dx), slice(-dx, W))
-    out[..., yd, xd] = x[..., ys, xs]
-    return out
-
-
 @half_in_float32
 def ssr_glossy_stochastic(gbuffer: GBuffer, params: StochasticSSRParams = StochasticSSRParams(), *,
                           generator: Optional[torch.Generator] = None, debug: bool = False) -> SSRResult:
@@ -134,7 +124,7 @@ def ssr_glossy_stochastic(gbuffer: GBuffer, params: StochasticSSRParams = Stocha
     dt, dev = gbuffer.view_z.dtype, gbuffer.view_z.device
     gen = make_generator(p.seed, generator)
     pos = cam.uv_to_view(cam.uv_grid(dt, dev)[None], gbuffer.view_z)
-    v = -pos / vector_norm(pos).clamp_min(torch.finfo(dt).tiny)        # toward the eye
+    v = -pos / vector_norm(pos).clamp_min(torch.finfo(dt).tiny)                    # toward the eye
     n = gbuffer.normal.to(dt)
     t, b = frame(n)
     v_loc = to_local(v, t, b, n)
@@ -152,31 +142,16 @@ def ssr_glossy_stochastic(gbuffer: GBuffer, params: StochasticSSRParams = Stocha
         pdf = reflection_pdf(v_loc[:, 2], m[:, 2], alpha)[:, None]
         samples.append((r, above, pdf, l_dir))
         first = first or r
-    num_raw = torch.zeros(B, 3, H, W, dtype=dt, device=dev)
-    num_fade, den = torch.zeros_like(num_raw), torch.zeros(B, 1, H, W, dtype=dt, device=dev)
-    rad = p.reuse_radius if p.reuse == "neighbours" else 0
+    zero = torch.zeros(B, 3, H, W, dtype=dt, device=dev)
+    sums = ReuseSums(zero, torch.zeros_like(zero), torch.zeros(B, 1, H, W, dtype=dt, device=dev))
+    reuse = ReuseFrame(pos, v, v_loc[:, 2].contiguous(), n, alpha, gbuffer.mask)
+    radius = p.reuse_radius if p.reuse == "neighbours" else 0
     for r, above, pdf, l_dir in samples:
         ok = r.hit & above
         raw, faded = torch.where(ok, r.raw_color, 0.0), torch.where(ok, r.raw_color * r.fade, 0.0)
-        for dy in range(-rad, rad + 1):
-            for dx in range(-rad, rad + 1):
-                sh = lambda x, fill=0.0: _shift(x, dy, dx, fill)                  # noqa: E731  neighbour's value
-                if rad == 0:
-                    w = gbuffer.mask.to(dt)
-                else:                                                             # w = p_i(l_ij) / p_j(l_j)
-                    hit_j = sh(ok, False)
-                    to_hit = sh(r.hit_view) - pos
-                    l_ij = torch.where(hit_j, to_hit / vector_norm(to_hit).clamp_min(
-                        torch.finfo(dt).tiny), sh(l_dir))
-                    h = v + l_ij
-                    h = h / vector_norm(h).clamp_min(torch.finfo(dt).tiny)
-                    p_i = reflection_pdf(v_loc[:, 2], (h * n).sum(1), alpha)[:, None]
-                    p_i = torch.where((l_ij * n).sum(1, keepdim=True) > 0, p_i, 0.0)
-                    w = torch.where(sh(gbuffer.mask, False) & gbuffer.mask, p_i / sh(pdf, 1.0).clamp_min(1e-12), 0.0)
-                    w = torch.nan_to_num(w, nan=0.0, posinf=MAX_WEIGHT).clamp(0.0, MAX_WEIGHT)   # grazing: pdfs overflow
-                num_raw += w * sh(raw)
-                num_fade += w * sh(faded)
-                den += w
+        ray, mask = padded(RaySample(ok, raw, faded, r.hit_view, l_dir, pdf), gbuffer.mask, radius)
+        sums = reuse_ray(sums, ray, reuse, mask, radius)
+    num_raw, num_fade, den = sums
     safe = den.clamp_min(torch.finfo(dt).tiny)
     raw_c, faded_c = torch.where(den > 0, num_raw / safe, 0.0), torch.where(den > 0, num_fade / safe, 0.0)
     steps = sum(s[0].steps for s in samples)

@@ -70,6 +70,29 @@ def test_reuse_lowers_the_noise():
     assert abs(bias) < 0.02                                     # the same lobe on average (a ratio estimator)
 
 
+@pytest.mark.slow
+def test_the_compiled_reuse_gives_the_eager_colours_to_an_ulp():
+    """The reuse sums through ``torch.compile`` (one loop over the pixels for each ray): the same hits bit for bit,
+    the resolved colours within float32 rounding (inductor divides and takes roots in its own order); without reuse,
+    whose weights are the mask, the same bits."""
+    from ssbench.passes import compiled as C
+    g = dataclasses.replace(rough(room(32, 24, torch.float32), 0.3), color=torch.rand(1, 3, 24, 32,
+                            generator=torch.Generator().manual_seed(0)))
+    for p in (StochasticSSRParams(rays_per_pixel=2, **MARCH), StochasticSSRParams(reuse_radius=2, **MARCH),
+              StochasticSSRParams(reuse="none", **MARCH)):
+        with C.compiling(False):
+            eager = ssr_glossy_stochastic(g, p)
+        before = C.compile_seconds()
+        with C.compiling(True):
+            comp = ssr_glossy_stochastic(g, p)
+        assert C.compile_seconds() > before                        # the reuse kernel went through torch.compile
+        assert bool(eager.hit.any()) and torch.equal(eager.hit_pixel, comp.hit_pixel)
+        for name in ("raw_color", "color"):
+            a, b = getattr(eager, name), getattr(comp, name)
+            assert float(a.amax()) > 0.1
+            assert torch.equal(a, b) if p.reuse == "none" else float((a - b).abs().max()) <= 1e-6, name
+
+
 @pytest.mark.parametrize("kw,name", [(dict(rays_per_pixel=0), "rays_per_pixel"), (dict(reuse="all"), "reuse"),
                                      (dict(reuse_radius=9), "reuse_radius"), (dict(seed=-1), "seed"),
                                      (dict(depth_buffer_thickness=-1.0), "depth_buffer_thickness")])

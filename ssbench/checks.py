@@ -92,7 +92,30 @@ def check_same_size(a: torch.Tensor, b: torch.Tensor, name_a: str, name_b: str) 
             f"{name_b}: batch and image size must match {name_a} {tuple(a.shape)}, got {tuple(b.shape)}")
 
 
+def has_nan(x: torch.Tensor) -> bool:
+    """Whether floating-point ``x`` holds a NaN. The sum first (one read of ``x``, no mask): it is NaN whenever a
+    value is; only a NaN sum (a NaN, or +inf beside -inf) pays for the elementwise test, which is 5-7x slower on
+    the CPU.
+
+    Example:
+        >>> has_nan(torch.tensor([1.0, float("inf"), -float("inf")])), has_nan(torch.tensor([1.0, float("nan")]))
+        (False, True)
+    """
+    return bool(torch.isnan(x.sum())) and bool(torch.isnan(x).any())
+
+
+def all_finite(x: torch.Tensor) -> bool:
+    """Whether every value of floating-point ``x`` is finite. The sum first: it is finite only when every value is;
+    a sum that is not (a bad value, or an overflow of finite ones) pays for the elementwise test.
+
+    Example:
+        >>> all_finite(torch.tensor([3e38, 3e38])), all_finite(torch.tensor([1.0, float("inf")]))
+        (True, False)
+    """
+    return bool(torch.isfinite(x.sum())) or bool(torch.isfinite(x).all())
+
+
 def check_finite(x: torch.Tensor, name: str) -> None:
     """Raise ``ValueError`` if ``x`` holds NaN (infinities are allowed: they encode 'none')."""
-    if _ENABLED and x.is_floating_point() and bool(torch.isnan(x).any()):
+    if _ENABLED and x.is_floating_point() and has_nan(x):
         raise ValueError(f"{name}: contains NaN")

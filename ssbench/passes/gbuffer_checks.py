@@ -57,7 +57,7 @@ def check_unit_normals(normal: torch.Tensor, mask: torch.Tensor, name: str = "no
         return
     tol = normal_tolerance(normal.dtype) if tol is None else tol
     n_len = length(normal.float() if normal.dtype in (torch.float16, torch.bfloat16) else normal)
-    off = ~torch.isfinite(n_len) | ((n_len - 1).abs() > tol)
+    off = ~((n_len - 1).abs() <= tol)                           # NaN and inf lengths fail the comparison
     bad = mask & off
     if bool(bad.any()):
         worst = (n_len - 1).abs().nan_to_num(nan=float("inf"))[mask.expand_as(n_len)].max()
@@ -115,17 +115,16 @@ def check_gbuffer(gbuffer: GBuffer, requires: Iterable[str], *, finite: Iterable
                          "(it compacts rays by value), so run it on cpu or cuda tensors")
     if z is None or m is None or not has_values(z):
         return
-    bad = ~torch.isfinite(z)
-    if bool(bad.any()):
+    if not checks.all_finite(z):
         raise ValueError(f"view_z: must be finite everywhere (background holds -far); "
-                         f"found {int(bad.sum())} NaN or infinite values")
+                         f"found {int((~torch.isfinite(z)).sum())} NaN or infinite values")
     if bool((m & (z >= 0)).any()):
         raise ValueError("view_z: must be < 0 on geometry (points in front of the camera)")
     if "normal" in requires:
         check_unit_normals(gbuffer.normal, m, "normal")
     for name in finite:
         t = getattr(gbuffer, name)
-        if t is not None and bool(torch.isnan(t).any()):
+        if t is not None and checks.has_nan(t):
             raise ValueError(f"{name}: contains NaN")
 
 

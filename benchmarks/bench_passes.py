@@ -4,7 +4,8 @@ One table, one row per pass × size (× compiled, with ``--compile``), each meas
 its peak memory is its own:
 
 * ``ms`` — median time per call (``ssbench.bench.timing``: interleaved rounds of the pass and its floor, 1 torch
-  thread unless ``--threads``), ``ns/px`` = ms / pixels;
+  thread unless ``--threads``), ``ns/px`` = ms / pixels, ``ns/read`` = ns/px / ``reads`` (a marcher's rays cross
+  more pixels at higher resolution, so its ns/px grows with the image while its cost per read need not);
 * ``floor×`` — median over rounds of pass time / the *torch gather floor* (``ssbench.bench.floors``: as many
   random depth-texel reads per pixel as the pass makes — an AO method's declared ``samples_per_pixel``, an SSR
   march's mean ``steps`` — one ``index_select`` per sample), measured side by side in the same process, so it
@@ -137,7 +138,8 @@ def one(effect: str, method: str, path: str, compiled: bool, min_run_time: float
     anchor = _anchor_ratio(effect, method, g, call, threads, rounds)
     px = g.width * g.height
     return {"method": method, "size": f"{g.width}x{g.height}", "mode": "compiled" if compiled else "eager",
-            "ms": row["time_median_ms"], "ns_px": row["time_median_ms"] * 1e6 / px, "floor_ms": row["floor_median_ms"],
+            "ms": row["time_median_ms"], "ns_px": row["time_median_ms"] * 1e6 / px,
+            "ns_read": row["time_median_ms"] * 1e6 / (px * max(samples, 1)), "floor_ms": row["floor_median_ms"],
             "floor_ratio": row["floor_ratio"], "floor_ratio_iqr": row["floor_ratio_iqr"], "samples": samples,
             "fused_floor_ratio": row["fused_floor_ratio"], "fused_floor_ms": row["fused_floor_median_ms"],
             "peak_mib": peak, "first_peak_mib": first_peak, "first_call_s": first_s, "max_diff_eager": diff, "threads": threads,
@@ -191,7 +193,7 @@ def main() -> int:
     rows = []
     print(f"torch {torch.__version__}, {a.threads} thread(s), min_run_time {a.min_run_time} s; "
           f"floor× / fused× = pass / torch gather / Dr.Jit fused gather of as many texels per pixel (median of {a.rounds} rounds ± IQR)")
-    head = (f"{'pass':<16}{'size':>10}{'mode':>9}{'ms':>10}{'ns/px':>8}{'floor×':>13}{'fused×':>8}{'anchor×':>8}"
+    head = (f"{'pass':<16}{'size':>10}{'mode':>9}{'ms':>10}{'ns/px':>8}{'ns/read':>8}{'floor×':>13}{'fused×':>8}{'anchor×':>8}"
             f"{'reads':>6}{'peak MiB':>9}")
     head += f"{'compile s':>10}{'Δ eager':>9}" if a.compile else ""
     print(head)
@@ -214,6 +216,7 @@ def main() -> int:
                         row = json.loads(r.stdout.strip().splitlines()[-1])
                         rows.append(row)
                         line = (f"{method:<16}{row['size']:>10}{row['mode']:>9}{row['ms']:>10.1f}{row['ns_px']:>8.0f}"
+                                f"{row['ns_read']:>8.1f}"
                                 f"{row['floor_ratio']:>7.1f} ±{row['floor_ratio_iqr']:<4.1f}"
                                 f"{row['fused_floor_ratio']:>8.1f}{row['anchor_ratio']:>8.1f}{row['samples']:>6}"
                                 f"{row['peak_mib']:>9.0f}")

@@ -115,6 +115,19 @@ def all_finite(x: torch.Tensor) -> bool:
     return bool(torch.isfinite(x.sum())) or bool(torch.isfinite(x).all())
 
 
+def finite_vectors(x: torch.Tensor, dim: int = 1) -> torch.Tensor:
+    """Whether each vector of ``x`` along ``dim`` has only finite components (``keepdim``), as
+    ``torch.isfinite(x).all(dim, keepdim=True)``, in two fast passes instead of ATen's element-at-a-time reduction
+    over a dimension that is not the innermost: ``x · 0`` is 0 for a finite value and NaN for an infinite or NaN one,
+    so the sum along ``dim`` is 0 exactly when every component is finite.
+
+    Example:
+        >>> finite_vectors(torch.tensor([[1.0, 2.0], [float("inf"), 0.0], [3.0, float("nan")]]), 1).flatten().tolist()
+        [True, False, False]
+    """
+    return (x * 0).sum(dim, keepdim=True) == 0
+
+
 def check_finite(x: torch.Tensor, name: str) -> None:
     """Raise ``ValueError`` if ``x`` holds NaN (infinities are allowed: they encode 'none')."""
     if _ENABLED and x.is_floating_point() and has_nan(x):

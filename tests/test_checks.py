@@ -134,3 +134,21 @@ def test_environment_variable(value, enabled):
     out = subprocess.run([sys.executable, "-c", "import ssbench.checks as c; print(c.checks_enabled())"],
                          env=env, capture_output=True, text=True, timeout=120, check=True)
     assert out.stdout.strip() == str(enabled)
+
+
+@pytest.mark.parametrize("dtype", [torch.float16, torch.float32, torch.float64])
+def test_the_fast_finiteness_tests_agree_with_isfinite(dtype):
+    from ssbench.checks import all_finite, finite_vectors, has_nan
+    g = torch.Generator().manual_seed(0)
+    x = (torch.randn(2, 3, 20, 30, generator=g) * 100).to(dtype)
+    flat = x.view(-1)
+    assert not has_nan(x) and all_finite(x)
+    assert bool(finite_vectors(x).all())
+    big = torch.full_like(x, torch.finfo(dtype).max)                    # finite, but its sum overflows
+    assert all_finite(big) and not has_nan(big) and bool(finite_vectors(big).all())
+    spots = torch.randperm(flat.numel(), generator=g)[:60]
+    flat[spots[:20]], flat[spots[20:40]], flat[spots[40:]] = float("inf"), -float("inf"), float("nan")
+    assert has_nan(x) and not all_finite(x)
+    assert torch.equal(finite_vectors(x), torch.isfinite(x).all(1, keepdim=True))
+    infs = x.nan_to_num(nan=1.0, posinf=float("inf"), neginf=-float("inf"))
+    assert not has_nan(infs) and not all_finite(infs)                  # +inf beside -inf: a NaN sum, no NaN value

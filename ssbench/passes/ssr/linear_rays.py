@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Optional
 
 import torch
 
+from ...checks import finite_vectors
 from ...gbuffer import GBuffer
 from ..common import make_generator
 from .common import clip_ray_length, flat, reflection_rays
@@ -85,8 +86,7 @@ def linear_rays(gbuffer: GBuffer, params: "LinearSSRParams", generator: Optional
     # a pixel starts a ray where it holds geometry whose origin and direction are finite numbers (the origin
     # read back from a depth buffer whose precision is exhausted, e.g. near/far = 1e-30/1e30, is ±inf)
     # (and, as in the DDA marchers, not from geometry nearer than the near plane: no depth buffer holds it)
-    ok = mask & (view_z <= -cam.near) & torch.isfinite(rayOrg).all(1, keepdim=True) \
-        & torch.isfinite(deltaStep).all(1, keepdim=True)
+    ok = mask & (view_z <= -cam.near) & finite_vectors(rayOrg) & finite_vectors(deltaStep)
     ray = ok.reshape(-1).nonzero().squeeze(1)                                     # (n,) flat pixel ids
     O, dS, Q = (flat(x).index_select(0, ray) for x in (rayOrg, deltaStep, Q))    # (n, 3)
     clipped = (rayLength < params.max_ray_distance).reshape(-1).index_select(0, ray)

@@ -21,7 +21,7 @@ import torch
 
 from .camera import Camera
 
-__all__ = ["length", "vector_norm", "CameraRays", "camera_rays"]
+__all__ = ["length", "vector_norm", "component_norm", "CameraRays", "camera_rays"]
 
 
 def length(x: torch.Tensor, dim: int = 1, keepdim: bool = True) -> torch.Tensor:
@@ -67,12 +67,28 @@ def vector_norm(x: torch.Tensor, dim: int = 1, keepdim: bool = True) -> torch.Te
             or torch.compiler.is_compiling() or not x.is_contiguous() or x.shape[dim] == 0
             or math.prod(x.shape[dim + 1:]) <= 1):
         return torch.linalg.vector_norm(x, dim=dim, keepdim=keepdim)
-    parts = x.unbind(dim)
+    total = component_norm(*x.unbind(dim))
+    return total.unsqueeze(dim) if keepdim else total
+
+
+def component_norm(*parts: torch.Tensor) -> torch.Tensor:
+    """The length of the vectors whose components are ``parts`` (tensors of one shape), without stacking them: on
+    the CPU the bits of :func:`vector_norm` of the stacked vectors (squares summed in order, a correctly rounded
+    root); elsewhere, with gradients or inside ``torch.compile`` (where it compiles to one loop, with no stored
+    stack and no reduction), ``Tensor.sqrt`` of the same sum.
+
+    Example:
+        >>> component_norm(torch.tensor([3.0, 0.0]), torch.tensor([4.0, 0.0]), torch.tensor([0.0, 2.0])).tolist()
+        [5.0, 2.0]
+    """
     total = parts[0] * parts[0]
     for part in parts[1:]:
         total = total + part * part
+    if (total.device.type != "cpu" or total.dtype not in (torch.float32, torch.float64) or total.requires_grad
+            or torch.compiler.is_compiling()):
+        return total.sqrt()
     np.sqrt(total.numpy(), out=total.numpy())
-    return total.unsqueeze(dim) if keepdim else total
+    return total
 
 
 

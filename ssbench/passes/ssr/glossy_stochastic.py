@@ -96,6 +96,20 @@ def required_channels(params: StochasticSSRParams) -> tuple[str, ...]:
     return REQUIRES
 
 
+def ggx_ray(v_loc: torch.Tensor, alpha: torch.Tensor, basis: tuple, gen: torch.Generator) -> tuple:
+    """One GGX ray per pixel (step 1): a visible normal ``m`` drawn from ``gen``, ``v`` reflected about it.
+    Returns ``(l_dir, above, pdf)``: the view-space direction :math:`(B, 3, H, W)`, whether it leaves above the
+    surface and its density :math:`(B, 1, H, W)` (the draws and the local frame's intermediates die here, before
+    the ray is marched)."""
+    t, b, n = basis
+    B, _, H, W = v_loc.shape
+    u = torch.rand((2, B, H, W), generator=gen, dtype=torch.float64).to(v_loc.dtype).to(v_loc.device)
+    m = sample_vndf(v_loc, alpha, u[0], u[1])
+    cos_vm = (v_loc * m).sum(1, keepdim=True)
+    l_loc = 2.0 * cos_vm * m - v_loc
+    return from_local(l_loc, t, b, n), l_loc[:, 2:] > 0, reflection_pdf(v_loc[:, 2], m[:, 2], alpha)[:, None]
+
+
 @half_in_float32
 def ssr_glossy_stochastic(gbuffer: GBuffer, params: StochasticSSRParams = StochasticSSRParams(), *,
                           generator: Optional[torch.Generator] = None, debug: bool = False) -> SSRResult:
@@ -132,29 +146,27 @@ def ssr_glossy_stochastic(gbuffer: GBuffer, params: StochasticSSRParams = Stocha
     march = p.march()
     samples, first = [], None
     for _ in range(p.rays_per_pixel):
-        u = torch.rand((2, B, H, W), generator=gen, dtype=torch.float64).to(dt).to(dev)
-        m = sample_vndf(v_loc, alpha, u[0], u[1])
-        cos_vm = (v_loc * m).sum(1, keepdim=True)
-        l_loc = 2.0 * cos_vm * m - v_loc
-        l_dir = from_local(l_loc, t, b, n)
+        l_dir, above, pdf = ggx_ray(v_loc, alpha, (t, b, n), gen)
         r = march_hiz(gbuffer, march, l_dir, debug and first is None)
-        above = l_loc[:, 2:] > 0
-        pdf = reflection_pdf(v_loc[:, 2], m[:, 2], alpha)[:, None]
         samples.append((r, above, pdf, l_dir))
         first = first or r
+    del t, b
     zero = torch.zeros(B, 3, H, W, dtype=dt, device=dev)
     sums = ReuseSums(zero, torch.zeros_like(zero), torch.zeros(B, 1, H, W, dtype=dt, device=dev))
     reuse = ReuseFrame(pos, v, v_loc[:, 2].contiguous(), n, alpha, gbuffer.mask)
     radius = p.reuse_radius if p.reuse == "neighbours" else 0
-    for r, above, pdf, l_dir in samples:
+    steps = sum(s[0].steps for s in samples)
+    while samples:                                              # each ray's buffers are freed once it is summed
+        r, above, pdf, l_dir = samples.pop(0)
         ok = r.hit & above
         raw, faded = torch.where(ok, r.raw_color, 0.0), torch.where(ok, r.raw_color * r.fade, 0.0)
         ray, mask = padded(RaySample(ok, raw, faded, r.hit_view, l_dir, pdf), gbuffer.mask, radius)
+        del r, ok, raw, faded, above, pdf, l_dir
         sums = reuse_ray(sums, ray, reuse, mask, radius)
+        del ray
     num_raw, num_fade, den = sums
     safe = den.clamp_min(torch.finfo(dt).tiny)
     raw_c, faded_c = torch.where(den > 0, num_raw / safe, 0.0), torch.where(den > 0, num_fade / safe, 0.0)
-    steps = sum(s[0].steps for s in samples)
     return dataclasses.replace(first, color=faded_c, raw_color=raw_c, steps=steps)
 
 

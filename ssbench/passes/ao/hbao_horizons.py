@@ -77,6 +77,17 @@ def hbao_band(cam, uv0: torch.Tensor, mask: torch.Tensor, rand: torch.Tensor, te
     res, inv = AORes.unsqueeze(2), InvAORes.unsqueeze(2)
 
     P = viewPos(uv0)                                                         # (B, 3, h, W)
+    a0, a1, b0, b1 = cam.uv_to_view_params()
+
+    def offset_to(uv: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """``tangent(S − P)`` and ``|S − P|²`` of the sample ``S`` at ``uv`` :math:`(B, 2, D, h, W)`, on
+        components: ``viewPos(uv) − P``'s bits, and with no sum over a channel dimension, which compiled to a
+        stored buffer per step."""
+        z = to_view_z(fetch_uv(tex, uv))[:, 0]
+        dx = (a0 * uv[:, 0] + b0) * z - P[:, 0:1]
+        dy = (a1 * uv[:, 1] + b1) * z - P[:, 1:2]
+        dz = z - P[:, 2:3]
+        return dz * rsqrt(dx ** 2 + dy ** 2), (dx * dx + dy * dy) + dz * dz
 
     # ---- projected radius (diskRadiusInUV, radiusInPixels) ----
     radiusInPixels = 0.5 * R * FocalLength / -P[:, 2:3] * W                  # (B, 1, h, W)
@@ -103,7 +114,7 @@ def hbao_band(cam, uv0: torch.Tensor, mask: torch.Tensor, rand: torch.Tensor, te
     dUv = dir * stepSizeInUV                                                 # (B, 2, D, h, W)
     texelDeltaUV = dir * inv
     randstep = rand[:, 2:3].unsqueeze(2)                                     # (1, 1, 1, h, W)
-    uv0d, Pd = uv0.unsqueeze(2), P.unsqueeze(2)
+    uv0d = uv0.unsqueeze(2)
 
     # ---- calculateHorizonOcclusion, all directions at once ----
     uv = uv0d + snap(randstep * dUv, res, inv)                              # (B, 2, D, h, W)
@@ -114,8 +125,7 @@ def hbao_band(cam, uv0: torch.Tensor, mask: torch.Tensor, rand: torch.Tensor, te
     snapped_duv = snap(randstep * deltaUV + texelDeltaUV, res, inv)
     T1 = snapped_duv[:, 0:1] * dPdu + snapped_duv[:, 1:2] * dPdv
     tanT = tangent(T1) + params.tan_angle_bias
-    diff = viewPos(uv0d + snapped_duv) - Pd
-    tanS, d2 = tangent(diff), (diff * diff).sum(1)
+    tanS, d2 = offset_to(uv0d + snapped_duv)
     hit = active & (d2 < R2) & (tanS > tanT)
     ao = torch.where(hit, (1.0 - d2 / R2) * (tan_to_sin(tanS) - tan_to_sin(tanT)).clamp(0.0, 1.0), 0.0)
     tanH = torch.where(hit, torch.maximum(tanH, tanS), tanH)
@@ -128,8 +138,7 @@ def hbao_band(cam, uv0: torch.Tensor, mask: torch.Tensor, rand: torch.Tensor, te
             break
         samples = samples + live.to(dtype)
         uv = uv + deltaUV
-        diff = viewPos(uv) - Pd
-        tanS, d2 = tangent(diff), (diff * diff).sum(1)                      # (B, D, h, W)
+        tanS, d2 = offset_to(uv)                                             # (B, D, h, W)
         hit = live & (d2 < R2) & (tanS > tanH)
         sinS = tan_to_sin(tanS)
         ao = ao + torch.where(hit, (1.0 - d2 / R2) * (sinS - sinH).clamp(0.0, 1.0), 0.0)

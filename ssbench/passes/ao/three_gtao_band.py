@@ -9,13 +9,13 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import torch
 
-from ..common import gl_texel_index, nan_to_zero, vector_norm
+from ..common import component_norm, gl_texel_index, nan_to_zero, vector_norm
 from ..compiled import kernel
 
 if TYPE_CHECKING:
     from .three_gtao import ThreeGTAOParams
 
-__all__ = ["BandFrame", "band_frame", "slice_visibility", "view_position", "dot", "normalize"]
+__all__ = ["BandFrame", "band_frame", "slice_visibility", "cos_to_sample", "view_position", "dot", "normalize"]
 
 
 def view_position(minv: torch.Tensor, u, v, d) -> torch.Tensor:
@@ -59,6 +59,18 @@ def band_frame(minv: torch.Tensor, uv: torch.Tensor, depth: torch.Tensor, normal
     return BandFrame(view_pos, normalize(-view_pos), normal, tangent, bitangent, 0.5 + 0.5 * noise[:, 3])
 
 
+def cos_to_sample(minv: torch.Tensor, u, v, d, frame: "BandFrame") -> tuple[torch.Tensor, torch.Tensor]:
+    """``dot(viewDir, normalize(samplePos − viewPos))`` and ``(samplePos − viewPos).z`` :math:`(B, h, W)` of the
+    sample at ``(u, v, d)``, on components: :func:`view_position`, :func:`normalize` and :func:`dot`'s bits, and
+    compiled, no stored stack and no reduction per sample."""
+    clip = (u * 2.0 - 1.0, v * 2.0 - 1.0, d * 2.0 - 1.0, torch.ones_like(u))
+    q = [sum(minv[i, k] * clip[k] for k in range(4)) for i in range(4)]
+    delta = [q[c] / q[3] - frame.view_pos[:, c] for c in range(3)]
+    length = component_norm(*delta)
+    vd = frame.view_dir
+    return (vd[:, 0] * (delta[0] / length) + vd[:, 1] * (delta[1] / length)) + vd[:, 2] * (delta[2] / length), delta[2]
+
+
 @kernel
 def slice_visibility(frame: BandFrame, depth: torch.Tensor, proj: torch.Tensor, minv: torch.Tensor,
                      rotation: torch.Tensor, params: "ThreeGTAOParams") -> torch.Tensor:
@@ -93,10 +105,9 @@ def slice_visibility(frame: BandFrame, depth: torch.Tensor, proj: torch.Tensor, 
             clip = [sum(proj[r, k] * (q[:, k] if k < 3 else 1.0) for k in range(4)) for r in (0, 1, 3)]
             su, sv = clip[0] / clip[2] * 0.5 + 0.5, clip[1] / clip[2] * 0.5 + 0.5      # getSceneUvAndDepth
             sd = torch.gather(depth_tex, 1, gl_texel_index(su, sv, H, W).reshape(B, -1)).reshape(su.shape)
-            delta = view_position(minv, su, sv, sd) - f.view_pos
-            c = dot(f.view_dir, normalize(delta))
+            c, delta_z = cos_to_sample(minv, su, sv, sd, f)
             gain = nan_to_zero((c - cos_h[side]) * (1.0 + (2.0 / (j + 2) - 1.0) * p.distance_fall_off))
-            cos_h[side] = torch.where(delta[:, 2].abs() < p.thickness, cos_h[side] + gain.clamp_min(0.0), cos_h[side])
+            cos_h[side] = torch.where(delta_z.abs() < p.thickness, cos_h[side] + gain.clamp_min(0.0), cos_h[side])
     h1, h2 = cos_h[0].clamp(-1.0, 1.0), cos_h[1].clamp(-1.0, 1.0)
     s1, s2 = (1.0 - h1 * h1).clamp_min(0.0).sqrt(), (1.0 - h2 * h2).clamp_min(0.0).sqrt()
     nx, ny = dot(n_slice, slice_tangent), dot(n_slice, f.view_dir)

@@ -37,7 +37,7 @@ from ...gbuffer import GBuffer
 from ..common import check_positive
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..registry import Method, SpeedPanel
-from .common import HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult, compact_now, flat
+from .common import HIT, MAX_DISTANCE, NO_RAY, OUT_OF_STEPS, SSRResult, compact_now, flat
 from .three_ssr_step import MarchRays, StepTextures, pixel_step, unproject
 
 REQUIRES = ("view_z", "normal", "mask", "color")
@@ -143,11 +143,9 @@ def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
     for i in range(1, max_step):
         if ws.ray.numel() == 0:
             break
-        was = alive
-        end, off, alive, xy, tex, texel, vpt, sky, hit = pixel_step(
-            i, ws, was, textures, (H, W), far, p.thickness, p.infinite_thick)
-        term_ws = torch.where(was & off, OFF_SCREEN, torch.where(was & end, MAX_DISTANCE, term_ws))
-        steps_ws = torch.where(was, i - 1 + (~end).int(), steps_ws)
+        alive, xy, tex, texel, vpt, hit, term_ws, steps_ws, s = pixel_step(
+            i, ws, alive, (term_ws, steps_ws), textures, (H, W), far, p.thickness, p.infinite_thick)
+        ws = ws._replace(s=s)
         h = hit.nonzero().squeeze(1)              # every hit ends the ray: a true hit, or a back face / too far
         if h.numel():
             nh, vph = ws.n[h], vpt[h]
@@ -157,8 +155,6 @@ def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
             ray_h = ws.ray[h]
             term_ws[h] = torch.where(done, HIT, MAX_DISTANCE).to(term.dtype)
             hit_k[ray_h[done]], hit_xy[ray_h[done]], hit_vp[ray_h[done]] = tex[h][done], xy[h][done], vph[done]
-        ws.s.add_(torch.where(sky | hit, 0.0, ws.s_step))
-        alive &= ~hit
         if compact_now(int(alive.sum()), ws.ray.numel()):             # drop the stopped rays now and then
             keep = alive.nonzero().squeeze(1)
             term.index_copy_(0, ws.ray, term_ws)

@@ -10,6 +10,7 @@ import torch
 
 from ..common import gl_texel_index
 from ..compiled import kernel
+from .common import MAX_DISTANCE, OFF_SCREEN
 
 __all__ = ["StepTextures", "MarchRays", "StepResult", "unproject", "pixel_step"]
 
@@ -58,32 +59,37 @@ class MarchRays(NamedTuple):
 
 
 class StepResult(NamedTuple):
-    """One step's outcome per ray: ``end`` (``i ≥ totalStep``), ``off`` (left the screen), ``alive`` (after those
-    two), the sample ``xy`` :math:`(N, 2)`, its texel ``tex`` (in the image) and ``texel`` (flat), the texel's
-    view point ``vpt`` :math:`(N, 3)`, ``sky`` (a background texel: ``s`` does not advance) and ``hit``."""
+    """One step's outcome per ray: ``alive`` (still marching: not past ``totalStep``, on screen, not hit), the
+    sample ``xy`` :math:`(N, 2)`, its texel ``tex`` (in the image) and ``texel`` (flat), the texel's view point
+    ``vpt`` :math:`(N, 3)`, ``hit``, and the rays' state after the step: ``term`` (``OFF_SCREEN`` /
+    ``MAX_DISTANCE`` for the rays this step stopped; a hit's code is the caller's), ``steps`` and ``s`` (which
+    does not advance on a background texel or a hit)."""
 
-    end: torch.Tensor
-    off: torch.Tensor
     alive: torch.Tensor
     xy: torch.Tensor
     tex: torch.Tensor
     texel: torch.Tensor
     vpt: torch.Tensor
-    sky: torch.Tensor
     hit: torch.Tensor
+    term: torch.Tensor
+    steps: torch.Tensor
+    s: torch.Tensor
 
 
 @kernel(dynamic=True)
-def pixel_step(i: int, ws: MarchRays, alive: torch.Tensor, tex: StepTextures, size: tuple[int, int], far: float,
-               thickness: float, infinite_thick: bool) -> StepResult:
-    """Step ``i`` of the pixel DDA for the live rays (``alive``); ``size`` = ``(H, W)``. A ray is hit when it is
-    behind a texel that is not background and, unless ``infinite_thick``, that texel's view point lies within
-    ``max(thickness, 3 × the texel's width in view units)`` of the ray's line (``pointToLineDistance``)."""
+def pixel_step(i: int, ws: MarchRays, was: torch.Tensor, state: tuple, tex: StepTextures, size: tuple[int, int],
+               far: float, thickness: float, infinite_thick: bool) -> StepResult:
+    """Step ``i`` of the pixel DDA for the live rays (``was``), whose termination codes and step counts are
+    ``state`` ``(term, steps)``; ``size`` = ``(H, W)``. A ray is hit when it is behind a texel that is not
+    background and, unless ``infinite_thick``, that texel's view point lies within ``max(thickness, 3 × the
+    texel's width in view units)`` of the ray's line (``pointToLineDistance``)."""
     H, W = size
     end = i >= ws.total
     xy = ws.d0 + i * ws.span
     off = ~end & ((xy[:, 0] < 0) | (xy[:, 0] > W) | (xy[:, 1] < 0) | (xy[:, 1] > H))
-    alive = alive & ~(end | off)
+    alive = was & ~(end | off)
+    term = torch.where(was & off, OFF_SCREEN, torch.where(was & end, MAX_DISTANCE, state[0]))
+    steps = torch.where(was, i - 1 + (~end).int(), state[1])
     uv = xy / torch.tensor([W, H], dtype=xy.dtype, device=xy.device)
     t = gl_texel_index(uv[:, 0], uv[:, 1], H, W)
     texel = ws.b * (H * W) + t
@@ -98,4 +104,5 @@ def pixel_step(i: int, ws: MarchRays, alive: torch.Tensor, tex: StepTextures, si
         away = torch.linalg.cross(vpt - ws.vp, vpt - ws.d1v, dim=1).norm(dim=1) / ws.length   # pointToLineDistance
         nb = unproject(tex.minv, (xy[:, 0] + 1.0) / W, uv[:, 1], d, -vz, rows=1)           # the texel to the right
         hit = behind & (away <= torch.clamp((nb[:, 0] - vpt[:, 0]) * 3.0, min=thickness))
-    return StepResult(end, off, alive, xy, t, texel, vpt, sky, hit)
+    s = ws.s + torch.where(sky | hit, 0.0, ws.s_step)
+    return StepResult(alive & ~hit, xy, t, texel, vpt, hit, term, steps, s)

@@ -144,8 +144,11 @@ def hiz_march(r: HiZRays, pyr: DepthPyramid, tex: HiZTexels, params, gbuffer: GB
     thickness = torch.tensor(params.depth_buffer_thickness, dtype=dt, device=dev)
     debug = visits is not None or level_reads is not None
     done = r.state.t >= 1.0                                              # the initial advance left the segment
-    out.term[r.i[done]] = r.ended[done]
-    r = r.select((~done).nonzero().squeeze(1))
+    if compact_now(int((~done).sum()), r.count):
+        out.term[r.i[done]] = r.ended[done]
+        r = r.select((~done).nonzero().squeeze(1))
+    else:                             # few: they ride along stopped (no copy of the whole set) until it is compacted
+        r.state = r.state._replace(alive=r.state.alive & ~done, term=torch.where(done, r.ended, r.state.term))
     for count, left in step_blocks(params.max_traversal_intersections, debug, dev):
         if r.count == 0:
             break

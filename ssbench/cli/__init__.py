@@ -33,7 +33,8 @@ def _parser() -> Parser:
     p = Parser(prog="ssbench", description="Screen-space rendering passes vs Mitsuba 3 ground truth.")
     p.add_argument("--version", action="version", version=f"ssbench {__version__}")
     p.add_argument("--compile", action="store_true",
-                   help="run the AO passes' band kernels through torch.compile (sets SSBENCH_COMPILE=1 for this "
+                   help="run the passes' kernels (AO bands, SSR march steps, glossy reuse) through torch.compile "
+                        "(sets SSBENCH_COMPILE=1 for this "
                         "command and its subprocesses; compile time is kept out of the timings and reported as "
                         "compile_s)")
     p.add_argument("--threads", type=positive("threads"), default=None,

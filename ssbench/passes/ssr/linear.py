@@ -190,10 +190,10 @@ def ssr_linear(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(), *,
     centre = flat(cam.pixel_centers(dtype, dev)[None]).index_select(0, rh % HW)  # vUv of each ray's pixel
     fade = params.fade(hit_pixel, centre, W, H, (Oh - best).norm(dim=1, keepdim=True))
 
-    def scatter(values, rows, fill, C, dt):       # per-ray values -> (B, C, H, W)
-        out = torch.full((B * HW, C), fill, dtype=dt, device=dev)
-        out.index_copy_(0, rows, values.reshape(len(rows), C).to(dt))
-        return out.reshape(B, H, W, C).permute(0, 3, 1, 2).contiguous()
+    def scatter(values, rows, fill, C, dt):       # per-ray values -> (B, C, H, W), through channel rows
+        out = torch.full((C, B * HW), fill, dtype=dt, device=dev)
+        out.index_copy_(1, rows, values.reshape(len(rows), C).T.to(dt))
+        return out.reshape(C, B, H, W).transpose(0, 1).contiguous()
 
     termination = scatter(term, ray, NO_RAY, 1, torch.int8)
     dbg = {}

@@ -177,10 +177,10 @@ def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
     pixel = torch.stack([hit_xy[h, 0], H - hit_xy[h, 1]], -1)                   # ssbench pixels (y down)
     ray_pixel = b * HW + k
 
-    def scatter(values, rows, fill, C, dtype):
-        out = torch.full((B * HW, C), fill, dtype=dtype, device=dev)
-        out[rows] = values.reshape(len(rows), C).to(dtype)
-        return out.reshape(B, H, W, C).permute(0, 3, 1, 2).contiguous()
+    def scatter(values, rows, fill, C, dtype):    # per-ray values -> (B, C, H, W), through channel rows
+        out = torch.full((C, B * HW), fill, dtype=dtype, device=dev)
+        out.index_copy_(1, rows, values.reshape(len(rows), C).T.to(dtype))
+        return out.reshape(C, B, H, W).transpose(0, 1).contiguous()
 
     termination = scatter(term, ray_pixel, NO_RAY, 1, torch.int8)
     rows = ray_pixel[h]

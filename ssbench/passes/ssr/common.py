@@ -94,8 +94,11 @@ def ray_segments(gbuffer, sel: torch.Tensor, max_ray_distance: float, directions
     B, _, H, W = vz.shape
     dt, dev = vz.dtype, vz.device
     b, px = sel // (H * W), sel % (H * W)                                         # image and pixel of each ray
-    col = lambda x: x.reshape(x.shape[0], x.shape[1], -1)[b, :, px].T[None, :, :, None]   # noqa: E731  (1, C, N, 1)
-    uv = cam.uv_grid(dt, dev).reshape(2, -1)[:, px][None, :, :, None]
+
+    def col(x: torch.Tensor) -> torch.Tensor:       # (B, C, H, W) -> (1, C, N, 1): one gather per channel row
+        rows = x.reshape(B, x.shape[1], -1).transpose(0, 1).reshape(x.shape[1], -1)   # (C, B·H·W), a view at B = 1
+        return rows.index_select(1, sel)[None, :, :, None]
+    uv = cam.uv_grid(dt, dev).reshape(2, -1).index_select(1, px)[None, :, :, None]
     pos = cam.uv_to_view(uv, col(vz))                                             # (1, 3, N, 1) rayOrg
     R = reflection_rays(pos, col(gbuffer.normal).to(dt)) if directions is None else col(directions).to(dt)
     o, d = pos[0, :, :, 0].T, R[0, :, :, 0].T                                     # (N, 3)

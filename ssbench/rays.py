@@ -21,7 +21,7 @@ import torch
 
 from .camera import Camera
 
-__all__ = ["length", "vector_norm", "component_norm", "CameraRays", "camera_rays"]
+__all__ = ["length", "vector_norm", "component_dot", "component_norm", "CameraRays", "camera_rays"]
 
 
 def length(x: torch.Tensor, dim: int = 1, keepdim: bool = True) -> torch.Tensor:
@@ -71,6 +71,21 @@ def vector_norm(x: torch.Tensor, dim: int = 1, keepdim: bool = True) -> torch.Te
     return total.unsqueeze(dim) if keepdim else total
 
 
+def component_dot(a, b) -> torch.Tensor:
+    """The dot product of the vectors whose components are the tensors ``a`` and ``b`` (sequences of one length),
+    summed in order: the bits of ``(torch.stack(a, 1) * torch.stack(b, 1)).sum(1)`` on the CPU (ATen sums a
+    channel dimension in order), without stacking, so that a compiled loop stores no stack and no reduction.
+
+    Example:
+        >>> component_dot((torch.tensor([1.0]), torch.tensor([2.0])), (torch.tensor([3.0]), torch.tensor([4.0])))
+        tensor([11.])
+    """
+    total = a[0] * b[0]
+    for x, y in zip(a[1:], b[1:]):
+        total = total + x * y
+    return total
+
+
 def component_norm(*parts: torch.Tensor) -> torch.Tensor:
     """The length of the vectors whose components are ``parts`` (tensors of one shape), without stacking them: on
     the CPU the bits of :func:`vector_norm` of the stacked vectors (squares summed in order, a correctly rounded
@@ -81,9 +96,7 @@ def component_norm(*parts: torch.Tensor) -> torch.Tensor:
         >>> component_norm(torch.tensor([3.0, 0.0]), torch.tensor([4.0, 0.0]), torch.tensor([0.0, 2.0])).tolist()
         [5.0, 2.0]
     """
-    total = parts[0] * parts[0]
-    for part in parts[1:]:
-        total = total + part * part
+    total = component_dot(parts, parts)
     if (total.device.type != "cpu" or total.dtype not in (torch.float32, torch.float64) or total.requires_grad
             or torch.compiler.is_compiling()):
         return total.sqrt()

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 import torch
 
-from ..common import fetch_uv
+from ..common import component_dot, fetch_uv
 from ..compiled import kernel
 
 if TYPE_CHECKING:
@@ -87,7 +87,7 @@ def hbao_band(cam, uv0: torch.Tensor, mask: torch.Tensor, rand: torch.Tensor, te
         dx = (a0 * uv[:, 0] + b0) * z - P[:, 0:1]
         dy = (a1 * uv[:, 1] + b1) * z - P[:, 1:2]
         dz = z - P[:, 2:3]
-        return dz * rsqrt(dx ** 2 + dy ** 2), (dx * dx + dy * dy) + dz * dz
+        return dz * rsqrt(dx ** 2 + dy ** 2), component_dot((dx, dy, dz), (dx, dy, dz))
 
     # ---- projected radius (diskRadiusInUV, radiusInPixels) ----
     radiusInPixels = 0.5 * R * FocalLength / -P[:, 2:3] * W                  # (B, 1, h, W)

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import torch
 
-from ..common import component_norm, gl_texel_index, nan_to_zero, vector_norm
+from ..common import component_dot, component_norm, gl_texel_index, nan_to_zero, vector_norm
 from ..compiled import kernel
 
 if TYPE_CHECKING:
@@ -67,8 +67,7 @@ def cos_to_sample(minv: torch.Tensor, u, v, d, frame: "BandFrame") -> tuple[torc
     q = [sum(minv[i, k] * clip[k] for k in range(4)) for i in range(4)]
     delta = [q[c] / q[3] - frame.view_pos[:, c] for c in range(3)]
     length = component_norm(*delta)
-    vd = frame.view_dir
-    return (vd[:, 0] * (delta[0] / length) + vd[:, 1] * (delta[1] / length)) + vd[:, 2] * (delta[2] / length), delta[2]
+    return component_dot(frame.view_dir.unbind(1), [c / length for c in delta]), delta[2]
 
 
 @kernel

@@ -9,7 +9,7 @@ import torch
 
 from ...gbuffer import GBuffer
 from ..common import fetch, length
-from .common import HIT, NO_RAY, SSRResult
+from .common import HIT, NO_RAY, SSRResult, unflat
 from .dda_state import MarchOutput
 
 __all__ = ["assemble"]
@@ -24,9 +24,7 @@ def assemble(gbuffer: GBuffer, params, sel: torch.Tensor, P1: torch.Tensor, o: M
     dt, dev = gbuffer.view_z.dtype, gbuffer.view_z.device
 
     def image(values, fill, dtype=dt):                                            # per-ray (N, C) -> (B, C, H, W)
-        x = torch.full((values.shape[1], B * H * W), fill, dtype=dtype, device=dev)   # channel rows: no transpose
-        x.index_copy_(1, sel, values.T.to(dtype))                                  # (x[sel] = …: 3-5x slower)
-        return x.reshape(-1, B, H, W).transpose(0, 1).contiguous()
+        return unflat(values, sel, fill, (B, H, W), dtype)
 
     is_hit = (o.term == HIT)[:, None]
     term, steps = image(o.term[:, None], NO_RAY, torch.int8), image(o.steps[:, None], 0, torch.int32)

@@ -19,7 +19,7 @@ from typing import NamedTuple
 import torch
 import torch.nn.functional as F
 
-from ..common import component_norm
+from ..common import component_dot, component_norm
 from ..compiled import kernel
 from .ggx import reflection_pdf
 
@@ -101,7 +101,6 @@ def reuse_weight(ray: RaySample, frame: ReuseFrame, mask: torch.Tensor, radius: 
     compiled, a reduction was a stored buffer per neighbour, 270 MiB more at 1920×1080."""
     def at_j(x):
         return neighbour(x, radius, dy, dx)
-    dot = lambda a, b: (a[0] * b[0] + a[1] * b[1]) + a[2] * b[2]    # noqa: E731  (ATen's sum(1) order)
     tiny = torch.finfo(frame.pos.dtype).tiny
     pos, v, n = frame.pos.unbind(1), frame.v.unbind(1), frame.n.unbind(1)
     to_hit = [a - b for a, b in zip(at_j(ray.hit_view).unbind(1), pos)]
@@ -110,8 +109,8 @@ def reuse_weight(ray: RaySample, frame: ReuseFrame, mask: torch.Tensor, radius: 
     l_ij = [torch.where(hit_j, t / far, d) for t, d in zip(to_hit, at_j(ray.l_dir).unbind(1))]
     h = [a + b for a, b in zip(v, l_ij)]
     h_len = component_norm(*h).clamp_min(tiny)
-    p_i = reflection_pdf(frame.cos_v, dot([c / h_len for c in h], n), frame.alpha)
-    p_i = torch.where(dot(l_ij, n) > 0, p_i, 0.0)
+    p_i = reflection_pdf(frame.cos_v, component_dot([c / h_len for c in h], n), frame.alpha)
+    p_i = torch.where(component_dot(l_ij, n) > 0, p_i, 0.0)
     w = torch.where((at_j(mask) & frame.mask)[:, 0], p_i / at_j(ray.pdf)[:, 0].clamp_min(1e-12), 0.0)
     return torch.nan_to_num(w, nan=0.0, posinf=MAX_WEIGHT).clamp(0.0, MAX_WEIGHT)[:, None]
 

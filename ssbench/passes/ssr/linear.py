@@ -43,7 +43,7 @@ from torch import nn
 from ...gbuffer import GBuffer
 from ..common import check_positive
 from ..gbuffer_checks import check_gbuffer, half_in_float32
-from .common import HIT, NO_RAY, SSRResult, flat
+from .common import HIT, NO_RAY, SSRResult, flat, unflat
 from .fade import FadeParams
 from .linear_march import MarchLog, march, refine
 from .linear_rays import linear_rays
@@ -190,10 +190,8 @@ def ssr_linear(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(), *,
     centre = flat(cam.pixel_centers(dtype, dev)[None]).index_select(0, rh % HW)  # vUv of each ray's pixel
     fade = params.fade(hit_pixel, centre, W, H, (Oh - best).norm(dim=1, keepdim=True))
 
-    def scatter(values, rows, fill, C, dt):       # per-ray values -> (B, C, H, W), through channel rows
-        out = torch.full((C, B * HW), fill, dtype=dt, device=dev)
-        out.index_copy_(1, rows, values.reshape(len(rows), C).T.to(dt))
-        return out.reshape(C, B, H, W).transpose(0, 1).contiguous()
+    def scatter(values, rows, fill, C, dt):       # per-ray values -> (B, C, H, W)
+        return unflat(values.reshape(len(rows), C), rows, fill, (B, H, W), dt)
 
     termination = scatter(term, ray, NO_RAY, 1, torch.int8)
     dbg = {}

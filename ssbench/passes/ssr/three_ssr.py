@@ -37,7 +37,7 @@ from ...gbuffer import GBuffer
 from ..common import check_positive
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..registry import Method, SpeedPanel
-from .common import HIT, MAX_DISTANCE, NO_RAY, OUT_OF_STEPS, SSRResult, compact_now, flat
+from .common import HIT, MAX_DISTANCE, NO_RAY, OUT_OF_STEPS, SSRResult, compact_now, flat, unflat
 from .three_ssr_step import MarchRays, StepTextures, pixel_step, unproject
 
 REQUIRES = ("view_z", "normal", "mask", "color")
@@ -177,10 +177,8 @@ def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
     pixel = torch.stack([hit_xy[h, 0], H - hit_xy[h, 1]], -1)                   # ssbench pixels (y down)
     ray_pixel = b * HW + k
 
-    def scatter(values, rows, fill, C, dtype):    # per-ray values -> (B, C, H, W), through channel rows
-        out = torch.full((C, B * HW), fill, dtype=dtype, device=dev)
-        out.index_copy_(1, rows, values.reshape(len(rows), C).T.to(dtype))
-        return out.reshape(C, B, H, W).transpose(0, 1).contiguous()
+    def scatter(values, rows, fill, C, dtype):    # per-ray values -> (B, C, H, W)
+        return unflat(values.reshape(len(rows), C), rows, fill, (B, H, W), dtype)
 
     termination = scatter(term, ray_pixel, NO_RAY, 1, torch.int8)
     rows = ray_pixel[h]

@@ -81,11 +81,18 @@ def index_dtype(texels: int) -> torch.dtype:
     return torch.int32 if texels < 2 ** 31 else torch.int64
 
 
+def gl_texel(u: torch.Tensor, v: torch.Tensor, height: int, width: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """``(col, row)`` (row 0 at the top) of the ``NEAREST``/``CLAMP_TO_EDGE`` texel at ``uv`` (v up), as
+    integer-valued floats, rounded as GL rounds it: row ``⌊v·H⌋`` counted from the bottom. (:func:`texel_of`'s
+    ``⌊(1 − v)·H⌋`` from the top picks the same texel except exactly on a texel edge; the three.js
+    transliterations need GL's side.) NaN reads texel 0 of its axis."""
+    col = nan_to_zero(torch.floor(u * width)).clamp(0, width - 1)
+    gl_row = nan_to_zero(torch.floor(v * height)).clamp(0, height - 1)
+    return col, (height - 1) - gl_row
+
+
 def gl_texel_index(u: torch.Tensor, v: torch.Tensor, height: int, width: int) -> torch.Tensor:
-    """Flat index (row 0 at the top) of the ``NEAREST``/``CLAMP_TO_EDGE`` texel at ``uv`` (v up), rounded as GL
-    rounds it: row ``⌊v·H⌋`` counted from the bottom. (:func:`texel_of`'s ``⌊(1 − v)·H⌋`` from the top picks the
-    same texel except exactly on a texel edge; the three.js transliterations need GL's side.) NaN reads texel 0.
-    """
+    """Flat int64 index ``row·W + col`` of :func:`gl_texel`'s texel."""
     col = nan_to_zero(torch.floor(u * width)).clamp(0, width - 1).long()
     gl_row = nan_to_zero(torch.floor(v * height)).clamp(0, height - 1).long()
     return (height - 1 - gl_row) * width + col
@@ -101,10 +108,36 @@ def fetch(tex: torch.Tensor, col: torch.Tensor, row: torch.Tensor) -> torch.Tens
     return tex.reshape(B, C, H * W).gather(2, flat).reshape(B, C, *col.shape[1:])
 
 
+def fetch_texels(tex: torch.Tensor, col: torch.Tensor, row: torch.Tensor) -> torch.Tensor:
+    """:func:`fetch` of integer-valued floating ``col``/``row`` of shape :math:`(B, *S)`, already within the image:
+    the same texels, :math:`(B, C, *S)`.
+
+    On the CPU a float → int64 conversion and int64 arithmetic have no AVX2 vector form (4× and 4× slower than in
+    int32, measured), and ``gather`` needs int64 indices. Where the flat index ``b·H·W + row·W + col`` is exact in
+    the floats' dtype (fewer than :math:`2^{24}` texels for float32) and ``tex`` has one channel, this forms the
+    index in floating point, converts it once to :func:`index_dtype` and reads with ``index_select``; elsewhere
+    (and inside ``torch.compile``, where the index arithmetic fuses anyway) it is :func:`fetch` of int64 indices.
+
+    Example:
+        >>> tex = torch.arange(12.0).reshape(1, 1, 3, 4)
+        >>> fetch_texels(tex, torch.tensor([[0.0, 3.0]]), torch.tensor([[2.0, 0.0]]))
+        tensor([[[8., 3.]]])
+    """
+    B, C, H, W = tex.shape
+    if C != 1 or B * H * W > 2 / torch.finfo(col.dtype).eps or torch.compiler.is_compiling():
+        return fetch(tex, col.long(), row.long())
+    flat = row * W + col                                                     # exact: integers at most 2 / eps
+    if B > 1:
+        flat += (torch.arange(B, dtype=col.dtype, device=col.device) * (H * W)).view(B, *(1,) * (col.dim() - 1))
+    index = flat.reshape(-1).to(index_dtype(B * H * W))
+    return tex.reshape(-1).index_select(0, index).view(B, 1, *col.shape[1:])
+
+
 def fetch_uv(tex: torch.Tensor, uv: torch.Tensor, dim: int = 1) -> torch.Tensor:
     """``texture2D(tex, uv)`` with nearest filtering; ``uv`` :math:`(B, 2, *S)` → :math:`(B, C, *S)`."""
-    col, row = uv_to_texel(uv, tex.shape[-2], tex.shape[-1], dim)
-    return fetch(tex, col, row)
+    u, v = uv.unbind(dim)
+    col, row = texel_of(u, v, tex.shape[-2], tex.shape[-1], dtype=u.dtype)
+    return fetch_texels(tex, col, row)
 
 
 def check_radius(value, name: str = "radius") -> None:

@@ -96,3 +96,23 @@ def test_banded_ao_passes_equal_the_whole_image_bit_for_bit(method, dtype, monke
         assert not isinstance(v, torch.Tensor) or torch.equal(v, banded.debug[k]), k
     if method == "gtao":
         assert torch.equal(whole.bent_normal, banded.bent_normal)
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64, torch.bfloat16])
+@pytest.mark.parametrize("B, C", [(1, 1), (2, 1), (1, 3), (3, 2)])
+def test_fetch_texels_reads_the_texels_of_fetch(dtype, B, C):
+    """The float-index read (one conversion, ``index_select``) returns exactly :func:`fetch`'s texels, batched,
+    multi-channel (the ``gather`` fallback) and at the image's corners; ``gl_texel`` picks ``gl_texel_index``'s."""
+    from ssbench.passes.common import fetch, fetch_texels, gl_texel, gl_texel_index
+    g = torch.Generator().manual_seed(3)
+    H, W = 7, 11
+    tex = torch.randn(B, C, H, W, generator=g, dtype=torch.float64)
+    col = torch.randint(0, W, (B, 2, 5, 4), generator=g)
+    row = torch.randint(0, H, (B, 2, 5, 4), generator=g)
+    col[..., 0, 0], row[..., 0, 0], col[..., 1, 1], row[..., 1, 1] = 0, 0, W - 1, H - 1
+    got = fetch_texels(tex, col.to(dtype), row.to(dtype))
+    assert got.shape == (B, C, 2, 5, 4) and torch.equal(got, fetch(tex, col, row))
+    u = torch.tensor([[-1.0, 0.0, 0.5 / W, 0.3, 1.0, 2.0, float("nan"), float("inf")]], dtype=dtype)
+    v = torch.tensor([[0.2, 1.0, float("nan"), -float("inf"), 0.0, 0.99, 0.5, 0.7]], dtype=dtype)
+    c, r = gl_texel(u, v, H, W)
+    assert torch.equal((r * W + c).long(), gl_texel_index(u, v, H, W))

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 
 import torch
 
-from ..common import fetch
+from ..common import fetch_texels
 from ..compiled import kernel
 from .gtao_parts import dot3, slice_frame, slice_visibility, unit3
 
@@ -68,7 +68,7 @@ def gtao_rows(cam, z: torch.Tensor, row: torch.Tensor, normal: torch.Tensor, mas
         cy = row + torch.cat([off_y, -off_y], 1)
         on = (cx >= 0) & (cx < W) & (cy >= 0) & (cy < H)                             # off screen: ignored
         cx, cy = torch.where(on, cx, col), torch.where(on, cy, row)      # (weight 0; huge r_px overflowed delta)
-        zs = fetch(z, cx.clamp(0, W - 1).long(), cy.clamp(0, H - 1).long())[:, 0]     # (B, 2K, h, W)
+        zs = fetch_texels(z, cx.clamp(0, W - 1), cy.clamp(0, H - 1))[:, 0]     # (B, 2K, h, W)
         delta = (ray_x(cx) * -zs - P[0], ray_y(cy) * -zs - P[1], zs - P[2])
         dist = dot3(delta, delta).sqrt().clamp_min(tiny)
         shc = dot3(delta, v) / dist                                                  # sample horizon cos

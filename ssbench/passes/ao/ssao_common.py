@@ -7,7 +7,7 @@ from __future__ import annotations
 import torch
 
 from ...camera import Camera
-from ..common import AOResult, check_count, check_radius, fetch, nan_to_zero, texel_of
+from ..common import AOResult, check_count, check_radius, fetch_texels, nan_to_zero, texel_of
 
 __all__ = ["check_ssao_params", "view_position", "range_check_count", "occlusion_to_ao", "ssao_result"]
 
@@ -54,8 +54,8 @@ def range_check_count(camera: Camera, sample_point: tuple, texture: torch.Tensor
     z_proj = torch.where(z == 0, torch.full_like(z, -torch.finfo(z.dtype).tiny), z)
     # NaN reads as 0 (texel_of clamps infinities as nan_to_num would clamp ±max)
     u, v = (nan_to_zero(camera.ndc_to_uv(c)) for c in camera.view_to_ndc_xy(x, y, z_proj))  # samplePointUv
-    col, row = texel_of(u, v, texture.shape[-2], texture.shape[-1], nan_free=True)
-    real = fetch(texture, col.squeeze(1), row.squeeze(1)).reshape(z.shape)     # (B, 1, K, H, W) NEAREST, clamp
+    col, row = texel_of(u, v, texture.shape[-2], texture.shape[-1], nan_free=True, dtype=u.dtype)
+    real = fetch_texels(texture, col.squeeze(1), row.squeeze(1)).reshape(z.shape)     # (B, 1, K, H, W) NEAREST, clamp
     if from_depth:
         real = camera.depth_to_view_z(real)                                      # perspectiveDepthToViewZ
     real_depth = camera.view_z_to_orthographic_depth(real)                       # realDepth

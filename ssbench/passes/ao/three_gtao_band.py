@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import torch
 
-from ..common import component_dot, component_norm, gl_texel_index, nan_to_zero, vector_norm
+from ..common import component_dot, component_norm, fetch_texels, gl_texel, nan_to_zero, vector_norm
 from ..compiled import kernel
 
 if TYPE_CHECKING:
@@ -89,7 +89,6 @@ def slice_visibility(frame: BandFrame, depth: torch.Tensor, proj: torch.Tensor, 
     """
     p, f = params, frame
     B, _, H, W = depth.shape
-    depth_tex = depth.reshape(B, H * W)
     steps = p.steps
     sample_dir = normalize(f.tangent * rotation[0] + f.bitangent * rotation[1])
     slice_bitangent = normalize(torch.linalg.cross(sample_dir, f.view_dir, dim=1))
@@ -103,7 +102,7 @@ def slice_visibility(frame: BandFrame, depth: torch.Tensor, proj: torch.Tensor, 
             q = f.view_pos + sign * offset
             clip = [sum(proj[r, k] * (q[:, k] if k < 3 else 1.0) for k in range(4)) for r in (0, 1, 3)]
             su, sv = clip[0] / clip[2] * 0.5 + 0.5, clip[1] / clip[2] * 0.5 + 0.5      # getSceneUvAndDepth
-            sd = torch.gather(depth_tex, 1, gl_texel_index(su, sv, H, W).reshape(B, -1)).reshape(su.shape)
+            sd = fetch_texels(depth, *gl_texel(su, sv, H, W)).reshape(su.shape)
             c, delta_z = cos_to_sample(minv, su, sv, sd, f)
             gain = nan_to_zero((c - cos_h[side]) * (1.0 + (2.0 / (j + 2) - 1.0) * p.distance_fall_off))
             cos_h[side] = torch.where(delta_z.abs() < p.thickness, cos_h[side] + gain.clamp_min(0.0), cos_h[side])

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 
 import torch
 
-from ..common import fetch
+from ..common import fetch_texels
 from ..compiled import kernel
 from .gtao_parts import dot3, slice_frame, unit3
 
@@ -100,7 +100,7 @@ def vbao_rows(cam, z: torch.Tensor, row: torch.Tensor, normal: torch.Tensor, mas
         cx, cy = col + torch.cat([off_x, -off_x], 1), row + torch.cat([off_y, -off_y], 1)  # (B, 2K, h, W)
         on = (cx >= 0) & (cx < W) & (cy >= 0) & (cy < H)
         cx, cy = torch.where(on, cx, col), torch.where(on, cy, row)
-        zs = fetch(z, cx.clamp(0, W - 1).long(), cy.clamp(0, H - 1).long())[:, 0]
+        zs = fetch_texels(z, cx.clamp(0, W - 1), cy.clamp(0, H - 1))[:, 0]
         front = (ray_x(cx) * -zs - P[0], ray_y(cy) * -zs - P[1], zs - P[2])           # frontDir
         back = tuple(front[i] - v[i] * params.thickness for i in range(3))          # backDir: `thickness` behind
         dist = dot3(front, front).sqrt()

@@ -108,15 +108,31 @@ def fetch(tex: torch.Tensor, col: torch.Tensor, row: torch.Tensor) -> torch.Tens
     return tex.reshape(B, C, H * W).gather(2, flat).reshape(B, C, *col.shape[1:])
 
 
+def channel_rows(t: torch.Tensor) -> torch.Tensor:
+    """:math:`(B, C, H, W)` → :math:`(C, B·H·W)`, pixels in row-major order: a view for ``B = 1`` (a copy
+    otherwise). ``channel_rows(x).index_select(1, rows)`` gathers the pixels ``rows`` as :math:`(C, N)` rows,
+    3-4× faster than transposing to :math:`(B·H·W, C)` and gathering pixel rows (measured at 640×360).
+
+    Example:
+        >>> x = torch.arange(8.0).reshape(2, 1, 2, 2).expand(2, 2, 2, 2)
+        >>> channel_rows(x)
+        tensor([[0., 1., 2., 3., 4., 5., 6., 7.],
+                [0., 1., 2., 3., 4., 5., 6., 7.]])
+    """
+    B, C = t.shape[:2]
+    return t.reshape(B, C, -1).transpose(0, 1).reshape(C, -1)
+
+
 def fetch_texels(tex: torch.Tensor, col: torch.Tensor, row: torch.Tensor) -> torch.Tensor:
     """:func:`fetch` of integer-valued floating ``col``/``row`` of shape :math:`(B, *S)`, already within the image:
     the same texels, :math:`(B, C, *S)`.
 
     On the CPU a float → int64 conversion and int64 arithmetic have no AVX2 vector form (4× and 4× slower than in
     int32, measured), and ``gather`` needs int64 indices. Where the flat index ``b·H·W + row·W + col`` is exact in
-    the floats' dtype (fewer than :math:`2^{24}` texels for float32) and ``tex`` has one channel, this forms the
-    index in floating point, converts it once to :func:`index_dtype` and reads with ``index_select``; elsewhere
-    (and inside ``torch.compile``, where the index arithmetic fuses anyway) it is :func:`fetch` of int64 indices.
+    the floats' dtype (at most :math:`2^{24}` texels for float32), this forms the
+    index in floating point, converts it once to :func:`index_dtype` and reads with ``index_select`` (of
+    :func:`channel_rows` for several channels); elsewhere (and inside ``torch.compile``, where the index
+    arithmetic fuses anyway) it is :func:`fetch` of int64 indices.
 
     Example:
         >>> tex = torch.arange(12.0).reshape(1, 1, 3, 4)
@@ -124,13 +140,16 @@ def fetch_texels(tex: torch.Tensor, col: torch.Tensor, row: torch.Tensor) -> tor
         tensor([[[8., 3.]]])
     """
     B, C, H, W = tex.shape
-    if C != 1 or B * H * W > 2 / torch.finfo(col.dtype).eps or torch.compiler.is_compiling():
+    if B * H * W > 2 / torch.finfo(col.dtype).eps or torch.compiler.is_compiling():
         return fetch(tex, col.long(), row.long())
     flat = row * W + col                                                     # exact: integers at most 2 / eps
     if B > 1:
         flat += (torch.arange(B, dtype=col.dtype, device=col.device) * (H * W)).view(B, *(1,) * (col.dim() - 1))
     index = flat.reshape(-1).to(index_dtype(B * H * W))
-    return tex.reshape(-1).index_select(0, index).view(B, 1, *col.shape[1:])
+    if C == 1:
+        return tex.reshape(-1).index_select(0, index).view(B, 1, *col.shape[1:])
+    rows = channel_rows(tex).index_select(1, index).view(C, B, *col.shape[1:])   # (C, B, *S)
+    return rows.transpose(0, 1).contiguous() if B > 1 else rows.view(1, C, *col.shape[1:])
 
 
 def fetch_uv(tex: torch.Tensor, uv: torch.Tensor, dim: int = 1) -> torch.Tensor:

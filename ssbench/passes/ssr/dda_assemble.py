@@ -8,7 +8,7 @@ from typing import Optional
 import torch
 
 from ...gbuffer import GBuffer
-from ..common import fetch, length
+from ..common import fetch_texels, length
 from .common import HIT, NO_RAY, SSRResult, unflat
 from .dda_state import MarchOutput
 
@@ -33,10 +33,10 @@ def assemble(gbuffer: GBuffer, params, sel: torch.Tensor, P1: torch.Tensor, o: M
     hit = term == HIT                                                             # (B, 1, H, W)
     # the texel is floored in the march's own dtype: a hit at 8.999999999999998 must not round to 9 first
     texel = image(torch.where(is_hit, o.P, 0.0).floor(), 0.0, torch.float64)
-    col, row = texel[:, 0].clamp(0, W - 1).long(), texel[:, 1].clamp(0, H - 1).long()
+    col, row = texel[:, 0].clamp(0, W - 1), texel[:, 1].clamp(0, H - 1)          # (float64: exact indices)
     lo, hi = texel.to(dt), torch.nextafter((texel + 1).to(dt), texel.to(dt))      # and hit_pixel stays in it
     hit_pixel = torch.where(hit, torch.minimum(torch.maximum(hit_pixel, lo), hi), hit_pixel)
-    raw = torch.where(hit, fetch(gbuffer.color.to(dt), col, row), 0.0)            # (B, 3, H, W)
+    raw = torch.where(hit, fetch_texels(gbuffer.color.to(dt), col, row), 0.0)            # (B, 3, H, W)
     origin = cam.uv_to_view(cam.uv_grid(dt, dev).unsqueeze(0), gbuffer.view_z)
     fade = params.fade(hit_pixel, cam.pixel_centers(dt, dev)[None], W, H, length(hit_view - origin))
     fade = torch.where(hit, fade, 0.0)

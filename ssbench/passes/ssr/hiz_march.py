@@ -34,7 +34,7 @@ import torch
 
 from ...gbuffer import GBuffer
 from ..compiled import step_blocks
-from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OUT_OF_STEPS, compact_now, ray_segments
+from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OUT_OF_STEPS, channel_rows, compact_now, ray_segments
 from .dda_state import MarchOutput
 from .hiz_pyramid import DepthPyramid, padded_levels
 from .hiz_step import (BIG, COLUMNS, EPSILON, OFFX, OFFY, EPSX, EPSY, INVX, INVY, OX, OY, OZ, VX, VY, VZ, HiZRules,
@@ -88,7 +88,7 @@ def hiz_rays(gbuffer: GBuffer, max_ray_distance: float, sel: torch.Tensor, direc
     W = vz.shape[-1]
     dt, dev = vz.dtype, vz.device
     b, px, o, d, end = ray_segments(gbuffer, sel, max_ray_distance, directions)
-    P0 = torch.stack([(px % W).to(dt) + 0.5, (px // W).to(dt) + 0.5], 1)          # the origin pixel's centre
+    P0 = channel_rows(cam.pixel_centers(dt, dev)[None]).index_select(1, px).T       # the origin pixel's centre
     P1 = cam.view_to_pixel(end, dim=1)
     rz0, rz1 = cam.near / -o[:, 2], cam.near / -end[:, 2]
     v = torch.cat([P1 - P0, (rz1 - rz0)[:, None]], 1)

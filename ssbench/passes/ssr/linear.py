@@ -43,7 +43,7 @@ from torch import nn
 from ...gbuffer import GBuffer
 from ..common import check_positive
 from ..gbuffer_checks import check_gbuffer, half_in_float32
-from .common import HIT, NO_RAY, SSRResult, flat, unflat
+from .common import HIT, NO_RAY, SSRResult, channel_rows, unflat
 from .fade import FadeParams
 from .linear_march import MarchLog, march, refine
 from .linear_rays import linear_rays
@@ -176,18 +176,20 @@ def ssr_linear(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(), *,
     out = march(test, log, Q, dS, base, rays.clipped, N_it, params.max_iterations)
     term, steps = out.term, out.steps
     h = (term == HIT).nonzero().squeeze(1)                                       # the hit rays (index_select below:
-    Oh, base_h = O.index_select(0, h), base.index_select(0, h)                    # advanced indexing is ~5x slower)
+    at_hits = lambda x: x.T.index_select(1, h).T.contiguous()                    # noqa: E731  advanced indexing is
+    Oh, base_h = at_hits(O), base.index_select(0, h)                             # ~5x slower; O, dS: views of rows)
     best, n_bs = out.hit_q.index_select(0, h), min(params.binary_search_iterations, MAX_BINARY_SEARCH_ITERATIONS)
     if n_bs > 0 and h.numel() > 0:
-        best = refine(test, log, h, Oh, dS.index_select(0, h), base_h, best, out.hit_step.index_select(0, h), n_bs)
+        best = refine(test, log, h, Oh, at_hits(dS), base_h, best, out.hit_step.index_select(0, h), n_bs)
         steps.index_add_(0, h, torch.full_like(h, n_bs, dtype=steps.dtype))
 
     # ---- colour at the hit texel and fades (§1.4, §1.5) ----
     uv, t = test.project(best, base_h)
     hit_pixel = cam.uv_to_pixel(uv, dim=-1)                                       # (m, 2)
-    raw = flat(gbuffer.color).index_select(0, t)                                 # (m, 3)
+    raw = channel_rows(gbuffer.color).index_select(1, t).T.contiguous()          # (m, 3)
     rh = ray.index_select(0, h)
-    centre = flat(cam.pixel_centers(dtype, dev)[None]).index_select(0, rh % HW)  # vUv of each ray's pixel
+    centre = channel_rows(cam.pixel_centers(dtype, dev)[None]).index_select(1, rh % HW if B > 1 else rh)
+    centre = centre.T.contiguous()                                                # vUv of each ray's pixel
     fade = params.fade(hit_pixel, centre, W, H, (Oh - best).norm(dim=1, keepdim=True))
 
     def scatter(values, rows, fill, C, dt):       # per-ray values -> (B, C, H, W)

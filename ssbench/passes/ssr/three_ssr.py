@@ -34,7 +34,7 @@ import torch
 from torch import nn
 
 from ...gbuffer import GBuffer
-from ..common import check_positive
+from ..common import check_positive, index_dtype
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..registry import Method, SpeedPanel
 from .common import HIT, MAX_DISTANCE, NO_RAY, OUT_OF_STEPS, SSRResult, compact_now, flat, unflat
@@ -131,10 +131,10 @@ def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
     m = len(k)
     term = torch.full((m,), OUT_OF_STEPS, dtype=torch.int8, device=dev)
     steps = torch.zeros(m, dtype=torch.int32, device=dev)
-    hit_k = torch.zeros(m, dtype=torch.long, device=dev)
+    hit_k = torch.zeros(m, dtype=index_dtype(B * HW), device=dev)
     hit_xy = torch.zeros(m, 2, dtype=dt, device=dev)
     hit_vp = torch.zeros(m, 3, dtype=dt, device=dev)
-    ws = MarchRays(torch.arange(m, device=dev), b, d0, span, total, recip, recip_end, vp, d1v, (d1v - vp).norm(dim=1),
+    ws = MarchRays(torch.arange(m, device=dev), b.to(index_dtype(B * HW)), d0, span, total, recip, recip_end, vp, d1v, (d1v - vp).norm(dim=1),
                    refl, n, s_step, s_step.clone())
     alive = torch.ones(m, dtype=torch.bool, device=dev)
     term_ws, steps_ws = term.clone(), steps.clone()        # the working set's, written back when it is compacted

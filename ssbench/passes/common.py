@@ -6,6 +6,7 @@ Texture fetches follow GL semantics on ssbench images (row 0 at the top, see ``C
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Optional
 
@@ -50,15 +51,18 @@ def uv_to_texel(uv: torch.Tensor, height: int, width: int, dim: int = 1) -> tupl
 def nan_to_zero(x: torch.Tensor) -> torch.Tensor:
     """``x`` with NaN replaced by 0 and everything else kept (infinities too): ``where(x != x, 0, x)``.
 
-    Before a clamp this is ``torch.nan_to_num(x, 0.0)`` (±inf and ±max clamp alike), but inductor vectorises it on
-    the CPU, where it runs ``nan_to_num``'s NaN test one lane at a time: four of those per sample made the compiled
-    SSAO loop 2× slower than this form.
+    Eager (and without gradients) it is one ``torch.nan_to_num(x, 0.0, inf, -inf)`` pass instead of two (crytek and
+    hemisphere SSAO at 640×360: 13-20 % faster, measured side by side). Inside ``torch.compile`` it stays
+    ``where``: inductor runs ``nan_to_num``'s NaN test one lane at a time, and four of those per sample made the
+    compiled SSAO loop 2× slower. With gradients too (``nan_to_num``'s gradient is 0 at ±inf, ``where``'s is not).
 
     Example:
         >>> nan_to_zero(torch.tensor([float("nan"), -float("inf"), 2.0]))
         tensor([0., -inf, 2.])
     """
-    return torch.where(x != x, 0.0, x)
+    if torch.compiler.is_compiling() or x.requires_grad:
+        return torch.where(x != x, 0.0, x)
+    return torch.nan_to_num(x, nan=0.0, posinf=math.inf, neginf=-math.inf)     # eager: one pass, not two
 
 
 def texel_of(u: torch.Tensor, v: torch.Tensor, height: int, width: int, *,

@@ -116,3 +116,19 @@ def test_fetch_texels_reads_the_texels_of_fetch(dtype, B, C):
     v = torch.tensor([[0.2, 1.0, float("nan"), -float("inf"), 0.0, 0.99, 0.5, 0.7]], dtype=dtype)
     c, r = gl_texel(u, v, H, W)
     assert torch.equal((r * W + c).long(), gl_texel_index(u, v, H, W))
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_nan_to_zero_keeps_everything_but_nan_bit_for_bit(dtype):
+    """Eager ``nan_to_num`` form against the ``where`` form: NaN → +0, and ±inf, ±0, subnormals and the largest
+    finite values keep their bits; with gradients (the ``where`` form) the gradient passes through ±inf too."""
+    from ssbench.passes.common import nan_to_zero
+    tiny, big = torch.finfo(dtype).tiny, torch.finfo(dtype).max
+    x = torch.tensor([float("nan"), -float("nan"), math.inf, -math.inf, 0.0, -0.0, tiny / 4, -tiny / 4, big, -big,
+                      1.5], dtype=dtype)
+    got, want = nan_to_zero(x), torch.where(x != x, 0.0, x)
+    assert torch.equal(got.view(torch.int64 if dtype == torch.float64 else torch.int32),
+                       want.view(torch.int64 if dtype == torch.float64 else torch.int32))
+    xg = x.clone().requires_grad_(True)
+    nan_to_zero(xg).sum().backward()
+    assert xg.grad.tolist() == [0.0, 0.0] + [1.0] * 9

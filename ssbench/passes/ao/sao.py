@@ -182,7 +182,7 @@ def sao_taps(c: tuple, n: tuple, spin: torch.Tensor, ss_disk: torch.Tensor, xy: 
         vn = vx * nx + vy * ny + vz * nz
         f = (r2 - vv).clamp(min=0.0)
         tap = f * f * f * ((vn - p.bias) / (EPSILON + vv)).clamp(min=0.0)
-        total = total + torch.where(f > 0, tap, torch.zeros_like(tap))      # out of reach (or overflowed): 0
+        total = total + torch.where(f > 0, tap, 0.0)      # out of reach (or overflowed): 0
         if debug:
             levels.append(lv.to(torch.int8))
     return total, (torch.cat(levels, 1) if debug else None)

@@ -81,9 +81,9 @@ def mip_level(ss_r: torch.Tensor, log_max_offset: int, max_mip_level: int) -> to
         >>> mip_level(torch.tensor([0.0, 7.9, 8.0, 40.0, 1e6]), 3, 5).tolist()
         [0, 0, 0, 2, 5]
     """
-    safe = torch.where(ss_r > 0, ss_r, torch.ones_like(ss_r))
+    safe = torch.where(ss_r > 0, ss_r, 1.0)
     lv = torch.floor(torch.log2(safe)).long() - log_max_offset
-    return torch.where(ss_r > 0, lv, torch.zeros_like(lv)).clamp(0, max_mip_level)
+    return torch.where(ss_r > 0, lv, 0).clamp(0, max_mip_level)
 
 
 def _quad_pass(a: torch.Tensor, z: torch.Tensor, dim: int) -> torch.Tensor:

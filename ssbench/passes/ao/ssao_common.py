@@ -51,7 +51,7 @@ def range_check_count(camera: Camera, sample_point: tuple, texture: torch.Tensor
     """
     x, y, z = sample_point
     # NOTE: w = -z = 0 would divide by zero; the GPU result is undefined, ours reads as "just in front"
-    z_proj = torch.where(z == 0, torch.full_like(z, -torch.finfo(z.dtype).tiny), z)
+    z_proj = torch.where(z == 0, -torch.finfo(z.dtype).tiny, z)
     # NaN reads as 0 (texel_of clamps infinities as nan_to_num would clamp ±max)
     u, v = (nan_to_zero(camera.ndc_to_uv(c)) for c in camera.view_to_ndc_xy(x, y, z_proj))  # samplePointUv
     col, row = texel_of(u, v, texture.shape[-2], texture.shape[-1], nan_free=True, dtype=u.dtype)

@@ -134,8 +134,8 @@ def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
     hit_k = torch.zeros(m, dtype=index_dtype(B * HW), device=dev)
     hit_xy = torch.zeros(m, 2, dtype=dt, device=dev)
     hit_vp = torch.zeros(m, 3, dtype=dt, device=dev)
-    ws = MarchRays(torch.arange(m, device=dev), b.to(index_dtype(B * HW)), d0, span, total, recip, recip_end, vp, d1v, (d1v - vp).norm(dim=1),
-                   refl, n, s_step, s_step.clone())
+    ws = MarchRays(torch.arange(m, device=dev), b.to(index_dtype(B * HW)), d0, span, total, recip, recip_end, vp, d1v,
+                   (d1v - vp).norm(dim=1), refl, n, s_step, s_step.clone())
     alive = torch.ones(m, dtype=torch.bool, device=dev)
     term_ws, steps_ws = term.clone(), steps.clone()        # the working set's, written back when it is compacted
     textures = StepTextures(depth.reshape(-1), vz_tex.reshape(-1), minv)

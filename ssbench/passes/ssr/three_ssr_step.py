@@ -34,9 +34,9 @@ class StepTextures(NamedTuple):
 
 class MarchRays(NamedTuple):
     """The working set of the pixel DDA, :math:`(N,)` or :math:`(N, k)` per field: ray ids (``ray``, into the rays
-    the shader casts) and each ray's constants (batch index ``b``, ``d0``, ``span``, ``totalStep``, ``1/z`` at both
-    ends, ``viewPosition``, the far end ``d1viewPosition``, the ray's length, ``viewReflectDir``, ``viewNormal``,
-    ``sStep``) and its state ``s``, all compacted together."""
+    the shader casts) and each ray's constants (batch index ``b`` in the texel index dtype, ``d0``, ``span``,
+    ``totalStep``, ``1/z`` at both ends, ``viewPosition``, the far end ``d1viewPosition``, the ray's length,
+    ``viewReflectDir``, ``viewNormal``, ``sStep``) and its state ``s``, all compacted together."""
 
     ray: torch.Tensor
     b: torch.Tensor

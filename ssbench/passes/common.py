@@ -95,11 +95,20 @@ def gl_texel(u: torch.Tensor, v: torch.Tensor, height: int, width: int) -> tuple
     return col, (height - 1) - gl_row
 
 
-def gl_texel_index(u: torch.Tensor, v: torch.Tensor, height: int, width: int) -> torch.Tensor:
-    """Flat int64 index ``row·W + col`` of :func:`gl_texel`'s texel."""
-    col = nan_to_zero(torch.floor(u * width)).clamp(0, width - 1).long()
-    gl_row = nan_to_zero(torch.floor(v * height)).clamp(0, height - 1).long()
-    return (height - 1 - gl_row) * width + col
+def flat_texel(col: torch.Tensor, row: torch.Tensor, size: tuple[int, int], dtype: torch.dtype) -> torch.Tensor:
+    """``row·W + col`` of integer-valued floating ``col``/``row`` inside an image of ``size`` ``(H, W)``, as ``dtype``
+    (an :func:`index_dtype`). On the CPU a float → int64 conversion and int64 arithmetic have no AVX2 vector form
+    (4× and 4× slower than in int32, measured), so where the index is exact in the floats' dtype (at most 2/eps
+    texels: :math:`2^{24}` for float32) it is formed in floating point and converted once; elsewhere in int64.
+
+    Example:
+        >>> flat_texel(torch.tensor([3.0, 0.0]), torch.tensor([0.0, 2.0]), (3, 4), torch.int32)
+        tensor([3, 8], dtype=torch.int32)
+    """
+    H, W = size
+    if H * W <= 2 / torch.finfo(col.dtype).eps:
+        return (row * W + col).to(dtype)
+    return (row.long() * W + col.long()).to(dtype)
 
 
 def fetch(tex: torch.Tensor, col: torch.Tensor, row: torch.Tensor) -> torch.Tensor:
@@ -131,12 +140,10 @@ def fetch_texels(tex: torch.Tensor, col: torch.Tensor, row: torch.Tensor) -> tor
     """:func:`fetch` of integer-valued floating ``col``/``row`` of shape :math:`(B, *S)`, already within the image:
     the same texels, :math:`(B, C, *S)`.
 
-    On the CPU a float → int64 conversion and int64 arithmetic have no AVX2 vector form (4× and 4× slower than in
-    int32, measured), and ``gather`` needs int64 indices. Where the flat index ``b·H·W + row·W + col`` is exact in
-    the floats' dtype (at most :math:`2^{24}` texels for float32), this forms the
-    index in floating point, converts it once to :func:`index_dtype` and reads with ``index_select`` (of
-    :func:`channel_rows` for several channels); elsewhere (and inside ``torch.compile``, where the index
-    arithmetic fuses anyway) it is :func:`fetch` of int64 indices.
+    ``gather`` needs int64 indices, which are slow on the CPU: this reads with ``index_select`` (of
+    :func:`channel_rows` for several channels) at :func:`flat_texel` indices in :func:`index_dtype`, plus each
+    image's offset ``b·H·W``. Inside ``torch.compile``, where the index arithmetic fuses anyway, it is :func:`fetch`
+    of int64 indices.
 
     Example:
         >>> tex = torch.arange(12.0).reshape(1, 1, 3, 4)
@@ -144,12 +151,13 @@ def fetch_texels(tex: torch.Tensor, col: torch.Tensor, row: torch.Tensor) -> tor
         tensor([[[8., 3.]]])
     """
     B, C, H, W = tex.shape
-    if B * H * W > 2 / torch.finfo(col.dtype).eps or torch.compiler.is_compiling():
+    if torch.compiler.is_compiling():
         return fetch(tex, col.long(), row.long())
-    flat = row * W + col                                                     # exact: integers at most 2 / eps
+    index = flat_texel(col, row, (H, W), index_dtype(B * H * W))
     if B > 1:
-        flat += (torch.arange(B, dtype=col.dtype, device=col.device) * (H * W)).view(B, *(1,) * (col.dim() - 1))
-    index = flat.reshape(-1).to(index_dtype(B * H * W))
+        index = index + (torch.arange(B, dtype=index.dtype, device=index.device) * (H * W)).view(
+            B, *(1,) * (col.dim() - 1))
+    index = index.reshape(-1)
     if C == 1:
         return tex.reshape(-1).index_select(0, index).view(B, 1, *col.shape[1:])
     rows = channel_rows(tex).index_select(1, index).view(C, B, *col.shape[1:])   # (C, B, *S)

@@ -102,8 +102,8 @@ def test_banded_ao_passes_equal_the_whole_image_bit_for_bit(method, dtype, monke
 @pytest.mark.parametrize("B, C", [(1, 1), (2, 1), (1, 3), (3, 2)])
 def test_fetch_texels_reads_the_texels_of_fetch(dtype, B, C):
     """The float-index read (one conversion, ``index_select``) returns exactly :func:`fetch`'s texels, batched,
-    multi-channel (the ``gather`` fallback) and at the image's corners; ``gl_texel`` picks ``gl_texel_index``'s."""
-    from ssbench.passes.common import fetch, fetch_texels, gl_texel, gl_texel_index
+    multi-channel and at the image's corners; ``gl_texel`` picks the texel of GL's rounding in int64."""
+    from ssbench.passes.common import fetch, fetch_texels, gl_texel
     g = torch.Generator().manual_seed(3)
     H, W = 7, 11
     tex = torch.randn(B, C, H, W, generator=g, dtype=torch.float64)
@@ -115,7 +115,20 @@ def test_fetch_texels_reads_the_texels_of_fetch(dtype, B, C):
     u = torch.tensor([[-1.0, 0.0, 0.5 / W, 0.3, 1.0, 2.0, float("nan"), float("inf")]], dtype=dtype)
     v = torch.tensor([[0.2, 1.0, float("nan"), -float("inf"), 0.0, 0.99, 0.5, 0.7]], dtype=dtype)
     c, r = gl_texel(u, v, H, W)
-    assert torch.equal((r * W + c).long(), gl_texel_index(u, v, H, W))
+    col = torch.floor(u * W).nan_to_num(0.0).clamp(0, W - 1).long()        # GL: row ⌊v·H⌋ from the bottom
+    gl_row = torch.floor(v * H).nan_to_num(0.0).clamp(0, H - 1).long()
+    assert torch.equal((r * W + c).long(), (H - 1 - gl_row) * W + col)
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.bfloat16])
+def test_flat_texel_is_exact_past_the_floats_integers(dtype):
+    """``row·W + col`` in int32: formed in floats where exact, in int64 past 2/eps texels (bfloat16: 256; a 20×20
+    image's indices up to 399 are not all bfloat16 integers, its coordinates are)."""
+    from ssbench.passes.common import flat_texel
+    H, W = 20, 20
+    row, col = torch.meshgrid(torch.arange(H), torch.arange(W), indexing="ij")
+    got = flat_texel(col.to(dtype), row.to(dtype), (H, W), torch.int32)
+    assert got.dtype == torch.int32 and torch.equal(got.long(), row * W + col)
 
 
 @pytest.mark.parametrize("dtype", [torch.float32, torch.float64])

@@ -8,7 +8,7 @@ from typing import NamedTuple
 
 import torch
 
-from ..common import gl_texel, gl_texel_index
+from ..common import flat_texel, gl_texel
 from ..compiled import kernel
 from .common import MAX_DISTANCE, OFF_SCREEN
 
@@ -91,11 +91,7 @@ def pixel_step(i: int, ws: MarchRays, was: torch.Tensor, state: tuple, tex: Step
     term = torch.where(was & off, OFF_SCREEN, torch.where(was & end, MAX_DISTANCE, state[0]))
     steps = torch.where(was, i - 1 + (~end).int(), state[1])
     uv = xy / torch.tensor([W, H], dtype=xy.dtype, device=xy.device)
-    if H * W <= 2 / torch.finfo(uv.dtype).eps:                               # the flat index is exact in floats:
-        col, row = gl_texel(uv[:, 0], uv[:, 1], H, W)                         # one conversion, in the index dtype
-        t = (row * W + col).to(ws.b.dtype)                                   # (int32: vector arithmetic on AVX2)
-    else:
-        t = gl_texel_index(uv[:, 0], uv[:, 1], H, W).to(ws.b.dtype)
+    t = flat_texel(*gl_texel(uv[:, 0], uv[:, 1], H, W), (H, W), ws.b.dtype)   # in the index dtype (int32: AVX2)
     texel = ws.b * (H * W) + t
     d, vz = tex.depth.index_select(0, texel), tex.view_z.index_select(0, texel)
     sky = -vz >= far                                                         # continue: s does not advance

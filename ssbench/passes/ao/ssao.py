@@ -48,7 +48,7 @@ from ..compiled import kernel
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..sampling import hemisphere_kernel, noise_texel, noise_texture
 from ..registry import Method, SpeedPanel
-from .ssao_common import check_ssao_params, range_check_count, ssao_result, view_position
+from .ssao_common import check_ssao_params, range_check_count, real_depth_texture, ssao_result, view_position
 
 FLAVOUR = "volume_hemisphere"  # the ground truth this pass estimates (ssbench.reference.ao_volume)
 #: continuous parameters ``ssbench tune`` may fit: name -> (lo, hi, relative); relative ranges are multiples of the
@@ -107,14 +107,15 @@ class HemisphereSSAOParams:
 
 
 @kernel
-def hemisphere_band(cam: Camera, position: torch.Tensor, tbn: tuple, k: tuple, texture: torch.Tensor,
+def hemisphere_band(cam: Camera, position: torch.Tensor, tbn: tuple, k: tuple, real_depth: torch.Tensor,
                     p: "HemisphereSSAOParams") -> torch.Tensor:
     """The sample loop of SSAO article §2.2 on a band of rows: ``samplePoint = viewPosition + (kernelMatrix ·
     Kernel[i]) · KernelRadius`` for every sample at once, then :func:`range_check_count`.
 
     Args:
         position: :math:`(B, 3, h, W)` ``viewPosition``; ``tbn``: tangent, bitangent, normal :math:`(B, 3, h, W)`;
-        k: the kernel's x, y, z :math:`(1, 1, K, 1, 1)`; texture: the buffer ``getLinearDepth`` samples.
+        k: the kernel's x, y, z :math:`(1, 1, K, 1, 1)`; real_depth: :math:`(B, 1, H, W)` ``getLinearDepth`` of
+            every texel (:func:`~.ssao_common.real_depth_texture`).
 
     Returns:
         :math:`(B, 1, h, W)` integer count (the pass's compilable kernel, :mod:`ssbench.passes.compiled`).
@@ -124,8 +125,8 @@ def hemisphere_band(cam: Camera, position: torch.Tensor, tbn: tuple, k: tuple, t
     def component(c: int) -> torch.Tensor:                                           # (B, 1, K, h, W)
         sample_vector = (t[:, c:c + 1, None] * kx + b[:, c:c + 1, None] * ky) + n[:, c:c + 1, None] * kz
         return position[:, c:c + 1, None] + sample_vector * p.kernel_radius
-    return range_check_count(cam, (component(0), component(1), component(2)), texture,
-                             p.position_from == "depth", p.min_distance, p.max_distance)
+    return range_check_count(cam, (component(0), component(1), component(2)), real_depth, p.min_distance,
+                             p.max_distance)
 
 
 @half_in_float32
@@ -172,7 +173,7 @@ def hemisphere_ssao(gbuffer: GBuffer, params: HemisphereSSAOParams = HemisphereS
     count = torch.empty(n.shape[0], 1, cam.height, cam.width, dtype=torch.int64, device=n.device)
     for rs in row_bands(cam.height, cam.width, p.kernel_size, n.element_size()):
         count[..., rs, :] = hemisphere_band(cam, fr.position[..., rs, :], (fr.tangent[..., rs, :],
-                                            fr.bitangent[..., rs, :], n[..., rs, :]), (kx, ky, kz), fr.texture, p)
+                                            fr.bitangent[..., rs, :], n[..., rs, :]), (kx, ky, kz), fr.real_depth, p)
     return ssao_result(count, p, gbuffer.mask, dtype=n.dtype, debug=debug, row=fr.row, col=fr.col, kernel=fr.kernel,
                        noise=fr.noise)
 
@@ -183,12 +184,15 @@ class HemisphereFrame:
 
     Attributes:
         position: :math:`(B, 3, H, W)` ``viewPosition``; texture: :math:`(B, 1, H, W)` the buffer
-            ``getLinearDepth`` samples; tangent, bitangent, normal: :math:`(B, 3, H, W)` ``kernelMatrix``;
+            ``getLinearDepth`` samples; real_depth: :math:`(B, 1, H, W)` what it returns for each texel
+            (:func:`~.ssao_common.real_depth_texture`); tangent, bitangent, normal: :math:`(B, 3, H, W)`
+            ``kernelMatrix``;
         kernel: :math:`(K, 3)` ``Kernel[i]``; noise: :math:`(3, S, S)`; row, col: :math:`(H, W)` noise texel.
     """
 
     position: torch.Tensor
     texture: torch.Tensor
+    real_depth: torch.Tensor
     tangent: torch.Tensor
     bitangent: torch.Tensor
     normal: torch.Tensor
@@ -211,15 +215,15 @@ def hemisphere_frame(gbuffer: GBuffer, params: HemisphereSSAOParams,
     g = make_generator(p.seed, generator)
     kernel = hemisphere_kernel(p.kernel_size, g).to(dtype=dtype, device=device)    # (K, 3) Kernel[i]
     noise = noise_texture(p.noise_size, g).to(dtype=dtype, device=device)          # (3, S, S)
-    position, texture, tangent, bitangent, row, col = frame_tensors(cam, gbuffer.view_z, n, noise, p)
-    return HemisphereFrame(position, texture, tangent, bitangent, n, kernel, noise, row, col)
+    position, texture, real_depth, tangent, bitangent, row, col = frame_tensors(cam, gbuffer.view_z, n, noise, p)
+    return HemisphereFrame(position, texture, real_depth, tangent, bitangent, n, kernel, noise, row, col)
 
 
 @kernel
 def frame_tensors(cam: Camera, view_z: torch.Tensor, n: torch.Tensor, noise: torch.Tensor,
                   p: HemisphereSSAOParams) -> tuple:
     """The per-pixel part of :func:`hemisphere_frame` (a compilable kernel, :mod:`ssbench.passes.compiled`):
-    ``viewPosition`` and the buffer ``getLinearDepth`` samples, the noise texel ``random`` (``(row, col)``) and the
+    ``viewPosition``, the buffer ``getLinearDepth`` samples and its ``realDepth`` per texel, the noise texel ``random`` (``(row, col)``) and the
     Gram–Schmidt ``tangent`` and ``bitangent`` of ``kernelMatrix`` from ``view_z`` :math:`(B, 1, H, W)`, the unit
     normal ``n`` :math:`(B, 3, H, W)` and the noise texture :math:`(3, S, S)`."""
     position, texture = view_position(cam, view_z, p.position_from)               # (B, 3, H, W) viewPosition
@@ -229,7 +233,8 @@ def frame_tensors(cam: Camera, view_z: torch.Tensor, n: torch.Tensor, noise: tor
         random = random[:, :1].expand(-1, 3, -1, -1)
     tangent = random - n * (random * n).sum(1, keepdim=True)                      # (B, 3, H, W) Gram–Schmidt
     tangent = tangent / length(tangent).clamp_min(torch.finfo(n.dtype).tiny)
-    return position, texture, tangent, torch.cross(n, tangent, dim=1), row, col
+    real_depth = real_depth_texture(cam, texture, p.position_from == "depth")
+    return position, texture, real_depth, tangent, torch.cross(n, tangent, dim=1), row, col
 
 
 class HemisphereSSAO(nn.Module):

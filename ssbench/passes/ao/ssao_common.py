@@ -9,7 +9,8 @@ import torch
 from ...camera import Camera
 from ..common import AOResult, check_count, check_radius, fetch_texels, nan_to_zero, texel_of
 
-__all__ = ["check_ssao_params", "view_position", "range_check_count", "occlusion_to_ao", "ssao_result"]
+__all__ = ["check_ssao_params", "view_position", "real_depth_texture", "range_check_count", "occlusion_to_ao",
+           "ssao_result"]
 
 
 def check_ssao_params(p) -> None:
@@ -37,14 +38,30 @@ def view_position(camera: Camera, view_z: torch.Tensor, position_from: str) -> t
     return camera.uv_to_view(uv, view_z), view_z
 
 
-def range_check_count(camera: Camera, sample_point: tuple, texture: torch.Tensor, from_depth: bool,
+def real_depth_texture(camera: Camera, texture: torch.Tensor, from_depth: bool) -> torch.Tensor:
+    """``realDepth`` of every texel of ``texture`` :math:`(B, 1, H, W)`: ``getLinearDepth`` (SSAO article §2.1) is
+    ``viewZToOrthographicDepth`` of the texel's view z (``perspectiveDepthToViewZ`` of the GL depth buffer when
+    ``from_depth``, else ``texture`` holds view z), a function of the texel alone. Computed once per texel, not once
+    per sample that reads the texel: the same operations on the same value, so the same bits.
+
+    Example:
+        >>> from ssbench.camera import Camera
+        >>> cam = Camera.from_look_at((0, 0, 0), (0, 0, -1), (0, 1, 0), 60.0, 4, 3, 1.0, 11.0)
+        >>> real_depth_texture(cam, torch.full((1, 1, 3, 4), -6.0), False)[0, 0, 0, 0].item()    # halfway
+        0.5
+    """
+    view_z = camera.depth_to_view_z(texture) if from_depth else texture          # perspectiveDepthToViewZ
+    return camera.view_z_to_orthographic_depth(view_z)                           # realDepth
+
+
+def range_check_count(camera: Camera, sample_point: tuple, real_depth: torch.Tensor,
                       min_distance: float, max_distance: float) -> torch.Tensor:
     """The shader's sample loop body for all samples at once: project, fetch, compare, count.
 
     Args:
         sample_point: view-space ``samplePoint`` as its ``(x, y, z)`` components, each :math:`(B, 1, K, H, W)`
             (kept apart, never stacked, so that a compiled kernel fuses the whole loop body into one pass).
-        texture: :math:`(B, 1, H, W)` GL depth buffer (``from_depth``) or view z.
+        real_depth: :math:`(B, 1, H, W)` the ``realDepth`` of every texel (:func:`real_depth_texture`).
 
     Returns:
         :math:`(B, 1, H, W)` integer count of samples with ``min_distance < delta < max_distance``.
@@ -54,13 +71,10 @@ def range_check_count(camera: Camera, sample_point: tuple, texture: torch.Tensor
     z_proj = torch.where(z == 0, -torch.finfo(z.dtype).tiny, z)
     # NaN reads as 0 (texel_of clamps infinities as nan_to_num would clamp ±max)
     u, v = (nan_to_zero(camera.ndc_to_uv(c)) for c in camera.view_to_ndc_xy(x, y, z_proj))  # samplePointUv
-    col, row = texel_of(u, v, texture.shape[-2], texture.shape[-1], nan_free=True, dtype=u.dtype)
-    real = fetch_texels(texture, col.squeeze(1), row.squeeze(1)).reshape(z.shape)     # (B, 1, K, H, W) NEAREST, clamp
-    if from_depth:
-        real = camera.depth_to_view_z(real)                                      # perspectiveDepthToViewZ
-    real_depth = camera.view_z_to_orthographic_depth(real)                       # realDepth
-    sample_depth = camera.view_z_to_orthographic_depth(z)                        # sampleDepth
-    delta = sample_depth - real_depth
+    col, row = texel_of(u, v, real_depth.shape[-2], real_depth.shape[-1], nan_free=True, dtype=u.dtype)
+    real = fetch_texels(real_depth, col.squeeze(1), row.squeeze(1)).reshape(z.shape)  # (B, 1, K, H, W) NEAREST,
+    sample_depth = camera.view_z_to_orthographic_depth(z)                        # clamp; sampleDepth
+    delta = sample_depth - real
     return ((delta > min_distance) & (delta < max_distance)).sum(2)              # (B, 1, H, W)
 
 

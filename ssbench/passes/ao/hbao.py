@@ -44,7 +44,7 @@ from torch import nn
 from ...gbuffer import GBuffer
 from ..common import AOResult, check_count, check_radius, make_generator, row_bands
 from ..gbuffer_checks import check_gbuffer, half_in_float32
-from .hbao_horizons import hbao_band
+from .hbao_horizons import hbao_band, texel_view_z
 from ..registry import Method, SpeedPanel
 
 FLAVOUR = "obscurance"  # the ground-truth weighting this pass estimates (ssbench.reference.ao)
@@ -159,14 +159,14 @@ def hbao(gbuffer: GBuffer, params: HBAOParams = HBAOParams(), *, generator: Opti
     g = make_generator(params.seed, generator)
     noise = noise_texture(params, g).to(dtype=dtype, device=dev)                 # (3, N, N)
 
-    tex = cam.view_z_to_depth(view_z) if params.position_from == "depth" else view_z    # DepthSampler
+    z_tex = texel_view_z(cam, view_z, params.position_from)                     # DepthSampler, read back
     rows_n = torch.arange(H, device=dev) % params.noise_size
     cols_n = torch.arange(W, device=dev) % params.noise_size
     uv_grid = cam.uv_grid(dtype, dev)
 
     # ---- the image in bands of rows: intermediates stay O(block), not O(D·H·W) ----
     parts = [hbao_band(cam, uv_grid[:, rs].unsqueeze(0).expand(B, -1, -1, -1), mask[:, :, rs],
-                       noise[:, rows_n[rs]][:, :, cols_n].unsqueeze(0), tex, params, debug)
+                       noise[:, rows_n[rs]][:, :, cols_n].unsqueeze(0), z_tex, params, debug)
              for rs in row_bands(H, W, D, view_z.element_size(), batch=B)]
     out = torch.cat([o for o, _ in parts], 2)
     dbg = {k: torch.cat([d[k] for _, d in parts], -2) for k in parts[0][1]}

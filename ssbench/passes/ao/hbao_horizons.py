@@ -15,7 +15,22 @@ from ..compiled import kernel
 if TYPE_CHECKING:
     from .hbao import HBAOParams
 
-__all__ = ["hbao_band", "rsqrt", "tan_to_sin", "tangent", "snap", "min_diff"]
+__all__ = ["texel_view_z", "hbao_band", "rsqrt", "tan_to_sin", "tangent", "snap", "min_diff"]
+
+
+def texel_view_z(cam, view_z: torch.Tensor, position_from: str) -> torch.Tensor:
+    """The view z a sample reads from each texel, :math:`(B, 1, H, W)`: ``view_z`` itself, or with ``"depth"``
+    the GL depth buffer's value turned back into view z (``FetchEyePos``' ``perspectiveDepthToViewZ`` of the
+    ``DepthSampler`` texel). A function of the texel alone, so computed once per texel rather than per sample
+    that reads it: the same operations on the same values, the same bits.
+
+    Example:
+        >>> from ssbench.camera import Camera
+        >>> cam = Camera.from_look_at((0, 0, 0), (0, 0, -1), (0, 1, 0), 60.0, 4, 3, 0.5, 8.0)
+        >>> texel_view_z(cam, torch.full((1, 1, 3, 4), -2.0), "depth")[0, 0, 0, 0].item()   # the round trip
+        -2.0
+    """
+    return cam.depth_to_view_z(cam.view_z_to_depth(view_z)) if position_from == "depth" else view_z
 
 
 def rsqrt(x: torch.Tensor) -> torch.Tensor:
@@ -45,7 +60,7 @@ def min_diff(P: torch.Tensor, Pa: torch.Tensor, Pb: torch.Tensor) -> torch.Tenso
 
 
 @kernel
-def hbao_band(cam, uv0: torch.Tensor, mask: torch.Tensor, rand: torch.Tensor, tex: torch.Tensor,
+def hbao_band(cam, uv0: torch.Tensor, mask: torch.Tensor, rand: torch.Tensor, z_tex: torch.Tensor,
               params: "HBAOParams", debug: bool) -> tuple[torch.Tensor, dict]:
     """HBAO on a band of rows (SSAO article §3.3); the pass's compilable kernel (:mod:`ssbench.passes.compiled`).
     Eager, the march stops early once no pixel of the band has steps left; compiled, it runs every step (a
@@ -54,17 +69,17 @@ def hbao_band(cam, uv0: torch.Tensor, mask: torch.Tensor, rand: torch.Tensor, te
     Args:
         uv0: :math:`(B, 2, h, W)` ``vUv`` of the band's pixels; mask: :math:`(B, 1, h, W)`;
         rand: :math:`(1, 3, h, W)` the noise texel ``(cos, sin, jitter)`` of each pixel;
-        tex: :math:`(B, 1, H, W)` the whole depth buffer the samples read (GL depth or view z).
+        z_tex: :math:`(B, 1, H, W)` the view z of every texel of the depth buffer the samples read
+            (:func:`texel_view_z`).
 
     Returns:
         ``(ao, debug)``: :math:`(B, 1, h, W)` and the band's debug buffers (empty unless ``debug``).
     """
-    H, W = tex.shape[-2], tex.shape[-1]
-    D, dtype, dev = params.num_directions, tex.dtype, tex.device
-    to_view_z = cam.depth_to_view_z if params.position_from == "depth" else (lambda z: z)
+    H, W = z_tex.shape[-2], z_tex.shape[-1]
+    D, dtype, dev = params.num_directions, z_tex.dtype, z_tex.device
 
     def viewPos(uv: torch.Tensor) -> torch.Tensor:             # (B, 2, *S) -> (B, 3, *S), nearest + clamp
-        return cam.uv_to_view(uv, to_view_z(fetch_uv(tex, uv)), dim=1)
+        return cam.uv_to_view(uv, fetch_uv(z_tex, uv), dim=1)
 
     AORes = torch.tensor([W, H], dtype=dtype, device=dev).view(1, 2, 1, 1)     # (1, 2, 1, 1)
     InvAORes = 1.0 / AORes
@@ -83,7 +98,7 @@ def hbao_band(cam, uv0: torch.Tensor, mask: torch.Tensor, rand: torch.Tensor, te
         """``tangent(S − P)`` and ``|S − P|²`` of the sample ``S`` at ``uv`` :math:`(B, 2, D, h, W)`, on
         components: ``viewPos(uv) − P``'s bits, and with no sum over a channel dimension, which compiled to a
         stored buffer per step."""
-        z = to_view_z(fetch_uv(tex, uv))[:, 0]
+        z = fetch_uv(z_tex, uv)[:, 0]
         dx = (a0 * uv[:, 0] + b0) * z - P[:, 0:1]
         dy = (a1 * uv[:, 1] + b1) * z - P[:, 1:2]
         dz = z - P[:, 2:3]

@@ -223,9 +223,10 @@ def hemisphere_frame(gbuffer: GBuffer, params: HemisphereSSAOParams,
 def frame_tensors(cam: Camera, view_z: torch.Tensor, n: torch.Tensor, noise: torch.Tensor,
                   p: HemisphereSSAOParams) -> tuple:
     """The per-pixel part of :func:`hemisphere_frame` (a compilable kernel, :mod:`ssbench.passes.compiled`):
-    ``viewPosition``, the buffer ``getLinearDepth`` samples and its ``realDepth`` per texel, the noise texel ``random`` (``(row, col)``) and the
-    Gram–Schmidt ``tangent`` and ``bitangent`` of ``kernelMatrix`` from ``view_z`` :math:`(B, 1, H, W)`, the unit
-    normal ``n`` :math:`(B, 3, H, W)` and the noise texture :math:`(3, S, S)`."""
+    ``viewPosition``, the buffer ``getLinearDepth`` samples and its ``realDepth`` per texel, the noise texel
+    ``random`` (``(row, col)``) and the Gram–Schmidt ``tangent`` and ``bitangent`` of ``kernelMatrix`` from
+    ``view_z`` :math:`(B, 1, H, W)`, the unit normal ``n`` :math:`(B, 3, H, W)` and the noise texture
+    :math:`(3, S, S)`."""
     position, texture = view_position(cam, view_z, p.position_from)               # (B, 3, H, W) viewPosition
     col, row = noise_texel(cam.uv_grid(n.dtype, n.device), cam.width, cam.height, p.noise_size)   # (H, W)
     random = noise[:, row, col].unsqueeze(0)                                       # (1, 3, H, W)

@@ -8,7 +8,7 @@ from typing import Optional
 import torch
 
 from ...gbuffer import GBuffer
-from ..common import fetch_texels, length
+from ..common import channel_rows, flat_texel, index_dtype, length
 from .common import HIT, NO_RAY, SSRResult, unflat
 from .dda_state import MarchOutput
 
@@ -19,27 +19,41 @@ def assemble(gbuffer: GBuffer, params, sel: torch.Tensor, P1: torch.Tensor, o: M
              visits: Optional[torch.Tensor]) -> SSRResult:
     """Per-ray march outputs ``o`` (:class:`~ssbench.passes.ssr.dda_state.MarchOutput`) of the rays ``sel`` → the
     :class:`SSRResult` images: colour at the hit texel, fades (``params``' edge/distance fields), ``debug``
-    (``visits``, ``ray_end``) when ``visits`` is given. Shared by :func:`ssr_dda` and the supercover DDA."""
+    (``visits``, ``ray_end``) when ``visits`` is given. Shared by :func:`ssr_dda` and the supercover DDA.
+
+    The hit pixel, its texel's colour and the fades are computed for the hit rays only (rows of the ``m`` hits,
+    each value by the same operations as a whole image of them would take: the same bits) and scattered into
+    images whose other pixels hold the miss values (−1, 0)."""
     cam, (B, _, H, W) = gbuffer.camera, gbuffer.view_z.shape
-    dt, dev = gbuffer.view_z.dtype, gbuffer.view_z.device
+    dt, dev, HW = gbuffer.view_z.dtype, gbuffer.view_z.device, H * W
 
-    def image(values, fill, dtype=dt):                                            # per-ray (N, C) -> (B, C, H, W)
-        return unflat(values, sel, fill, (B, H, W), dtype)
+    def image(values, fill, dtype=dt, rows=sel):                                  # per-ray (N, C) -> (B, C, H, W)
+        return unflat(values, rows, fill, (B, H, W), dtype)
 
-    is_hit = (o.term == HIT)[:, None]
     term, steps = image(o.term[:, None], NO_RAY, torch.int8), image(o.steps[:, None], 0, torch.int32)
-    hit_pixel = image(torch.where(is_hit, o.P, -1.0), -1.0)
-    hit_view = image(torch.where(is_hit, o.Q / o.k[:, None], 0.0), 0.0)
     hit = term == HIT                                                             # (B, 1, H, W)
+    h = (o.term == HIT).nonzero().squeeze(1)
+    at = sel.index_select(0, h)                                                   # (m,) the hit rays' pixels
+    P = o.P.index_select(0, h)                                                    # (m, 2) in the march's dtype
+    hit_view = (o.Q.index_select(0, h) / o.k.index_select(0, h)[:, None]).to(dt)  # (m, 3)
     # the texel is floored in the march's own dtype: a hit at 8.999999999999998 must not round to 9 first
-    texel = image(torch.where(is_hit, o.P, 0.0).floor(), 0.0, torch.float64)
+    texel = P.floor().to(torch.float64)
     col, row = texel[:, 0].clamp(0, W - 1), texel[:, 1].clamp(0, H - 1)          # (float64: exact indices)
     lo, hi = texel.to(dt), torch.nextafter((texel + 1).to(dt), texel.to(dt))      # and hit_pixel stays in it
-    hit_pixel = torch.where(hit, torch.minimum(torch.maximum(hit_pixel, lo), hi), hit_pixel)
-    raw = torch.where(hit, fetch_texels(gbuffer.color.to(dt), col, row), 0.0)            # (B, 3, H, W)
-    origin = cam.uv_to_view(cam.uv_grid(dt, dev).unsqueeze(0), gbuffer.view_z)
-    fade = params.fade(hit_pixel, cam.pixel_centers(dt, dev)[None], W, H, length(hit_view - origin))
-    fade = torch.where(hit, fade, 0.0)
+    hit_pixel = torch.minimum(torch.maximum(P.to(dt), lo), hi)                    # (m, 2)
+    index = flat_texel(col, row, (H, W), index_dtype(B * HW))
+    px = at % HW if B > 1 else at                                                 # (int64 division: a scalar loop)
+    if B > 1:
+        index = index + (at - px).to(index.dtype)                                 # the image's offset b·H·W
+    raw = channel_rows(gbuffer.color.to(dt)).index_select(1, index).T            # (m, 3)
+    z = gbuffer.view_z.reshape(-1).index_select(0, at)[None, None, :, None]
+    uv = cam.uv_grid(dt, dev).reshape(2, -1).index_select(1, px)[None, :, :, None]
+    origin = cam.uv_to_view(uv, z)[0, :, :, 0].T                                  # (m, 3) rayOrg
+    distance = length(hit_view - origin)                                          # (m, 1) |rayOrg − hitPoint|
+    centre = channel_rows(cam.pixel_centers(dt, dev)[None]).index_select(1, px).T  # (m, 2)
+    fade = params.fade(hit_pixel, centre, W, H, distance)                         # (m, 1)
     dbg = {"visits": visits.reshape(B, 1, H, W), "ray_end": image(P1, -1.0)} if visits is not None else {}
-    return SSRResult(color=raw * fade, hit=hit, hit_pixel=hit_pixel, hit_view=hit_view, steps=steps,
-                     termination=term, fade=fade, raw_color=raw, debug=dbg)
+    raw_i, fade_i = image(raw, 0.0, rows=at), image(fade, 0.0, rows=at)
+    return SSRResult(color=image(raw * fade, 0.0, rows=at), hit=hit, hit_pixel=image(hit_pixel, -1.0, rows=at),
+                     hit_view=image(hit_view, 0.0, rows=at), steps=steps, termination=term, fade=fade_i,
+                     raw_color=raw_i, debug=dbg)

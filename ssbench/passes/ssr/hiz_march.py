@@ -37,8 +37,8 @@ from ..compiled import step_blocks
 from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OUT_OF_STEPS, channel_rows, compact_now, ray_segments
 from .dda_state import MarchOutput
 from .hiz_pyramid import DepthPyramid, padded_levels
-from .hiz_step import (BIG, COLUMNS, EPSILON, OFFX, OFFY, EPSX, EPSY, INVX, INVY, OX, OY, OZ, VX, VY, VZ, HiZRules,
-                       HiZTexels, MarchState, PyramidLayers, cell_exit, hiz_iterations, inverse)
+from .hiz_step import (BIG, COLUMNS, EPSILON, OFFX, OFFY, EPSX, EPSY, INVX, INVY, INVZ, OX, OY, OZ, VX, VY, VZ,
+                       HiZRules, HiZTexels, MarchState, PyramidLayers, cell_exit, hiz_iterations, inverse)
 
 __all__ = ["HiZRays", "HiZTexels", "EPSILON", "BIG", "COLUMNS", "RAY_CHUNK", "hiz_rays", "hiz_march"]
 
@@ -90,21 +90,25 @@ def hiz_rays(gbuffer: GBuffer, max_ray_distance: float, sel: torch.Tensor, direc
     b, px, o, d, end = ray_segments(gbuffer, sel, max_ray_distance, directions)
     P0 = channel_rows(cam.pixel_centers(dt, dev)[None]).index_select(1, px).T       # the origin pixel's centre
     P1 = cam.view_to_pixel(end, dim=1)
-    rz0, rz1 = cam.near / -o[:, 2], cam.near / -end[:, 2]
-    v = torch.cat([P1 - P0, (rz1 - rz0)[:, None]], 1)
-    away = v[:, 2] < 0
-    c = torch.stack([P0[:, 0], P0[:, 1], rz0, v[:, 0], v[:, 1], v[:, 2], inverse(v[:, 0]), inverse(v[:, 1]),
-                     torch.where(away, 1.0 / torch.where(away, v[:, 2], -1.0), 0.0),
-                     (v[:, 0] >= 0).to(dt), (v[:, 1] >= 0).to(dt), EPSILON * torch.sign(v[:, 0]),
-                     EPSILON * torch.sign(v[:, 1])], 0)
-    one = torch.ones_like(rz0)
+    n = sel.numel()
+    c = torch.empty(len(COLUMNS), n, dtype=dt, device=dev)                        # each row written in place
+    c[OX:OY + 1] = P0.T
+    c[OZ] = cam.near / -o[:, 2]                                                   # rz0
+    torch.sub(P1.T, P0.T, out=c[VX:VY + 1])                                       # v = (P1 − P0, rz1 − rz0)
+    torch.sub(cam.near / -end[:, 2], c[OZ], out=c[VZ])
+    v = c[VX:VZ + 1]                                                              # (3, n)
+    c[INVX:INVY + 1] = inverse(v[:2])
+    away = v[2] < 0
+    c[INVZ] = torch.where(away, 1.0 / torch.where(away, v[2], -1.0), 0.0)
+    c[OFFX:OFFY + 1] = v[:2] >= 0
+    torch.mul(torch.sign(v[:2]), EPSILON, out=c[EPSX:EPSY + 1])
+    one = torch.ones_like(c[OZ])
     t0 = torch.minimum(cell_exit(c[OX], c[INVX], c[OFFX], c[EPSX], P0[:, 0].floor(), one),
                        cell_exit(c[OY], c[INVY], c[OFFY], c[EPSY], P0[:, 1].floor(), one))   # InitialAdvanceRay
-    n = sel.numel()
     clipped = o[:, 2] + d[:, 2] * max_ray_distance > -cam.near
     state = MarchState(t=torch.minimum(t0, one), mip=torch.zeros_like(b), alive=torch.ones(n, dtype=torch.bool,
                        device=dev), term=torch.full((n,), OUT_OF_STEPS, dtype=torch.int8, device=dev),
-                       steps=torch.zeros(n, dtype=torch.int32, device=dev), hit_t=torch.zeros_like(rz0))
+                       steps=torch.zeros(n, dtype=torch.int32, device=dev), hit_t=torch.zeros_like(c[OZ]))
     rays = HiZRays(i=torch.arange(n, device=dev), b=b, c=c, ray_dir=d.T.contiguous(),
                    ended=torch.where(clipped, BEHIND_CAMERA, MAX_DISTANCE).to(torch.int8), state=state)
     return rays, sel, P0, P1

@@ -12,7 +12,7 @@ import torch.nn.functional as F
 
 from . import checks
 from .camera import Camera
-from .passes.common import length as vector_length
+from .passes.common import cross, length as vector_length
 
 
 def position_from_depth(depth: torch.Tensor, camera: Camera, method: str = "uv_to_view") -> torch.Tensor:
@@ -78,7 +78,7 @@ def normals_from_position(position: torch.Tensor, mask: torch.Tensor | None = No
     m_u, m_d = m[c + (slice(0, -2), slice(1, -1))], m[c + (slice(2, None), slice(1, -1))]
     dpdu = _min_diff(position, right, left, m_r, m_l)
     dpdv = _min_diff(position, up, down, m_u, m_d)
-    n = torch.cross(dpdu, dpdv, dim=1)
+    n = cross(dpdu, dpdv, dim=1)
     length = vector_length(n)
     ok = mask & (m_r | m_l) & (m_u | m_d) & (length > 0)
     return torch.where(ok, n / length.clamp_min(torch.finfo(n.dtype).tiny), torch.zeros_like(n))

@@ -13,7 +13,7 @@ from typing import Optional
 import torch
 
 from .. import checks
-from ..rays import component_dot, component_norm, length, vector_norm  # noqa: F401  (re-exported: the passes' vector lengths)
+from ..rays import component_dot, component_norm, cross, length, vector_norm  # noqa: F401  (re-exported)
 
 
 @dataclass(frozen=True)

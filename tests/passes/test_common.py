@@ -1,11 +1,11 @@
 """ssbench.passes.common: `length` (torch's vector norm to an ulp, faster over the channel dim, safe gradients),
-`vector_norm` (torch's vector norm bit for bit, faster over the channel dim) and the row bands that bound the AO passes' working set (bit-identical to the whole image)."""
+`vector_norm` (torch's vector norm bit for bit, faster over the channel dim), `cross` (torch's cross bit for bit) and the row bands that bound the AO passes' working set (bit-identical to the whole image)."""
 import math
 
 import pytest
 import torch
 
-from ssbench.passes.common import length, vector_norm
+from ssbench.passes.common import cross, length, vector_norm
 
 
 @pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
@@ -60,6 +60,33 @@ def test_vector_norm_gives_the_bits_of_linalg_vector_norm(threads, dtype, shape,
             assert torch.equal(got.nan_to_num(0.0), ref.nan_to_num(0.0))
     finally:
         torch.set_num_threads(before)
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+@pytest.mark.parametrize("shape, dim", [((1, 3, 96, 129), 1), ((2, 3, 5, 7, 9), 1), ((2, 3, 7, 9), -3),
+                                        ((3, 40, 2), 0), ((51, 3), 1), ((4, 3, 1, 1), 1)])
+def test_cross_gives_the_bits_of_linalg_cross(dtype, shape, dim):
+    # ATen's CPU cross is one FMA per component; a cross written a₁b₂ − a₂b₁ differs in a third of these
+    a, b = special_values(shape, dtype, seed=1), special_values(shape, dtype, seed=2).flip(dim)
+    ref, got = torch.linalg.cross(a, b, dim=dim), cross(a, b, dim=dim)
+    assert got.shape == ref.shape and got.dtype == ref.dtype
+    assert torch.equal(got.isnan(), ref.isnan())
+    assert torch.equal(got.nan_to_num(0.0), ref.nan_to_num(0.0))
+    if ref.numel() > 100:                                                     # the test tells the two apart
+        plain = a.select(dim, 1) * b.select(dim, 2) - a.select(dim, 2) * b.select(dim, 1)
+        x = ref.select(dim, 0)
+        assert (plain != x)[x.isfinite()].any()
+
+
+def test_cross_falls_back_to_torch_for_gradients_and_mixed_dtypes():
+    a = torch.randn(2, 3, 4, 5, dtype=torch.float64, requires_grad=True)
+    b = torch.randn(2, 3, 4, 5, dtype=torch.float64)
+    cross(a, b).sum().backward()
+    ref = a.detach().clone().requires_grad_(True)
+    torch.linalg.cross(ref, b, dim=1).sum().backward()
+    assert torch.equal(a.grad, ref.grad)
+    assert torch.equal(cross(b.float(), b.float()), torch.linalg.cross(b.float(), b.float(), dim=1))
+    assert cross(b.half(), b.half()).dtype == torch.float16
 
 
 def test_vector_norm_falls_back_to_torch_for_strided_inputs_and_gradients():

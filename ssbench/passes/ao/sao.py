@@ -39,7 +39,7 @@ import torch
 from torch import nn
 
 from ...gbuffer import GBuffer
-from ..common import AOResult, check_count, check_positive, check_radius, row_bands, vector_norm
+from ..common import AOResult, check_count, check_positive, check_radius, cross, row_bands, vector_norm
 from ..compiled import kernel
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..registry import Method, SpeedPanel
@@ -136,7 +136,7 @@ def face_normals(position: torch.Tensor) -> torch.Tensor:
     overflowed. The cross product stays eager: ATen computes each component as one FMA, which inductor's C++
     does not, and the quad's nearly parallel differences would magnify that ulp."""
     dx, dy = quad_derivatives(position)
-    return unit_or_zero(torch.linalg.cross(dx, dy, dim=1))
+    return unit_or_zero(cross(dx, dy, dim=1))
 
 
 @kernel

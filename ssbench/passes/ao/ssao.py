@@ -43,7 +43,7 @@ from torch import nn
 
 from ...camera import Camera
 from ...gbuffer import GBuffer
-from ..common import AOResult, length, make_generator, row_bands
+from ..common import AOResult, cross, length, make_generator, row_bands
 from ..compiled import kernel
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..sampling import hemisphere_kernel, noise_texel, noise_texture
@@ -235,7 +235,7 @@ def frame_tensors(cam: Camera, view_z: torch.Tensor, n: torch.Tensor, noise: tor
     tangent = random - n * (random * n).sum(1, keepdim=True)                      # (B, 3, H, W) Gram–Schmidt
     tangent = tangent / length(tangent).clamp_min(torch.finfo(n.dtype).tiny)
     real_depth = real_depth_texture(cam, texture, p.position_from == "depth")
-    return position, texture, real_depth, tangent, torch.cross(n, tangent, dim=1), row, col
+    return position, texture, real_depth, tangent, cross(n, tangent, dim=1), row, col
 
 
 class HemisphereSSAO(nn.Module):

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import torch
 
-from ..common import component_dot, component_norm, fetch_texels, gl_texel, nan_to_zero, vector_norm
+from ..common import component_dot, component_norm, cross, fetch_texels, gl_texel, nan_to_zero, vector_norm
 from ..compiled import kernel
 
 if TYPE_CHECKING:
@@ -91,10 +91,10 @@ def slice_visibility(frame: BandFrame, depth: torch.Tensor, proj: torch.Tensor, 
     B, _, H, W = depth.shape
     steps = p.steps
     sample_dir = normalize(f.tangent * rotation[0] + f.bitangent * rotation[1])
-    slice_bitangent = normalize(torch.linalg.cross(sample_dir, f.view_dir, dim=1))
-    slice_tangent = torch.linalg.cross(slice_bitangent, f.view_dir, dim=1)
+    slice_bitangent = normalize(cross(sample_dir, f.view_dir, dim=1))
+    slice_tangent = cross(slice_bitangent, f.view_dir, dim=1)
     n_slice = normalize(f.normal - slice_bitangent * dot(f.normal, slice_bitangent).unsqueeze(1))
-    to_normal = torch.linalg.cross(n_slice, slice_bitangent, dim=1)
+    to_normal = cross(n_slice, slice_bitangent, dim=1)
     cos_h = [dot(f.view_dir, to_normal), dot(f.view_dir, -to_normal)]
     for j in range(steps):
         offset = sample_dir * (p.radius * f.w * ((j + 1) / steps) ** p.distance_exponent).unsqueeze(1)

@@ -20,7 +20,7 @@ import math
 
 import torch
 
-from ..common import vector_norm
+from ..common import cross, vector_norm
 
 __all__ = ["alpha_of", "frame", "to_local", "from_local", "sample_vndf", "ggx_d", "smith_g1", "reflection_pdf",
            "MIN_ALPHA"]
@@ -79,7 +79,7 @@ def sample_vndf(v: torch.Tensor, alpha: torch.Tensor, u1: torch.Tensor, u2: torc
     inv = torch.rsqrt(lensq.clamp_min(torch.finfo(v.dtype).tiny))
     t1 = torch.stack([torch.where(lensq > 0, -hy * inv, 1.0), torch.where(lensq > 0, hx * inv, 0.0),
                       torch.zeros_like(hx)], dim)
-    t2 = torch.cross(vh, t1, dim=dim)
+    t2 = cross(vh, t1, dim=dim)
     r, phi = torch.sqrt(u1), 2.0 * math.pi * u2
     p1, p2 = r * torch.cos(phi), r * torch.sin(phi)
     s = 0.5 * (1.0 + hz)

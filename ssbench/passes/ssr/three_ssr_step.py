@@ -8,7 +8,7 @@ from typing import NamedTuple
 
 import torch
 
-from ..common import flat_texel, gl_texel
+from ..common import cross, flat_texel, gl_texel
 from ..compiled import kernel
 from .common import MAX_DISTANCE, OFF_SCREEN
 
@@ -101,7 +101,7 @@ def pixel_step(i: int, ws: MarchRays, was: torch.Tensor, state: tuple, tex: Step
     if infinite_thick:
         hit = behind
     else:
-        away = torch.linalg.cross(vpt - ws.vp, vpt - ws.d1v, dim=1).norm(dim=1) / ws.length   # pointToLineDistance
+        away = cross(vpt - ws.vp, vpt - ws.d1v, dim=1).norm(dim=1) / ws.length   # pointToLineDistance
         nb = unproject(tex.minv, (xy[:, 0] + 1.0) / W, uv[:, 1], d, -vz, rows=1)           # the texel to the right
         hit = behind & (away <= torch.clamp((nb[:, 0] - vpt[:, 0]) * 3.0, min=thickness))
     s = ws.s + torch.where(sky | hit, 0.0, ws.s_step)

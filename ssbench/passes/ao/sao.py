@@ -139,6 +139,11 @@ def face_normals(position: torch.Tensor) -> torch.Tensor:
     return unit_or_zero(cross(dx, dy, dim=1))
 
 
+#: the largest screen-space disk radius (pixels) for which the tap loop's integer work runs in int32 when eager: a
+#: tap's pixel ``trunc(ssR·cos) + x`` then stays far inside int32's range
+INT32_TAP_RADIUS = 2.0 ** 30
+
+
 @kernel
 def sao_taps(c: tuple, n: tuple, spin: torch.Tensor, ss_disk: torch.Tensor, xy: tuple, mips: torch.Tensor,
              uv_to_view: tuple, size: tuple, p: "SAOParams", debug: bool) -> tuple:
@@ -164,17 +169,30 @@ def sao_taps(c: tuple, n: tuple, spin: torch.Tensor, ss_disk: torch.Tensor, xy: 
     r2 = p.radius * p.radius
     total = torch.zeros_like(cz)
     levels = []
+    # eager, the integer work runs in int32 where no tap can leave its range (int64 arithmetic and conversions ran
+    # 2-4x slower here, and ``gather`` takes int64 only): the same integers, the same bits; compiled, int64
+    narrow = (not torch.compiler.is_compiling() and flat.numel() < 2 ** 31
+              and bool((ss_disk.abs() < INT32_TAP_RADIUS).all()))                 # NaN or ±inf: int64
+    it = torch.int32 if narrow else torch.long
+    x, y = x.to(it), y.to(it)
+    image = None                                                                  # each image's layer offset
+    if narrow and B > 1:
+        image = (torch.arange(B, dtype=it, device=cz.device) * flat.shape[1]).view(B, 1, 1, 1)
     for i in range(p.num_samples):
         ux, uy, alpha = tap_location(i, p.num_samples, p.num_spiral_turns, spin)
         ss_r = alpha * ss_disk
-        lv = mip_level(ss_r, p.log_max_offset, p.max_mip_level) if p.use_mips else torch.zeros_like(cz, dtype=torch.long)
-        px = torch.trunc(ss_r * ux).long() + x
-        py = torch.trunc(ss_r * uy).long() + y
+        lv = mip_level(ss_r, p.log_max_offset, p.max_mip_level, it) if p.use_mips else torch.zeros_like(cz, dtype=it)
+        px = torch.trunc(ss_r * ux).to(it) + x
+        py = torch.trunc(ss_r * uy).to(it) + y
         w_l = torch.bitwise_right_shift(W, lv).clamp(min=1)                       # level lv's size
         h_l = torch.bitwise_right_shift(H, lv).clamp(min=1)
         tx = torch.minimum(torch.bitwise_right_shift(px, lv).clamp(min=0), w_l - 1)
         ty = torch.minimum(torch.bitwise_right_shift(py, lv).clamp(min=0), h_l - 1)
-        zq = torch.gather(flat, 1, ((lv * H + ty) * W + tx).reshape(B, -1)).view_as(cz)
+        texel = (lv * H + ty) * W + tx                                            # in level lv's layer
+        if narrow:
+            zq = flat.reshape(-1).index_select(0, (texel if image is None else texel + image).reshape(-1)).view_as(cz)
+        else:
+            zq = torch.gather(flat, 1, texel.reshape(B, -1)).view_as(cz)
         vx = (a0 * ((px.to(cz.dtype) + 0.5) / W) + b0) * zq - cx                       # v = Q − C
         vy = (a1 * ((py.to(cz.dtype) + 0.5) / H) + b1) * zq - cy
         vz = zq - cz

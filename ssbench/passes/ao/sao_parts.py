@@ -73,16 +73,17 @@ def tap_location(i: int, num_samples: int, num_spiral_turns: int, spin: torch.Te
     return torch.cos(angle), torch.sin(angle), alpha
 
 
-def mip_level(ss_r: torch.Tensor, log_max_offset: int, max_mip_level: int) -> torch.Tensor:
-    """Integer mip level of a tap ``ss_r`` pixels away: ``clamp(⌊log₂ ssR⌋ − LOG_MAX_OFFSET, 0, MAX_MIP_LEVEL)``
-    (0 where ``ssR ≤ 0``).
+def mip_level(ss_r: torch.Tensor, log_max_offset: int, max_mip_level: int, dtype: torch.dtype = torch.long
+              ) -> torch.Tensor:
+    """Integer mip level (``dtype``) of a tap ``ss_r`` pixels away: ``clamp(⌊log₂ ssR⌋ − LOG_MAX_OFFSET, 0,
+    MAX_MIP_LEVEL)`` (0 where ``ssR ≤ 0``).
 
     Example:
         >>> mip_level(torch.tensor([0.0, 7.9, 8.0, 40.0, 1e6]), 3, 5).tolist()
         [0, 0, 0, 2, 5]
     """
     safe = torch.where(ss_r > 0, ss_r, 1.0)
-    lv = torch.floor(torch.log2(safe)).long() - log_max_offset
+    lv = torch.floor(torch.log2(safe)).to(dtype) - log_max_offset
     return torch.where(ss_r > 0, lv, 0).clamp(0, max_mip_level)
 
 

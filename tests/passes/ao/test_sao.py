@@ -23,6 +23,23 @@ def test_the_teaching_twin_equals_the_pass(params):
     assert int(levels.max()) >= 2                                      # the twin was compared on coarse levels too
 
 
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+@pytest.mark.parametrize("params", [SAOParams(radius=2.5, log_max_offset=1), SAOParams(use_mips=False)])
+def test_the_int32_taps_give_the_bits_of_the_int64_taps(monkeypatch, dtype, params):
+    import dataclasses
+    import ssbench.passes.ao.sao as sao_module
+    g, _ = crease(w=40, h=30)
+    g = dataclasses.replace(g, **{k: getattr(g, k).to(dtype) for k in ("view_z", "normal")})
+    two = dataclasses.replace(g, view_z=torch.cat([g.view_z, g.view_z * 1.5 - 0.5]),  # two images: layer offsets
+                              normal=g.normal.repeat(2, 1, 1, 1), mask=g.mask.repeat(2, 1, 1, 1))
+    narrow = [sao(x, params, debug=True) for x in (g, two)]
+    monkeypatch.setattr(sao_module, "INT32_TAP_RADIUS", 0.0)                       # every band falls back to int64
+    wide = [sao(x, params, debug=True) for x in (g, two)]
+    for a, b in zip(narrow, wide):
+        assert torch.equal(a.ao, b.ao) and torch.equal(a.debug["mip_level"], b.debug["mip_level"])
+    assert int(narrow[0].debug["mip_level"].max()) >= (1 if params.use_mips else 0)
+
+
 def test_pyramid_and_levels_follow_the_listing():
     z = torch.arange(6 * 7, dtype=torch.float64).view(1, 1, 6, 7)
     mips = depth_mips(z, 3)

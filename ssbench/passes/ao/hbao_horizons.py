@@ -20,9 +20,9 @@ __all__ = ["texel_view_z", "hbao_band", "rsqrt", "tan_to_sin", "tangent", "snap"
 
 def texel_view_z(cam, view_z: torch.Tensor, position_from: str) -> torch.Tensor:
     """The view z a sample reads from each texel, :math:`(B, 1, H, W)`: ``view_z`` itself, or with ``"depth"``
-    the GL depth buffer's value turned back into view z (``FetchEyePos``' ``perspectiveDepthToViewZ`` of the
-    ``DepthSampler`` texel). A function of the texel alone, so computed once per texel rather than per sample
-    that reads it: the same operations on the same values, the same bits.
+    the GL depth buffer's value turned back into view z (``viewPos``' ``perspectiveDepthToViewZ`` of the
+    ``DepthSampler`` texel, SSAO article §3.3). A function of the texel alone, so computed once per texel rather
+    than per sample that reads it: the same operations on the same values, the same bits.
 
     Example:
         >>> from ssbench.camera import Camera

@@ -39,7 +39,7 @@ def view_position(camera: Camera, view_z: torch.Tensor, position_from: str) -> t
 
 
 def real_depth_texture(camera: Camera, texture: torch.Tensor, from_depth: bool) -> torch.Tensor:
-    """``realDepth`` of every texel of ``texture`` :math:`(B, 1, H, W)`: ``getLinearDepth`` (SSAO article §2.1) is
+    """``realDepth`` of every texel of ``texture`` :math:`(B, 1, H, W)`: ``getLinearDepth`` (SSAO article §2.2) is
     ``viewZToOrthographicDepth`` of the texel's view z (``perspectiveDepthToViewZ`` of the GL depth buffer when
     ``from_depth``, else ``texture`` holds view z), a function of the texel alone. Computed once per texel, not once
     per sample that reads the texel: the same operations on the same value, so the same bits.

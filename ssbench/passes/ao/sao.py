@@ -171,7 +171,7 @@ def sao_taps(c: tuple, n: tuple, spin: torch.Tensor, ss_disk: torch.Tensor, xy: 
     levels = []
     # eager, the integer work runs in int32 where no tap can leave its range (int64 arithmetic and conversions ran
     # 2-4x slower here, and ``gather`` takes int64 only): the same integers, the same bits; compiled, int64
-    narrow = (not torch.compiler.is_compiling() and flat.numel() < 2 ** 31
+    narrow = (not torch.compiler.is_compiling() and cz.device.type != "meta" and flat.numel() < 2 ** 31
               and bool((ss_disk.abs() < INT32_TAP_RADIUS).all()))                 # NaN or ±inf: int64
     it = torch.int32 if narrow else torch.long
     x, y = x.to(it), y.to(it)

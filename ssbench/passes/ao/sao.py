@@ -39,7 +39,7 @@ import torch
 from torch import nn
 
 from ...gbuffer import GBuffer
-from ..common import AOResult, check_count, check_positive, check_radius, cross, row_bands, vector_norm
+from ..common import AOResult, check_count, check_positive, check_radius, cross, index_dtype, row_bands, vector_norm
 from ..compiled import kernel
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..registry import Method, SpeedPanel
@@ -171,7 +171,8 @@ def sao_taps(c: tuple, n: tuple, spin: torch.Tensor, ss_disk: torch.Tensor, xy: 
     levels = []
     # eager, the integer work runs in int32 where no tap can leave its range (int64 arithmetic and conversions ran
     # 2-4x slower here, and ``gather`` takes int64 only): the same integers, the same bits; compiled, int64
-    narrow = (not torch.compiler.is_compiling() and cz.device.type != "meta" and flat.numel() < 2 ** 31
+    narrow = (not torch.compiler.is_compiling() and cz.device.type != "meta"
+              and index_dtype(flat.numel()) == torch.int32
               and bool((ss_disk.abs() < INT32_TAP_RADIUS).all()))                 # NaN or ±inf: int64
     it = torch.int32 if narrow else torch.long
     x, y = x.to(it), y.to(it)

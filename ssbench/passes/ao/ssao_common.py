@@ -72,8 +72,8 @@ def range_check_count(camera: Camera, sample_point: tuple, real_depth: torch.Ten
     # NaN reads as 0 (texel_of clamps infinities as nan_to_num would clamp ±max)
     u, v = (nan_to_zero(camera.ndc_to_uv(c)) for c in camera.view_to_ndc_xy(x, y, z_proj))  # samplePointUv
     col, row = texel_of(u, v, real_depth.shape[-2], real_depth.shape[-1], nan_free=True, dtype=u.dtype)
-    real = fetch_texels(real_depth, col.squeeze(1), row.squeeze(1)).reshape(z.shape)  # (B, 1, K, H, W) NEAREST,
-    sample_depth = camera.view_z_to_orthographic_depth(z)                        # clamp; sampleDepth
+    real = fetch_texels(real_depth, col.squeeze(1), row.squeeze(1)).reshape(z.shape)  # realDepth: NEAREST, clamp
+    sample_depth = camera.view_z_to_orthographic_depth(z)                        # sampleDepth, (B, 1, K, H, W)
     delta = sample_depth - real
     return ((delta > min_distance) & (delta < max_distance)).sum(2)              # (B, 1, H, W)
 

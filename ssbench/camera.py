@@ -247,6 +247,21 @@ class Camera:
         gy, gx = torch.meshgrid(ys, xs, indexing="ij")
         return torch.stack([gx, gy], 0)
 
+    def pixel_centers_at(self, index: torch.Tensor, dtype: torch.dtype = torch.float32) -> torch.Tensor:
+        """``(2, N)`` centres of the flat pixel indices ``index = j·W + i`` :math:`(N,)`: the columns of
+        :meth:`pixel_centers` at ``index``, the same values (``i + 0.5``, ``j + 0.5``), without the image-wide grid
+        (for per-ray set-ups that run chunk by chunk). ``index`` must lie in ``[0, W·H)``.
+
+        Example:
+            >>> cam = Camera.from_look_at((0, 0, 0), (0, 0, -1), (0, 1, 0), 60.0, 4, 3, 0.1, 10.0)
+            >>> cam.pixel_centers_at(torch.tensor([0, 5, 11])).tolist()
+            [[0.5, 1.5, 3.5], [0.5, 1.5, 2.5]]
+        """
+        fits = self.width * self.height <= torch.iinfo(torch.int32).max     # int32 division: ~1.5x faster
+        index = index.to(torch.int32) if fits else index
+        row = torch.div(index, self.width, rounding_mode="floor")
+        return torch.stack([(index - row * self.width).to(dtype) + 0.5, row.to(dtype) + 0.5], 0)
+
     def uv_grid(self, dtype: torch.dtype = torch.float32, device=None) -> torch.Tensor:
         """``(2, H, W)`` UV of every pixel centre (``v`` up, so ``v`` *decreases* down the rows)."""
         return self.pixel_to_uv(self.pixel_centers(dtype, device), dim=0)

@@ -204,6 +204,30 @@ def test_pixel_centers_and_uv_grid_corners(cam):
     assert cam.pixel_centers().dtype == torch.float32
 
 
+@pytest.mark.parametrize("size", [(7, 5), (640, 360), (1921, 3)])
+@pytest.mark.parametrize("dtype", [torch.float32, F64])
+def test_pixel_centers_at_are_the_grid_columns_they_index(size, dtype):
+    """Per-index centres equal the image-wide grid's columns bit for bit (and so does ``pixel_to_uv`` of them, the
+    ``uv_grid`` values): the set-ups of chunked SSR marchers use them in its place."""
+    cam = Camera.from_look_at((0, 0, 0), (0, 0, -1), (0, 1, 0), 60.0, *size, 0.1, 10.0)
+    W, H = size
+    index = torch.cat([torch.arange(W * H), torch.randperm(W * H, generator=torch.Generator().manual_seed(0))])
+    grid = cam.pixel_centers(dtype).reshape(2, -1)
+    at = cam.pixel_centers_at(index, dtype)
+    assert at.dtype == dtype and torch.equal(at, grid[:, index])
+    assert torch.equal(cam.pixel_to_uv(at, dim=0), cam.uv_grid(dtype).reshape(2, -1)[:, index])
+    assert torch.equal(cam.pixel_centers_at(index.to(torch.int32), dtype), at)
+
+
+def test_pixel_centers_at_past_int32_pixels():
+    """An image of more than 2³¹ pixels divides its indices in int64 (no grid is built: the closed form checks)."""
+    cam = Camera.from_look_at((0, 0, 0), (0, 0, -1), (0, 1, 0), 60.0, 70000, 40000, 0.1, 10.0)
+    W, H = cam.width, cam.height
+    index = torch.tensor([0, W - 1, W, 2 ** 31 + 5, W * H - 1])
+    expect = [[float(i % W) + 0.5 for i in index.tolist()], [float(i // W) + 0.5 for i in index.tolist()]]
+    assert cam.pixel_centers_at(index, F64).tolist() == expect
+
+
 def test_pixel_rays_hand_built_and_reproject_to_pixel_centres(cam):
     W, H = cam.width, cam.height
     rays = cam.pixel_rays(F64)

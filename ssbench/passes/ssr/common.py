@@ -98,7 +98,7 @@ def ray_segments(gbuffer, sel: torch.Tensor, max_ray_distance: float, directions
 
     def col(x: torch.Tensor) -> torch.Tensor:       # (B, C, H, W) -> (1, C, N, 1): one gather per channel row
         return channel_rows(x).index_select(1, sel)[None, :, :, None]
-    uv = cam.uv_grid(dt, dev).reshape(2, -1).index_select(1, px)[None, :, :, None]
+    uv = cam.pixel_to_uv(cam.pixel_centers_at(px, dt), dim=0)[None, :, :, None]       # uv_grid's values at px
     pos = cam.uv_to_view(uv, col(vz))                                             # (1, 3, N, 1) rayOrg
     R = reflection_rays(pos, col(gbuffer.normal).to(dt)) if directions is None else col(directions).to(dt)
     o, d = pos[0, :, :, 0].T, R[0, :, :, 0].T                                     # (N, 3)

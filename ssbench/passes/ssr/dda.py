@@ -63,10 +63,10 @@ from ...camera import Camera
 from ...gbuffer import GBuffer
 from ..common import check_count, make_generator
 from ..gbuffer_checks import check_gbuffer, half_in_float32
-from .common import SSRResult, ray_segments
+from .common import SSRResult, nan_off_mask, ray_segments
 from .dda_assemble import assemble
 from .dda_march import dda_march, ray_view_z
-from .dda_state import DDARays, march_in_chunks
+from .dda_state import DDARays, DepthTexels, march_in_chunks
 from .fade import FadeParams
 from ..registry import Method, SpeedPanel
 
@@ -170,11 +170,14 @@ def required_channels(params: DDASSRParams) -> tuple[str, ...]:
 MARCH_CHUNK = 1 << 18
 
 
-def depth_texels(gbuffer: GBuffer, params: DDASSRParams) -> tuple:
-    """``(view_z, mask, back_z or None, second_z or None)`` flattened: what the march fetches per texel."""
+def depth_texels(gbuffer: GBuffer, params: DDASSRParams) -> DepthTexels:
+    """``view_z``, ``mask``, ``back_z`` (or None) and ``second_z`` (or None) flattened, and the step kernel's
+    NaN-off-mask copies of the depths: what the march reads per texel (:class:`DepthTexels`)."""
     flat = lambda x, on: x.to(gbuffer.view_z.dtype).reshape(-1) if on else None   # noqa: E731
-    return (gbuffer.view_z.reshape(-1), gbuffer.mask.reshape(-1), flat(gbuffer.back_z, params.use_back_face_depth),
-            flat(gbuffer.second_z, params.use_second_layer))
+    z, mask = gbuffer.view_z.reshape(-1), gbuffer.mask.reshape(-1)
+    back, second = flat(gbuffer.back_z, params.use_back_face_depth), flat(gbuffer.second_z, params.use_second_layer)
+    marched = tuple(None if x is None else nan_off_mask(x, mask) for x in (z, back, second))
+    return DepthTexels(z, mask, back, second, marched)
 
 
 def ray_pixels(gbuffer: GBuffer) -> torch.Tensor:
@@ -222,7 +225,7 @@ def dda_rays(gbuffer: GBuffer, params: DDASSRParams, jitter: torch.Tensor, sel: 
     if params.fit_stride_to_steps:                                                # max_steps samples reach P1
         pixelStride = torch.maximum(pixelStride, torch.ceil(delta[0].abs() / params.max_steps))
     dP, dQ, dk = [c * pixelStride for c in dP], [c * pixelStride for c in dQ], dk * pixelStride
-    j = jitter.to(dtype=dt, device=dev).reshape(-1)[sel]
+    j = jitter.to(device=dev).reshape(-1).index_select(0, sel).to(dt)           # (this chunk's rays only)
     P0p, Q0, k0 = [a + c * j for a, c in zip(P0p, dP)], [a + c * j for a, c in zip(Q0, dQ)], k0 + dk * j
     zlo, zhi = torch.minimum(o[2], end[2]), torch.maximum(o[2], end[2])
     end = P1p[0] * stepDir

@@ -25,7 +25,7 @@ def assemble(gbuffer: GBuffer, params, sel: torch.Tensor, P1: torch.Tensor, o: M
     each value by the same operations as a whole image of them would take: the same bits) and scattered into
     images whose other pixels hold the miss values (−1, 0)."""
     cam, (B, _, H, W) = gbuffer.camera, gbuffer.view_z.shape
-    dt, dev, HW = gbuffer.view_z.dtype, gbuffer.view_z.device, H * W
+    dt, HW = gbuffer.view_z.dtype, H * W
 
     def image(values, fill, dtype=dt, rows=sel):                                  # per-ray (N, C) -> (B, C, H, W)
         return unflat(values, rows, fill, (B, H, W), dtype)
@@ -47,10 +47,11 @@ def assemble(gbuffer: GBuffer, params, sel: torch.Tensor, P1: torch.Tensor, o: M
         index = index + (at - px).to(index.dtype)                                 # the image's offset b·H·W
     raw = channel_rows(gbuffer.color.to(dt)).index_select(1, index).T            # (m, 3)
     z = gbuffer.view_z.reshape(-1).index_select(0, at)[None, None, :, None]
-    uv = cam.uv_grid(dt, dev).reshape(2, -1).index_select(1, px)[None, :, :, None]
+    centre = cam.pixel_centers_at(px, dt)                                         # (2, m) the rays' pixels
+    uv = cam.pixel_to_uv(centre, dim=0)[None, :, :, None]                         # (uv_grid's values there)
     origin = cam.uv_to_view(uv, z)[0, :, :, 0].T                                  # (m, 3) rayOrg
     distance = length(hit_view - origin)                                          # (m, 1) |rayOrg − hitPoint|
-    centre = channel_rows(cam.pixel_centers(dt, dev)[None]).index_select(1, px).T  # (m, 2)
+    centre = centre.T                                                             # (m, 2)
     fade = params.fade(hit_pixel, centre, W, H, distance)                         # (m, 1)
     dbg = {"visits": visits.reshape(B, 1, H, W), "ray_end": image(P1, -1.0)} if visits is not None else {}
     raw_i, fade_i = image(raw, 0.0, rows=at), image(fade, 0.0, rows=at)

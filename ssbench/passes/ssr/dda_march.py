@@ -13,8 +13,8 @@ import torch
 
 from ..compiled import kernel, step_blocks
 from ..common import index_dtype
-from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS, nan_off_mask
-from .dda_state import DDARays, MarchOutput
+from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS
+from .dda_state import DDARays, DepthTexels, MarchOutput
 
 if TYPE_CHECKING:                                        # (ssr_dda imports this module)
     from .dda import DDASSRParams
@@ -22,12 +22,12 @@ if TYPE_CHECKING:                                        # (ssr_dda imports this
 
 def fetch_cell(permute: torch.Tensor, b: torch.Tensor, Px: torch.Tensor, Py: torch.Tensor, tex, H: int, W: int):
     """``(on_screen, flat texel, sceneZMax, mask)`` at ``hitPixel = permute ? P.yx : P`` (``texelFetch``) of the
-    rays in batch items ``b``; ``tex`` is :func:`~ssbench.passes.ssr.dda.depth_texels`' ``(view_z, mask, back_z,
-    second_z)``, flattened (``None``: that layer is not used)."""
+    rays in batch items ``b``; ``tex``: :func:`~ssbench.passes.ssr.dda.depth_texels`' textures
+    (:class:`~ssbench.passes.ssr.dda_state.DepthTexels`)."""
     px, py = torch.where(permute, Py, Px), torch.where(permute, Px, Py)
     on = (px >= 0) & (px < W) & (py >= 0) & (py < H)
     t = b * (H * W) + py.floor().clamp(0, H - 1).long() * W + px.floor().clamp(0, W - 1).long()
-    return on, t, torch.take(tex[0], t), torch.take(tex[1], t)                 # (take: a faster gather than [t])
+    return on, t, torch.take(tex.view_z, t), torch.take(tex.mask, t)         # (take: a faster gather than [t])
 
 
 def ray_view_z(Qz, k, lo, hi):
@@ -188,17 +188,17 @@ def flush(out: MarchOutput, s: DDARays, rows: torch.Tensor, tex, params: "DDASSR
         out.k[h.i] = h.k
 
 
-def dda_march(s: DDARays, tex, params: "DDASSRParams", H: int, W: int, visits: Optional[torch.Tensor]) -> MarchOutput:
+def dda_march(s: DDARays, tex: DepthTexels, params: "DDASSRParams", H: int, W: int,
+              visits: Optional[torch.Tensor]) -> MarchOutput:
     """The DDA loop; per-ray outputs by ``s.i``. Each step is :func:`dda_step`; stopped rays keep their state,
     masked, until 1/8 of the working set has stopped; then they are written back, their hits refined
     (:func:`refine_hits`), and the set compacted."""
     N = s.count
     out = MarchOutput.empty(N, s.k.dtype, s.k.device, OUT_OF_STEPS)
     dead = 0
-    step_tex = tuple(None if x is None else nan_off_mask(x, tex[1]) for x in (tex[0], tex[2], tex[3]))
     s = MarchingRays(**{f.name: v.contiguous() if isinstance(v := getattr(s, f.name), torch.Tensor) else v
                         for f in dataclasses.fields(s)},            # (columns of the set-up's tensors: strided)
-                     b_index=s.b.to(index_dtype(tex[0].numel())), permute32=s.permute.to(torch.int32),
+                     b_index=s.b.to(index_dtype(tex.view_z.numel())), permute32=s.permute.to(torch.int32),
                      clipped32=s.clipped.to(torch.int32), alive32=torch.ones(N, dtype=torch.int32, device=s.k.device),
                      steps=torch.zeros(N, dtype=torch.int32, device=s.k.device),
                      term=torch.full((N,), OUT_OF_STEPS, dtype=torch.int8, device=s.k.device))
@@ -207,7 +207,7 @@ def dda_march(s: DDARays, tex, params: "DDASSRParams", H: int, W: int, visits: O
             break
         r = dda_steps((s.Px, s.Py, s.Qz, s.k, s.n, s.prevZ, s.alive32, s.steps, s.term),
                      (s.dPx, s.dPy, s.dQz, s.dk, s.stride, s.stepDir, s.stop, s.end, s.zlo, s.zhi, s.permute32,
-                      s.clipped32, s.b_index), step_tex, (H, W), params.z_thickness, count, left, visits is not None)
+                      s.clipped32, s.b_index), tex.marched, (H, W), params.z_thickness, count, left, visits is not None)
         s.Px, s.Py, s.Qz, s.k, s.n, s.prevZ, s.alive32, s.steps, s.term = r[0]
         if visits is not None:
             add_visits(visits, *r[2:])

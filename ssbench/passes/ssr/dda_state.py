@@ -10,14 +10,27 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Callable, Optional
+from typing import Callable, NamedTuple, Optional
 
 import torch
 
-__all__ = ["DDARays", "MarchOutput", "RAY_CHUNK", "march_in_chunks", "select_rows"]
+__all__ = ["DDARays", "DepthTexels", "MarchOutput", "RAY_CHUNK", "march_in_chunks", "select_rows"]
 
 #: rays marched at once: a march's per-step temporaries stay a few MB, whatever the image size
 RAY_CHUNK = 1 << 16
+
+
+class DepthTexels(NamedTuple):
+    """What the DDA march reads per texel, flat :math:`(B·H·W,)` (:func:`~ssbench.passes.ssr.dda.depth_texels`):
+    ``view_z``, ``mask``, ``back_z`` and ``second_z`` (``None`` where the parameters do not use them), and
+    ``marched``, the ``(view_z, back_z, second_z)`` the step kernel reads: NaN off the mask (a NaN compares false,
+    so a cleared texel is never hit), built once per pass rather than once per chunk of rays."""
+
+    view_z: torch.Tensor
+    mask: torch.Tensor
+    back_z: Optional[torch.Tensor]
+    second_z: Optional[torch.Tensor]
+    marched: tuple
 
 
 @dataclass

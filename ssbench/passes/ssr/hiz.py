@@ -40,7 +40,7 @@ from .dda import ray_pixels
 from .dda_assemble import assemble
 from .dda_state import march_in_chunks
 from .fade import FadeParams
-from .hiz_march import RAY_CHUNK, HiZTexels, hiz_march, hiz_rays
+from .hiz_march import RAY_CHUNK, HiZTexels, hiz_march, hiz_rays, march_layers
 from .hiz_pyramid import depth_pyramid, reversed_depth
 
 REQUIRES = ("view_z", "normal", "mask", "color")
@@ -156,11 +156,12 @@ def march_hiz(gbuffer: GBuffer, params: HiZSSRParams, directions: Optional[torch
     dev = gbuffer.view_z.device
     pyr = depth_pyramid(reversed_depth(gbuffer.view_z, gbuffer.mask, gbuffer.camera.near))
     tex = texels(gbuffer, params)
+    layers = march_layers(pyr, params.max_mip, gbuffer)                          # (once: every chunk reads it)
     sel = ray_pixels(gbuffer)
     visits = torch.zeros(B * H * W, dtype=torch.int32, device=dev) if debug else None
     level_reads = torch.zeros(pyr.count, dtype=torch.long, device=dev) if debug else None
     o, P1 = march_in_chunks(sel, lambda part: hiz_rays(gbuffer, params.max_ray_distance, part, directions),
-                            lambda rays: hiz_march(rays, pyr, tex, params, gbuffer, visits, level_reads),
+                            lambda rays: hiz_march(rays, layers, tex, params, gbuffer, visits, level_reads),
                             chunk=RAY_CHUNK)
     result = assemble(gbuffer, params, sel, P1, o, visits)
     if debug:

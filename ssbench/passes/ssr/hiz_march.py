@@ -34,13 +34,13 @@ import torch
 
 from ...gbuffer import GBuffer
 from ..compiled import step_blocks
-from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OUT_OF_STEPS, channel_rows, compact_now, ray_segments
+from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OUT_OF_STEPS, compact_now, ray_segments
 from .dda_state import MarchOutput
 from .hiz_pyramid import DepthPyramid, padded_levels
 from .hiz_step import (BIG, COLUMNS, EPSILON, OFFX, OFFY, EPSX, EPSY, INVX, INVY, INVZ, OX, OY, OZ, VX, VY, VZ,
                        HiZRules, HiZTexels, MarchState, PyramidLayers, cell_exit, hiz_iterations, inverse)
 
-__all__ = ["HiZRays", "HiZTexels", "EPSILON", "BIG", "COLUMNS", "RAY_CHUNK", "hiz_rays", "hiz_march"]
+__all__ = ["HiZRays", "HiZTexels", "EPSILON", "BIG", "COLUMNS", "RAY_CHUNK", "hiz_rays", "march_layers", "hiz_march"]
 
 #: rays marched at once: ~130 bytes of state per ray, so a chunk holds ~35 MB; larger than the DDA's chunk because
 #: every chunk pays the long tail of the few rays that need the most iterations
@@ -88,7 +88,7 @@ def hiz_rays(gbuffer: GBuffer, max_ray_distance: float, sel: torch.Tensor, direc
     W = vz.shape[-1]
     dt, dev = vz.dtype, vz.device
     b, px, o, d, end = ray_segments(gbuffer, sel, max_ray_distance, directions)
-    P0 = channel_rows(cam.pixel_centers(dt, dev)[None]).index_select(1, px).T       # the origin pixel's centre
+    P0 = cam.pixel_centers_at(px, dt).T                                           # the origin pixel's centre
     P1 = cam.view_to_pixel(end, dim=1)
     n = sel.numel()
     c = torch.empty(len(COLUMNS), n, dtype=dt, device=dev)                        # each row written in place
@@ -132,17 +132,24 @@ def write_back(out: MarchOutput, r: HiZRays, rows: torch.Tensor, gbuffer: GBuffe
         out.Q.index_copy_(0, i_h, cam.uv_to_view(uv, -cam.near / pz, dim=0).T.to(out.Q.dtype))
 
 
-def hiz_march(r: HiZRays, pyr: DepthPyramid, tex: HiZTexels, params, gbuffer: GBuffer,
+def march_layers(pyr: DepthPyramid, max_mip: int, gbuffer: GBuffer) -> PyramidLayers:
+    """The levels ``0 … min(max_mip, top)`` of ``pyr`` as the march reads them (:func:`~.hiz_pyramid.padded_levels`):
+    built once per pass and read by every chunk of rays."""
+    top = min(max_mip, pyr.count - 1)
+    return PyramidLayers(padded_levels(pyr, top + 1), top + 1, gbuffer.view_z.numel())
+
+
+def hiz_march(r: HiZRays, pyramid: PyramidLayers, tex: HiZTexels, params, gbuffer: GBuffer,
               visits: Optional[torch.Tensor] = None, level_reads: Optional[torch.Tensor] = None) -> MarchOutput:
-    """March ``r`` to termination; one pyramid read per iteration (:func:`~.hiz_step.hiz_iterations`), at most
-    ``params.max_traversal_intersections``. Stopped rays ride along masked until a quarter of the working set has
-    stopped; then the set is compacted and the stopped rays are written back. ``visits`` :math:`(BHW,)` counts
-    level-0 reads per texel and ``level_reads`` :math:`(L,)` reads per level, when given."""
+    """March ``r`` to termination through ``pyramid`` (:func:`march_layers`); one pyramid read per iteration
+    (:func:`~.hiz_step.hiz_iterations`), at most ``params.max_traversal_intersections``. Stopped rays ride along
+    masked until a quarter of the working set has stopped; then the set is compacted and the stopped rays are
+    written back. ``visits`` :math:`(BHW,)` counts level-0 reads per texel and ``level_reads`` :math:`(L,)` reads
+    per level, when given."""
     B, _, H, W = gbuffer.view_z.shape
     dt, dev = r.c.dtype, r.c.device
     out = MarchOutput.empty(r.count, dt, dev, OUT_OF_STEPS)
-    top = min(params.max_mip, pyr.count - 1)
-    pyramid = PyramidLayers(padded_levels(pyr, top + 1), top + 1, gbuffer.view_z.numel())
+    top = pyramid.layers - 1
     rules = HiZRules(params.reject_backfaces, params.trace_behind, params.thickness_mode == "relative",
                      float(gbuffer.camera.near))
     thickness = torch.tensor(params.depth_buffer_thickness, dtype=dt, device=dev)

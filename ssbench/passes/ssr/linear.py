@@ -188,8 +188,7 @@ def ssr_linear(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(), *,
     hit_pixel = cam.uv_to_pixel(uv, dim=-1)                                       # (m, 2)
     raw = channel_rows(gbuffer.color).index_select(1, t).T.contiguous()          # (m, 3)
     rh = ray.index_select(0, h)
-    centre = channel_rows(cam.pixel_centers(dtype, dev)[None]).index_select(1, rh % HW if B > 1 else rh)
-    centre = centre.T.contiguous()                                                # vUv of each ray's pixel
+    centre = cam.pixel_centers_at(rh % HW if B > 1 else rh, dtype).T.contiguous()  # vUv of each ray's pixel
     fade = params.fade(hit_pixel, centre, W, H, (Oh - best).norm(dim=1, keepdim=True))
 
     def scatter(values, rows, fill, C, dt):       # per-ray values -> (B, C, H, W)

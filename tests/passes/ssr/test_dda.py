@@ -363,24 +363,29 @@ def test_last_footprint_reaches_the_image_edge(stride):
         assert r.hit_pixel[0, :, 20, 16].floor().tolist() == [16.0, 0.0]
 
 
-@pytest.mark.parametrize("method", ["dda", "dda_supercover"])
+@pytest.mark.parametrize("method", ["dda", "dda_supercover", "hiz"])
 def test_marching_in_chunks_of_rays_changes_no_bit(method, monkeypatch):
-    """The DDA marchers march chunks of rays at a time (a bounded working set: the DDA's MARCH_CHUNK, the
-    supercover's RAY_CHUNK): chunks of 7 rays give the same outputs, debug visit counts included, as one chunk
-    for every ray."""
+    """The marchers that share :func:`~ssbench.passes.ssr.dda_state.march_in_chunks` march chunks of rays at a time
+    (a bounded working set: the DDA's MARCH_CHUNK, the supercover's and Hi-Z's RAY_CHUNK), each chunk setting up its
+    own rays (the pixel centres of its rays, not of the image): chunks of 7 rays give the same outputs, debug visit
+    counts included, as one chunk for every ray; with jitter and two images too."""
     import dataclasses
 
     import ssbench.passes.ssr.dda as D
     import ssbench.passes.ssr.dda_state as DS
+    import ssbench.passes.ssr.hiz as Z
     from ssbench.passes import ssr_method
     from tests.passes.ssr_scenes import room
     g = room(40, 30, slat=True)
+    g = dataclasses.replace(g, **{f.name: torch.cat([v, v.flip(-1)]) for f in dataclasses.fields(g)
+                                  if isinstance(v := getattr(g, f.name), torch.Tensor)})     # two images
     fn, params_cls, _ = ssr_method(method)
-    module, name = (D, "MARCH_CHUNK") if method == "dda" else (DS, "RAY_CHUNK")
+    module, name = {"dda": (D, "MARCH_CHUNK"), "dda_supercover": (DS, "RAY_CHUNK"), "hiz": (Z, "RAY_CHUNK")}[method]
+    params = params_cls(jitter=0.5) if method == "dda" else params_cls()
 
     def run(chunk):
         monkeypatch.setattr(module, name, chunk)
-        return fn(g, params_cls(), debug=True)
+        return fn(g, params, debug=True)
     whole, chunked = run(1 << 40), run(7)
     assert int(whole.hit.sum()) > 0
     for f in dataclasses.fields(whole):

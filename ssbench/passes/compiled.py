@@ -25,7 +25,8 @@ the linear march's step and bisection probe, the DDA's step and Hi-Z's whole ite
 ``AdvanceRay``, the hit test and the ray's state; compiled, it judges every ray and keeps the candidates' verdicts,
 where eager judges only the candidates) are size-dynamic kernels (``@kernel(dynamic=True)``: one compilation for
 every working-set size; rays that stop ride along masked until the set is compacted; compiled, the DDA, Hi-Z and
-the linear march run :data:`STEPS_PER_CALL` steps per call in one fused loop, ``fuse_whole``, :func:`step_blocks`), bit for bit equal to eager, tested; and
+the linear march (its steps and its bisection's probes) run :data:`STEPS_PER_CALL` steps per call in one fused
+loop, ``fuse_whole``, :func:`step_blocks`), bit for bit equal to eager, tested; and
 the three.js march's step (``three_ssr_step.pixel_step``: equal to eager on every output tested, but its
 ``pointToLineDistance`` is an ulp apart from ATen's in a quarter of the rays, whose cross product ATen may compute
 with FMA, so a ray exactly on the thickness bound could end differently). Glossy SSR's ray reuse (``glossy_reuse.reuse_ray``:

@@ -18,7 +18,7 @@ from .dda_state import select_rows
 from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, compact_now, nan_off_mask
 
 __all__ = ["DepthTest", "MarchLog", "MarchOutcome", "LiveRays", "march_step", "march_steps", "march", "refine_step",
-           "refine"]
+           "refine_steps", "refine"]
 
 
 @dataclass(frozen=True)
@@ -229,24 +229,44 @@ class _Outcome:
         self.hit_q.index_copy_(0, gh, torch.stack([c.index_select(0, at) for c in (ws.qx, ws.qy, ws.qz)], 1))
 
 
-@kernel(dynamic=True)
 def refine_step(scale: tuple, size: tuple, thickness: float, front: torch.Tensor, back: Optional[torch.Tensor],
-                probe: tuple, base: torch.Tensor, debug: bool = False) -> tuple:
-    """One probe of §1.3 on :math:`(m, 3)` arrays ``probe = (Qb, step, stride, best)`` (``stride`` :math:`(m, 1)`):
-    ``Qb += step·stride``, the depth test (no screen test, as the shader), ``best = Qb`` where it hit, and the
-    next stride, half as long (a power of two: exact), back after a hit and forward after a miss (the
-    refinement's size-dynamic kernel).
+                probe: tuple, base: torch.Tensor, go: Optional[torch.Tensor] = None) -> tuple:
+    """One probe of §1.3 on flat :math:`(m,)` arrays ``probe = (qx, qy, qz, sx, sy, sz, stride, bx, by, bz)``
+    (``Qb``, the step, the signed stride and ``best``, x, y, z apart): ``Qb += step·stride``, the depth test (no
+    screen test, as the shader), ``best = Qb`` where it hit, and the next stride, half as long (a power of two:
+    exact), back after a hit and forward after a miss. Every ray keeps its state where ``go`` (a 0-d bool) is false.
 
     Returns:
-        ``(Qb, stride, best)``, plus the texel index and the hits with ``debug``.
+        ``(probe, t, hit)``: the new probe state, the texel index and the hits.
     """
-    qb, step, stride, best = probe
-    qb = qb + step * stride
-    _, _, t, hb = _probe(scale, size, thickness, front, back, qb.unbind(1), base)
-    best = torch.where(hb.unsqueeze(1), qb, best)
+    qx, qy, qz, sx, sy, sz, stride, bx, by, bz = probe
+    x, y, z = qx + sx * stride, qy + sy * stride, qz + sz * stride
+    _, _, t, hb = _probe(scale, size, thickness, front, back, (x, y, z), base)
     half = stride.abs() * 0.5
-    stride = torch.where(hb.unsqueeze(1), -half, half)
-    return (qb, stride, best) + ((t, hb) if debug else ())
+    nxt = torch.where(hb, -half, half)
+    take = hb if go is None else hb & go
+    bx, by, bz = torch.where(take, x, bx), torch.where(take, y, by), torch.where(take, z, bz)
+    if go is not None:
+        x, y, z = torch.where(go, x, qx), torch.where(go, y, qy), torch.where(go, z, qz)
+        nxt = torch.where(go, nxt, stride)
+    return (x, y, z, sx, sy, sz, nxt, bx, by, bz), t, hb
+
+
+@kernel(dynamic=True, fuse_whole=True)
+def refine_steps(scale: tuple, size: tuple, thickness: float, front: torch.Tensor, back: Optional[torch.Tensor],
+                 probe: tuple, base: torch.Tensor, count: int = 1, left: Optional[torch.Tensor] = None,
+                 debug: bool = False) -> tuple:
+    """``count`` :func:`refine_step` s, the ``j``-th only while ``j < left``
+    (:func:`~ssbench.passes.compiled.step_blocks`): the bisection's compilable, size-dynamic kernel (one call runs
+    a block of probes, the rays' state in registers between them).
+
+    Returns:
+        ``(qx, qy, qz, stride, bx, by, bz)``, plus the texel index and the hits with ``debug`` (``count`` 1).
+    """
+    for j in range(count):
+        probe, t, hb = refine_step(scale, size, thickness, front, back, probe, base, None if left is None else left > j)
+    qx, qy, qz, _, _, _, stride, bx, by, bz = probe
+    return (qx, qy, qz, stride, bx, by, bz) + ((t, hb) if debug else ())
 
 
 def refine(test: DepthTest, log: MarchLog, h: torch.Tensor, O: torch.Tensor, dS: torch.Tensor,
@@ -257,15 +277,17 @@ def refine(test: DepthTest, log: MarchLog, h: torch.Tensor, O: torch.Tensor, dS:
     Qb = torch.where(first, O, best - dS)                                         # Q −= deltaStep (≥ rayOrg)
     step = torch.where(first, best - O, dS)
     originalStride = 0.5
-    stride = torch.full((h.numel(), 1), originalStride, dtype=best.dtype, device=best.device)   # (m, 1)
+    stride = torch.full((h.numel(),), originalStride, dtype=best.dtype, device=best.device)
     front, debug = test.front, bool(log.trace_ids) or log.counting
     base = base.to(index_dtype(front.numel()))
-    for _ in range(iterations):
-        r = refine_step(test.camera.ndc_scale(), (test.H, test.W), test.thickness, front, test.back,
-                        (Qb, step, stride, best), base, debug=debug)
-        Qb, stride, best = r[:3]
+    rows = lambda x: tuple(x.T.contiguous())                                     # noqa: E731  (m, 3) -> x, y, z
+    q, best_c, step_c = rows(Qb), rows(best), rows(step)
+    for count, left in step_blocks(iterations, debug, best.device):
+        r = refine_steps(test.camera.ndc_scale(), (test.H, test.W), test.thickness, front, test.back,
+                         (*q, *step_c, stride, *best_c), base, count, left, debug=debug)
+        q, stride, best_c = r[0:3], r[3], r[4:7]
         if debug:
             if log.trace_ids:
-                log.record(h, Qb, r[4], True)
-            log.read(r[3].long())
-    return best
+                log.record(h, torch.stack(q, 1), r[8], True)
+            log.read(r[7].long())
+    return torch.stack(best_c, 1)

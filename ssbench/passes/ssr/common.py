@@ -93,8 +93,7 @@ def ray_segments(gbuffer, sel: torch.Tensor, max_ray_distance: float, directions
     cam, vz = gbuffer.camera, gbuffer.view_z
     B, _, H, W = vz.shape
     dt, dev = vz.dtype, vz.device
-    b, px = (sel // (H * W), sel % (H * W)) if B > 1 else (torch.zeros_like(sel), sel)   # image and pixel of
-    # each ray (int64 division is a scalar loop: 1.8 ms at 640×360)
+    b, px = split_rays(sel, B, H * W)                                             # image and pixel of each ray
 
     def col(x: torch.Tensor) -> torch.Tensor:       # (B, C, H, W) -> (1, C, N, 1): one gather per channel row
         return channel_rows(x).index_select(1, sel)[None, :, :, None]
@@ -104,6 +103,21 @@ def ray_segments(gbuffer, sel: torch.Tensor, max_ray_distance: float, directions
     o, d = pos[0, :, :, 0].T, R[0, :, :, 0].T                                     # (N, 3)
     end = o + d * clip_ray_length(o[:, 2], d[:, 2], max_ray_distance, cam.near)[:, None]   # rayEnd
     return b, px, o, d, end
+
+
+def split_rays(ray: torch.Tensor, B: int, HW: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """``(b, pixel)`` of flat ray ids ``ray = b·H·W + pixel``: each ray's image and its pixel ``j·W + i`` in that
+    image (``HW`` = H·W). For one image ``b`` is 0 and the pixel the id itself, with no int64 division (a scalar
+    loop on the CPU: 1.8 ms for 640×360 rays).
+
+    Example:
+        >>> split_rays(torch.tensor([1, 6, 11]), 2, 6)
+        (tensor([0, 1, 1]), tensor([1, 0, 5]))
+    """
+    if B == 1:
+        return torch.zeros_like(ray), ray
+    b = ray // HW
+    return b, ray - b * HW
 
 
 def empty_result(like: torch.Tensor, debug: Optional[dict] = None) -> SSRResult:

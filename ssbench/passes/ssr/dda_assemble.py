@@ -9,7 +9,7 @@ import torch
 
 from ...gbuffer import GBuffer
 from ..common import channel_rows, flat_texel, index_dtype, length
-from .common import HIT, NO_RAY, SSRResult, unflat
+from .common import HIT, NO_RAY, SSRResult, split_rays, unflat
 from .dda_state import MarchOutput
 
 __all__ = ["assemble"]
@@ -42,7 +42,7 @@ def assemble(gbuffer: GBuffer, params, sel: torch.Tensor, P1: torch.Tensor, o: M
     lo, hi = texel.to(dt), torch.nextafter((texel + 1).to(dt), texel.to(dt))      # and hit_pixel stays in it
     hit_pixel = torch.minimum(torch.maximum(P.to(dt), lo), hi)                    # (m, 2)
     index = flat_texel(col, row, (H, W), index_dtype(B * HW))
-    px = at % HW if B > 1 else at                                                 # (int64 division: a scalar loop)
+    px = split_rays(at, B, HW)[1]                                                 # the hit rays' pixels
     if B > 1:
         index = index + (at - px).to(index.dtype)                                 # the image's offset b·H·W
     raw = channel_rows(gbuffer.color.to(dt)).index_select(1, index).T            # (m, 3)

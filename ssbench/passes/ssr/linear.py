@@ -43,7 +43,7 @@ from torch import nn
 from ...gbuffer import GBuffer
 from ..common import check_positive
 from ..gbuffer_checks import check_gbuffer, half_in_float32
-from .common import HIT, NO_RAY, SSRResult, channel_rows, unflat
+from .common import HIT, NO_RAY, SSRResult, channel_rows, split_rays, unflat
 from .fade import FadeParams
 from .linear_march import MarchLog, march, refine
 from .linear_rays import linear_rays
@@ -188,7 +188,7 @@ def ssr_linear(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(), *,
     hit_pixel = cam.uv_to_pixel(uv, dim=-1)                                       # (m, 2)
     raw = channel_rows(gbuffer.color).index_select(1, t).T.contiguous()          # (m, 3)
     rh = ray.index_select(0, h)
-    centre = cam.pixel_centers_at(rh % HW if B > 1 else rh, dtype).T.contiguous()  # vUv of each ray's pixel
+    centre = cam.pixel_centers_at(split_rays(rh, B, HW)[1], dtype).T.contiguous()  # vUv of each ray's pixel
     fade = params.fade(hit_pixel, centre, W, H, (Oh - best).norm(dim=1, keepdim=True))
 
     def scatter(values, rows, fill, C, dt):       # per-ray values -> (B, C, H, W)

@@ -13,7 +13,7 @@ import torch
 from ...checks import finite_vectors
 from ...gbuffer import GBuffer
 from ..common import make_generator
-from .common import channel_rows, clip_ray_length, reflection_rays
+from .common import channel_rows, clip_ray_length, reflection_rays, split_rays
 from .linear_march import DepthTest
 
 if TYPE_CHECKING:                                        # (ssr_linear imports this module)
@@ -92,7 +92,7 @@ def linear_rays(gbuffer: GBuffer, params: "LinearSSRParams", generator: Optional
     ray = ok.reshape(-1).nonzero().squeeze(1)                                     # (n,) flat pixel ids
     O, dS, Q = (channel_rows(x).index_select(1, ray).T for x in (rayOrg, deltaStep, Q))   # (n, 3) views of (3, n)
     clipped = (rayLength < params.max_ray_distance).reshape(-1).index_select(0, ray)
-    base = (ray // HW) * HW if B > 1 else torch.zeros_like(ray)                  # batch offset of each ray
+    base = split_rays(ray, B, HW)[0] * HW                                         # batch offset of each ray
     test = DepthTest(cam, H, W, sceneZ.reshape(-1), back.reshape(-1) if back is not None else None,
                      mask.reshape(-1), T)
     return LinearRays(ray, base, O, dS, Q, clipped, test, rayLength, xi)

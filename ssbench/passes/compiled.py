@@ -27,9 +27,10 @@ where eager judges only the candidates) are size-dynamic kernels (``@kernel(dyna
 every working-set size; rays that stop ride along masked until the set is compacted; compiled, the DDA, Hi-Z and
 the linear march (its steps and its bisection's probes) run :data:`STEPS_PER_CALL` steps per call in one fused
 loop, ``fuse_whole``, :func:`step_blocks`), bit for bit equal to eager, tested; and
-the three.js march's step (``three_ssr_step.pixel_step``: equal to eager on every output tested, but its
-``pointToLineDistance`` is an ulp apart from ATen's in a quarter of the rays, whose cross product ATen may compute
-with FMA, so a ray exactly on the thickness bound could end differently). Glossy SSR's ray reuse (``glossy_reuse.reuse_ray``:
+the three.js march's steps (``three_ssr_step.march_steps``, :data:`STEPS_PER_CALL` per call, the hit's verdict
+judged for every ray as Hi-Z does: equal to eager on every output tested, but its ``pointToLineDistance`` is an
+ulp apart from ATen's in a quarter of the rays, whose cross product ATen may compute with FMA, so a ray exactly on
+the thickness bound could end differently). Glossy SSR's ray reuse (``glossy_reuse.reuse_ray``:
 one ray's weighted sums over the whole window in one loop, its inputs padded outside the kernel) is compiled too:
 its resolved colours are within 4.8e-7 of eager in float32 (measured on three scenes, four settings), as inductor's
 divisions and roots round differently; without reuse it gives the same bits. Not compiled: the supercover DDA (its
@@ -48,10 +49,10 @@ The switch, in order of precedence: :func:`compiling` (a context manager), else 
 ``SSBENCH_COMPILE`` (``1``/``true``: on; ``ssbench --compile …`` sets it, so sweep processes inherit it).
 
 Each kernel keeps up to :data:`KERNEL_VARIANTS` compilations (one per input signature), and past that raises
-instead of running eager unannounced. Compilation is paid on a kernel's first call per input signature; :func:`compile_seconds` adds up those first
-calls (compile plus one run), so rows can report it apart from the run time. Inductor keeps compiled graphs
-in its on-disk cache (``TORCHINDUCTOR_CACHE_DIR``, by default under the system temporary folder), which later
-runs reuse.
+instead of running eager unannounced. Compilation is paid on a kernel's first call per input signature;
+:func:`compile_seconds` adds up those first calls (compile plus one run), so rows can report it apart from the
+run time. Inductor keeps compiled graphs in its on-disk cache (``TORCHINDUCTOR_CACHE_DIR``, by default under the
+system temporary folder), which later runs reuse.
 """
 from __future__ import annotations
 
@@ -195,9 +196,9 @@ def band_samples(samples: int) -> int:
     return 1 if enabled() else samples
 
 
-#: steps a marcher's ``fuse_whole`` kernel runs per compiled call (the DDA, Hi-Z and the linear march), their rays'
-#: state in registers between them; measured on the DDA at 640×360, 1 / 4 / 8 / 16 per call: 470 / 370 / 334 /
-#: 334 ms, sixteen compiling twice as long
+#: steps a marcher's ``fuse_whole`` kernel runs per compiled call (the DDA, Hi-Z, the linear and three.js marches),
+#: their rays' state in registers between them; measured on the DDA at 640×360, 1 / 4 / 8 / 16 per call: 470 / 370 /
+#: 334 / 334 ms, sixteen compiling twice as long
 STEPS_PER_CALL = 8
 
 

@@ -35,10 +35,11 @@ from torch import nn
 
 from ...gbuffer import GBuffer
 from ..common import check_positive, index_dtype
+from ..compiled import step_blocks
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..registry import Method, SpeedPanel
-from .common import HIT, MAX_DISTANCE, NO_RAY, OUT_OF_STEPS, SSRResult, compact_now, flat, unflat
-from .three_ssr_step import MarchRays, StepTextures, pixel_step, unproject
+from .common import HIT, NO_RAY, OUT_OF_STEPS, SSRResult, compact_now, flat, unflat
+from .three_ssr_step import MarchRays, MarchState, StepTextures, march_steps, take_rows, unproject
 
 REQUIRES = ("view_z", "normal", "mask", "color")
 DEFAULTS_SOURCE = "three.js SSRShader / SSRPass defaults (maxDistance 180, thickness 0.018, opacity 0.5)"
@@ -134,35 +135,34 @@ def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
     hit_k = torch.zeros(m, dtype=index_dtype(B * HW), device=dev)
     hit_xy = torch.zeros(m, 2, dtype=dt, device=dev)
     hit_vp = torch.zeros(m, 3, dtype=dt, device=dev)
-    ws = MarchRays(torch.arange(m, device=dev), b.to(index_dtype(B * HW)), d0, span, total, recip, recip_end, vp, d1v,
-                   (d1v - vp).norm(dim=1), refl, n, s_step, s_step.clone())
-    alive = torch.ones(m, dtype=torch.bool, device=dev)
-    term_ws, steps_ws = term.clone(), steps.clone()        # the working set's, written back when it is compacted
-    textures = StepTextures(depth.reshape(-1), vz_tex.reshape(-1), minv)
-    normal_flat = normal.reshape(B * HW, 3)
-    for i in range(1, max_step):
+    parts = lambda x: tuple(c.contiguous() for c in x.unbind(1))   # noqa: E731  (m, C) -> C × (m,), no views
+    ws = MarchRays(torch.arange(m, device=dev), b.to(index_dtype(B * HW)), parts(d0), parts(span), total, recip,
+                   recip_end, parts(vp), parts(d1v), (d1v - vp).norm(dim=1), parts(refl), parts(n), s_step)
+    st = MarchState(torch.ones(m, dtype=torch.bool, device=dev), term.clone(), steps.clone(), s_step.clone(),
+                    hit_k.clone(), parts(hit_xy), parts(hit_vp))
+    textures = StepTextures(depth.reshape(-1), vz_tex.reshape(-1), minv, normal.reshape(B * HW, 3))
+
+    def write_back(rows: torch.Tensor) -> None:   # the working set's rays at ``rows``: their ends and hits
+        at = ws.ray.index_select(0, rows)
+        term.index_copy_(0, at, st.term.index_select(0, rows))
+        steps.index_copy_(0, at, st.steps.index_select(0, rows))
+        hit_k.index_copy_(0, at, st.hit_tex.index_select(0, rows))
+        hit_xy.index_copy_(0, at, take_rows(st.hit_xy, rows))
+        hit_vp.index_copy_(0, at, take_rows(st.hit_vp, rows))
+
+    thickness = torch.tensor(p.thickness, dtype=dt, device=dev)
+    i = 1
+    for count, left in step_blocks(max_step - 1, False, dev):          # steps i = 1 … max_step − 1
         if ws.ray.numel() == 0:
             break
-        alive, xy, tex, texel, vpt, hit, term_ws, steps_ws, s = pixel_step(
-            i, ws, alive, (term_ws, steps_ws), textures, (H, W), far, p.thickness, p.infinite_thick)
-        ws = ws._replace(s=s)
-        h = hit.nonzero().squeeze(1)              # every hit ends the ray: a true hit, or a back face / too far
-        if h.numel():
-            nh, vph = ws.n[h], vpt[h]
-            back = (ws.refl[h] * normal_flat[texel[h]]).sum(1) >= 0
-            plane = (nh * vph).sum(1) - (nh * ws.vp[h]).sum(1)                  # pointPlaneDistance
-            done = ~back & ~(plane > p.max_distance)
-            ray_h = ws.ray[h]
-            term_ws[h] = torch.where(done, HIT, MAX_DISTANCE).to(term.dtype)
-            hit_k[ray_h[done]], hit_xy[ray_h[done]], hit_vp[ray_h[done]] = tex[h][done], xy[h][done], vph[done]
-        if compact_now(int(alive.sum()), ws.ray.numel()):             # drop the stopped rays now and then
-            keep = alive.nonzero().squeeze(1)
-            term.index_copy_(0, ws.ray, term_ws)
-            steps.index_copy_(0, ws.ray, steps_ws)
-            ws, alive = ws.take(keep), alive.index_select(0, keep)
-            term_ws, steps_ws = term_ws.index_select(0, keep), steps_ws.index_select(0, keep)
-    term.index_copy_(0, ws.ray, term_ws)
-    steps.index_copy_(0, ws.ray, steps_ws)
+        at = i if left is None else torch.tensor(i, device=dev)    # the number 1 would specialise the first call
+        st = march_steps(at, ws, st, textures, (H, W), far, thickness, p.infinite_thick, p.max_distance, count, left)
+        i += count
+        if compact_now(int(st.alive.sum()), ws.ray.numel()):             # drop the stopped rays now and then
+            write_back((~st.alive).nonzero().squeeze(1))
+            keep = st.alive.nonzero().squeeze(1)
+            ws, st = ws.take(keep), st.take(keep)
+    write_back(torch.arange(ws.ray.numel(), device=dev))
 
     # ---- outputs ----
     h = (term == HIT).nonzero().squeeze(1)

@@ -129,12 +129,16 @@ KERNEL_VARIANTS = 256
 
 def _room_for_variants() -> contextlib.AbstractContextManager:
     """Room for :data:`KERNEL_VARIANTS` compilations of each kernel (a static kernel compiles once per band shape
-    and parameter set; a size-dynamic one once per rank, dtype, flag or debug variant, plus one when its first
-    working set is as long as the image: dynamo's *duck sizing* then assumes the two lengths equal), and an error
-    instead of a silent eager run past it."""
-    return torch._dynamo.config.patch(recompile_limit=KERNEL_VARIANTS,
-                                      accumulated_recompile_limit=16 * KERNEL_VARIANTS,
-                                      fail_on_recompile_limit_hit=True)
+    and parameter set; a size-dynamic one once per rank, dtype, flag or debug variant), and an error instead of a
+    silent eager run past it. Without *duck sizing*: with it, dynamo gives sizes that are equal on the first call one
+    symbol, and a marcher whose first working set is as long as its image (every pixel casts a ray) compiled a graph
+    for that call and another for every later one."""
+    stack = contextlib.ExitStack()
+    stack.enter_context(torch._dynamo.config.patch(recompile_limit=KERNEL_VARIANTS,
+                                                   accumulated_recompile_limit=16 * KERNEL_VARIANTS,
+                                                   fail_on_recompile_limit_hit=True))
+    stack.enter_context(torch.fx.experimental._config.patch(use_duck_shape=False))
+    return stack
 
 
 #: inductor options of every kernel: no bounds check on gathered indices (a kernel clamps its texel indices

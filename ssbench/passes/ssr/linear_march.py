@@ -15,7 +15,8 @@ from ...camera import Camera
 from ..common import index_dtype, texel_of, uv_to_texel
 from ..compiled import kernel, step_blocks
 from .dda_state import select_rows
-from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, compact_now, nan_off_mask
+from .common import (BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, compact_now, components,
+                     nan_off_mask)
 
 __all__ = ["DepthTest", "MarchLog", "MarchOutcome", "LiveRays", "march_step", "march_steps", "march", "refine_step",
            "refine_steps", "refine"]
@@ -178,7 +179,7 @@ def march(test: DepthTest, log: MarchLog, Q: torch.Tensor, dS: torch.Tensor, bas
                    torch.full((n,), -1, device=dev), torch.zeros(n, 3, dtype=Q.dtype, device=dev))
     front = test.front
     flags = torch.zeros(n, dtype=torch.int32, device=dev)                          # live, hit, steps: int32
-    ws = LiveRays(torch.arange(n, device=dev), *(c.contiguous() for c in (*Q.unbind(1), *dS.unbind(1))),
+    ws = LiveRays(torch.arange(n, device=dev), *components(Q), *components(dS),
                   base.to(index_dtype(front.numel())), flags + 1, flags, flags.clone())
     scale, debug = test.camera.ndc_scale(), bool(log.trace_ids) or log.counting
     n_run = min(iterations, max_iterations)
@@ -280,8 +281,7 @@ def refine(test: DepthTest, log: MarchLog, h: torch.Tensor, O: torch.Tensor, dS:
     stride = torch.full((h.numel(),), originalStride, dtype=best.dtype, device=best.device)
     front, debug = test.front, bool(log.trace_ids) or log.counting
     base = base.to(index_dtype(front.numel()))
-    rows = lambda x: tuple(x.T.contiguous())                                     # noqa: E731  (m, 3) -> x, y, z
-    q, best_c, step_c = rows(Qb), rows(best), rows(step)
+    q, best_c, step_c = components(Qb), components(best), components(step)
     for count, left in step_blocks(iterations, debug, best.device):
         r = refine_steps(test.camera.ndc_scale(), (test.H, test.W), test.thickness, front, test.back,
                          (*q, *step_c, stride, *best_c), base, count, left, debug=debug)

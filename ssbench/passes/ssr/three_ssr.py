@@ -38,7 +38,7 @@ from ..common import check_positive, index_dtype
 from ..compiled import step_blocks
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..registry import Method, SpeedPanel
-from .common import HIT, NO_RAY, OUT_OF_STEPS, SSRResult, compact_now, flat, unflat
+from .common import HIT, NO_RAY, OUT_OF_STEPS, SSRResult, compact_now, components, flat, unflat
 from .three_ssr_step import MarchRays, MarchState, StepTextures, march_steps, take_rows, unproject
 
 REQUIRES = ("view_z", "normal", "mask", "color")
@@ -135,11 +135,11 @@ def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
     hit_k = torch.zeros(m, dtype=index_dtype(B * HW), device=dev)
     hit_xy = torch.zeros(m, 2, dtype=dt, device=dev)
     hit_vp = torch.zeros(m, 3, dtype=dt, device=dev)
-    parts = lambda x: tuple(c.contiguous() for c in x.unbind(1))   # noqa: E731  (m, C) -> C × (m,), no views
-    ws = MarchRays(torch.arange(m, device=dev), b.to(index_dtype(B * HW)), parts(d0), parts(span), total, recip,
-                   recip_end, parts(vp), parts(d1v), (d1v - vp).norm(dim=1), parts(refl), parts(n), s_step)
+    ws = MarchRays(torch.arange(m, device=dev), b.to(index_dtype(B * HW)), components(d0), components(span), total,
+                   recip, recip_end, components(vp), components(d1v), (d1v - vp).norm(dim=1), components(refl),
+                   components(n), s_step)
     st = MarchState(torch.ones(m, dtype=torch.bool, device=dev), term.clone(), steps.clone(), s_step.clone(),
-                    hit_k.clone(), parts(hit_xy), parts(hit_vp))
+                    hit_k.clone(), components(hit_xy), components(hit_vp))
     textures = StepTextures(depth.reshape(-1), vz_tex.reshape(-1), minv, normal.reshape(B * HW, 3))
 
     def write_back(rows: torch.Tensor) -> None:   # the working set's rays at ``rows``: their ends and hits

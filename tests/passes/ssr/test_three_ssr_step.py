@@ -51,11 +51,13 @@ def test_the_compiled_step_gives_the_eager_outputs_at_two_sizes_without_recompil
                 a, b = getattr(eager, f.name), getattr(comp, f.name)
                 assert torch.equal(a.movedim(1, -1)[same], b.movedim(1, -1)[same]), f.name
 
+    from torch._dynamo.utils import counters
+    before = counters["stats"]["unique_graphs"]
     check_compiled_at_two_sizes(lambda w, h: room(w, h, torch.float32, slat=True),
                                 lambda g, p: ssr_three(g, p, debug=True), settings, ((32, 24), (40, 30)), compare)
     assert march_steps.eager is not march_steps
-    from torch._dynamo.utils import counters
     graphs = counters["stats"]["unique_graphs"]
+    assert graphs - before == 2                 # one per infinite_thick: not again for the first call's sizes
     with C.compiling(True):                              # another thickness and budget: the same compiled steps
         ssr_three(room(40, 30, torch.float32, slat=True),
                   ThreeSSRParams(max_distance=30.0, thickness=0.07, max_step=14))

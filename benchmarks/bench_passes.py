@@ -20,8 +20,7 @@ its peak memory is its own:
 * ``compile s`` — with ``--compile``: the pass's first call with its band kernels compiled
   (``ssbench.passes.compiled``: ``torch.compile``, inductor; the on-disk cache can make it short), reported apart
   from the run time; ``Δ eager`` the largest difference of the compiled output from the eager one on valid
-  pixels. Of the SSR marchers the linear march, the DDA, Hi-Z and the three.js march have compiled kernels
-  (their steps; see ``ssbench.passes.compiled``); the supercover DDA's compiled row times its eager march.
+  pixels. The SSR marchers compile their steps (see ``ssbench.passes.compiled``).
 
 The G-buffers come from the Mitsuba reference at each size (cached), passed to the subprocesses as files.
 A benchmark, not a test: run ``.venv/bin/python benchmarks/bench_passes.py`` (``--sizes 320x240,640x360``,

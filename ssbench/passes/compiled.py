@@ -20,24 +20,23 @@ only, so the same bits, tested) and HBAO's band (compiled, its march skips
 the early exit, which would break the graph — ``torch.compiler.is_compiling()`` — and the steps it skipped are masked
 anyway: the same AO bit for bit, only the debug ``horizons`` differ by an ulp of ``atan``) and three.js GTAO (its
 band's frame and one kernel per slice direction, called for each: ≤ 2.4e-7 from eager in float32, measured at
-1920×1080, where inductor's vectorised ``acos`` and ``sqrt`` differ from ATen's by an ulp) and four SSR marchers:
-the linear march's step and bisection probe, the DDA's step and Hi-Z's whole iteration (its pyramid read,
-``AdvanceRay``, the hit test and the ray's state; compiled, it judges every ray and keeps the candidates' verdicts,
-where eager judges only the candidates) are size-dynamic kernels (``@kernel(dynamic=True)``: one compilation for
-every working-set size; rays that stop ride along masked until the set is compacted; compiled, the DDA, Hi-Z and
-the linear march (its steps and its bisection's probes) run :data:`STEPS_PER_CALL` steps per call in one fused
-loop, ``fuse_whole``, :func:`step_blocks`), bit for bit equal to eager, tested; and
+1920×1080, where inductor's vectorised ``acos`` and ``sqrt`` differ from ATen's by an ulp) and five SSR marchers:
+the linear march's step and bisection probe, the DDA's step, the supercover DDA's cell step (``dda_supercover_walk``)
+and Hi-Z's whole iteration (its pyramid read, ``AdvanceRay``, the hit test and the ray's state; compiled, it judges
+every ray and keeps the candidates' verdicts, where eager judges only the candidates) are size-dynamic kernels
+(``@kernel(dynamic=True)``: one compilation for every working-set size; rays that stop ride along masked until the
+set is compacted; compiled, the DDA, its supercover walk, Hi-Z and the linear march (its steps and its bisection's
+probes) run :data:`STEPS_PER_CALL` steps per call in one fused loop, ``fuse_whole``, :func:`step_blocks`), bit for bit
+equal to eager, tested; and
 the three.js march's steps (``three_ssr_step.march_steps``, :data:`STEPS_PER_CALL` per call, the hit's verdict
 judged for every ray as Hi-Z does: equal to eager on every output tested, but its ``pointToLineDistance`` is an
 ulp apart from ATen's in a quarter of the rays, whose cross product ATen may compute with FMA, so a ray exactly on
 the thickness bound could end differently). Glossy SSR's ray reuse (``glossy_reuse.reuse_ray``:
 one ray's weighted sums over the whole window in one loop, its inputs padded outside the kernel) is compiled too:
 its resolved colours are within 4.8e-7 of eager in float32 (measured on three scenes, four settings), as inductor's
-divisions and roots round differently; without reuse it gives the same bits. Not compiled: the supercover DDA (its
-step compacts rays with data-dependent shapes), the DDA's hit refinement, and the linear
-march's per-pixel ray set-up: compiled, its
-normalised reflection directions differ from ATen's in the last bit (1.8e-7), which moved refined hit points by up
-to 0.8 px.
+divisions and roots round differently; without reuse it gives the same bits. Not compiled: the DDA's hit
+refinement, and the linear march's per-pixel ray set-up: compiled, its normalised reflection directions differ from
+ATen's in the last bit (1.8e-7), which moved refined hit points by up to 0.8 px.
 
 Kernels compile without inductor's bounds check on gathered indices (``assert_indirect_indexing``): every kernel
 clamps its texel indices itself and is tested equal to its eager form, where ATen checks them; the check cost the
@@ -200,9 +199,9 @@ def band_samples(samples: int) -> int:
     return 1 if enabled() else samples
 
 
-#: steps a marcher's ``fuse_whole`` kernel runs per compiled call (the DDA, Hi-Z, the linear and three.js marches),
-#: their rays' state in registers between them; measured on the DDA at 640×360, 1 / 4 / 8 / 16 per call: 470 / 370 /
-#: 334 / 334 ms, sixteen compiling twice as long
+#: steps a marcher's ``fuse_whole`` kernel runs per compiled call (the DDA and its supercover walk, Hi-Z, the linear
+#: and three.js marches), their rays' state in registers between them; measured on the DDA at 640×360, 1 / 4 / 8 / 16
+#: per call: 470 / 370 / 334 / 334 ms, sixteen compiling twice as long
 STEPS_PER_CALL = 8
 
 

@@ -192,31 +192,49 @@ def dda_march(s: DDARays, tex: DepthTexels, params: "DDASSRParams", H: int, W: i
               visits: Optional[torch.Tensor]) -> MarchOutput:
     """The DDA loop; per-ray outputs by ``s.i``. Each step is :func:`dda_step`; stopped rays keep their state,
     masked, until 1/8 of the working set has stopped; then they are written back, their hits refined
-    (:func:`refine_hits`), and the set compacted."""
+    (:func:`refine_hits`), and the set compacted (:func:`masked_march`)."""
     N = s.count
     out = MarchOutput.empty(N, s.k.dtype, s.k.device, OUT_OF_STEPS)
-    dead = 0
     s = MarchingRays(**{f.name: v.contiguous() if isinstance(v := getattr(s, f.name), torch.Tensor) else v
                         for f in dataclasses.fields(s)},            # (columns of the set-up's tensors: strided)
                      b_index=s.b.to(index_dtype(tex.view_z.numel())), permute32=s.permute.to(torch.int32),
                      clipped32=s.clipped.to(torch.int32), alive32=torch.ones(N, dtype=torch.int32, device=s.k.device),
                      steps=torch.zeros(N, dtype=torch.int32, device=s.k.device),
                      term=torch.full((N,), OUT_OF_STEPS, dtype=torch.int8, device=s.k.device))
-    for count, left in step_blocks(params.max_steps, visits is not None, s.k.device):
+    run = lambda state, ray, count, left: dda_steps(state, ray, tex.marched, (H, W), params.z_thickness,  # noqa: E731
+                                                    count, left, visits is not None)
+    masked_march(s, STATE, RAY, run, lambda s, rows: flush(out, s, rows, tex, params, H, W, visits),
+                 params.max_steps, visits)
+    return out
+
+
+#: the DDA's per-step state and its per-ray constants, as :func:`dda_step` takes them (fields of MarchingRays)
+STATE = ("Px", "Py", "Qz", "k", "n", "prevZ", "alive32", "steps", "term")
+RAY = ("dPx", "dPy", "dQz", "dk", "stride", "stepDir", "stop", "end", "zlo", "zhi", "permute32", "clipped32",
+       "b_index")
+
+
+def masked_march(s, state: tuple, ray: tuple, run, flush, max_steps: int, visits: Optional[torch.Tensor]) -> None:
+    """A marcher's loop over fixed-shape masked steps (the DDA's, the supercover walk's): ``run(state, ray, count,
+    left)`` (a step kernel over :func:`~ssbench.passes.compiled.step_blocks`) advances the fields named ``state`` of
+    the per-ray dataclass ``s`` (``alive32`` among them) given its fields named ``ray``, and returns ``(state,
+    stopped)`` (plus the fetched texels and which rays fetched them, counted into ``visits`` if given). Once 1/8 of
+    the working set has stopped, ``flush(s, rows)`` writes the stopped rows back and the set is compacted; at the
+    end every row is flushed."""
+    dead = 0
+    for count, left in step_blocks(max_steps, visits is not None, s.k.device):
         if s.count == dead:
             break
-        r = dda_steps((s.Px, s.Py, s.Qz, s.k, s.n, s.prevZ, s.alive32, s.steps, s.term),
-                     (s.dPx, s.dPy, s.dQz, s.dk, s.stride, s.stepDir, s.stop, s.end, s.zlo, s.zhi, s.permute32,
-                      s.clipped32, s.b_index), tex.marched, (H, W), params.z_thickness, count, left, visits is not None)
-        s.Px, s.Py, s.Qz, s.k, s.n, s.prevZ, s.alive32, s.steps, s.term = r[0]
+        r = run(tuple(getattr(s, f) for f in state), tuple(getattr(s, f) for f in ray), count, left)
+        for f, v in zip(state, r[0]):
+            setattr(s, f, v)
         if visits is not None:
             add_visits(visits, *r[2:])
         dead += int(r[1])
         if 8 * dead >= s.count and dead:                                            # compact
-            flush(out, s, (s.alive32 == 0).nonzero().squeeze(1), tex, params, H, W, visits)
+            flush(s, (s.alive32 == 0).nonzero().squeeze(1))
             s, dead = s.select(s.alive32.nonzero().squeeze(1)), 0
-    flush(out, s, torch.arange(s.count, device=s.k.device), tex, params, H, W, visits)
-    return out
+    flush(s, torch.arange(s.count, device=s.k.device))
 
 
 @dataclass

@@ -3,12 +3,13 @@
 The McGuire–Mara DDA (:mod:`.dda`, SSR article §2.2) samples one pixel per major-axis line: at stride 1 it never
 samples a pixel twice and never skips a line (Fig. 11, right), but a pixel whose corner the segment clips is not
 sampled. A thin occluder that covers only such a corner pixel is invisible to it. This pass walks the same
-segment ``P0 → P1`` cell by cell in the order the segment enters them (Amanatides & Woo 1987, "A Fast Voxel
-Traversal Algorithm", a DDA over the pixel grid): per ray it keeps the line parameters ``tMaxX``/``tMaxY`` of the
-next column and row edge (in major-axis pixels ``n`` from ``P0``, after :mod:`.dda`'s ``permute``) and
-steps across whichever edge comes first; both at a lattice corner, which the segment crosses in no pixel's
-interior. So it fetches exactly the pixels :func:`~ssbench.passes.ssr.visits.crossed_pixels` lists, once each,
-up to where the ray stops (the origin pixel excepted, as in the DDA).
+segment ``P0 → P1`` cell by cell in the order the segment enters them (J. Amanatides and A. Woo, "A Fast Voxel
+Traversal Algorithm for Ray Tracing", Eurographics 1987, http://www.cse.yorku.ca/~amana/research/grid.pdf: a DDA over
+the pixel grid): per ray it keeps the line parameters ``tMaxX``/``tMaxY`` of the next column and row edge (in
+major-axis pixels ``n`` from ``P0``, after :mod:`.dda`'s ``permute``) and steps across whichever edge comes first;
+both at a lattice corner, which the segment crosses in no pixel's interior. So it fetches exactly the pixels
+:func:`~ssbench.passes.ssr.visits.crossed_pixels` lists, once each, up to where the ray stops (the origin pixel
+excepted, as in the DDA).
 
 Everything else is the DDA's: the same near-plane clipping, homogeneous pixel-space endpoints and degenerate-line
 nudge (``ssr.dda.dda_rays`` at stride 1, no jitter), ``Q`` and ``k = 1/w`` linear in screen space (appendix A), the
@@ -24,11 +25,12 @@ same box test per texel. Only the z interval is exact: the ray enters the cell a
 is needed: the hit point is where the ray crosses the texel's plane ``z = sceneZMax`` inside ``[nA, nB]``
 (``n* = (sceneZMax·k − Q_z) / (dQ_z − sceneZMax·dk)``), or ``nA`` if the ray enters the cell already behind it,
 clamped into the hit cell. The cost: up to ``|Δx| + |Δy|`` fetches per ray instead of ``max(|Δx|, |Δy|)``, so at an
-equal ``max_steps`` budget a diagonal ray runs out sooner. Terminations as :mod:`.dda`.
+equal ``max_steps`` budget a diagonal ray runs out sooner. Terminations as :mod:`.dda`. The walk itself, one cell
+per step for every ray (several steps per call when compiled, :mod:`ssbench.passes.compiled`), is in
+:mod:`.dda_supercover_walk`.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, fields
 from typing import Optional
 
@@ -37,17 +39,18 @@ from torch import nn
 
 from ...gbuffer import GBuffer
 from ..common import check_count
-from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS, SSRResult
+from .common import SSRResult
 from ..gbuffer_checks import half_in_float32
-from .dda import DEFAULTS_SOURCE, EQUAL_SETTINGS, REQUIRES, DDASSRParams, check_inputs, dda_rays, ray_pixels
-from .dda_march import count_visits, ray_view_z
+from .dda import (DEFAULTS_SOURCE, EQUAL_SETTINGS, REQUIRES, DDASSRParams, check_inputs, dda_rays, depth_texels,
+                  ray_pixels)
 from .dda_assemble import assemble
-from .dda_state import DDARays, MarchOutput, march_in_chunks
+from .dda_state import march_in_chunks
+from .dda_supercover_walk import supercover_march
 from .fade import FadeParams
 from ..registry import Method, SpeedPanel
 
 __all__ = ["METHOD", "REQUIRES", "EQUAL_SETTINGS", "DEFAULTS_SOURCE", "SupercoverDDASSRParams",
-           "ssr_dda_supercover", "SupercoverDDASSR", "CellWalk", "cell_setup"]
+           "ssr_dda_supercover", "SupercoverDDASSR"]
 
 
 @dataclass(frozen=True)
@@ -78,92 +81,6 @@ class SupercoverDDASSRParams(FadeParams):
         return DDASSRParams(max_ray_distance=self.max_ray_distance, max_steps=self.max_steps, pixel_stride=1.0,
                             z_thickness=self.z_thickness, jitter=0.0,
                             **{f.name: getattr(self, f.name) for f in fields(FadeParams)})
-
-
-@dataclass(kw_only=True)
-class CellWalk(DDARays):
-    """:class:`~ssbench.passes.ssr.dda_state.DDARays` plus the Amanatides–Woo cell state, each :math:`(N,)`
-    (permuted frame, ``n`` in major-axis pixels from ``P0``): cell ``cx, cy``; edge parameters ``tx, ty``
-    (``tMaxX/Y``); ``ddy`` (``tDeltaY``; ``tDeltaX = 1``); ``sy`` (``stepY``; ``stepX = stepDir``); ``nEnd``
-    (``P1``); ``Wm, Hm``: the image's size along the major and minor axes."""
-
-    cx: torch.Tensor
-    cy: torch.Tensor
-    tx: torch.Tensor
-    ty: torch.Tensor
-    ddy: torch.Tensor
-    sy: torch.Tensor
-    nEnd: torch.Tensor
-    Wm: torch.Tensor
-    Hm: torch.Tensor
-
-
-def cell_setup(s: DDARays, H: int, W: int) -> CellWalk:
-    """The cell walk's start from the DDA's set-up ``s`` (``ssr.dda.dda_rays`` at stride 1, no jitter)."""
-    sd, dPy = s.stepDir, s.dPy
-    cx, cy = s.Px.floor(), s.Py.floor()
-    safe = torch.where(dPy != 0, dPy, 1.0)
-    ty = torch.where(dPy > 0, (cy + 1 - s.Py) / safe, (cy - s.Py) / safe)
-    return CellWalk(**{f.name: getattr(s, f.name) for f in fields(s)}, cx=cx, cy=cy,
-                    tx=((cx + (sd > 0).to(cx.dtype)) - s.Px) * sd, ty=torch.where(dPy != 0, ty, math.inf),
-                    ddy=torch.where(dPy != 0, 1.0 / safe.abs(), math.inf), sy=torch.sign(dPy), nEnd=s.end - s.Px * sd,
-                    Wm=torch.where(s.permute, float(H), float(W)), Hm=torch.where(s.permute, float(W), float(H)))
-
-
-def hit_at(h: DDARays, nA, nB, zA, sceneZMax):
-    """``n`` of the hit: ``nA`` if the ray enters the cell at or behind ``sceneZMax``, else where it crosses
-    ``z = sceneZMax`` (perspective-correct: ``Q_z(n) = sceneZMax·k(n)``), clamped to ``[nA, nB]``."""
-    den = h.dQz - sceneZMax * h.dk
-    n_star = (sceneZMax * h.k - h.Qz) / torch.where(den != 0, den, 1.0)
-    n_star = torch.where((den != 0) & torch.isfinite(n_star), n_star, nA)
-    return torch.where(zA <= sceneZMax, nA, torch.minimum(torch.maximum(n_star, nA), nB))
-
-
-def supercover_march(s: DDARays, tex, z_thickness: float, max_steps: int, H: int, W: int,
-                     visits: Optional[torch.Tensor]) -> MarchOutput:
-    """The cell walk; per-ray outputs by ``s.i``. Finished rays freeze, dropped when 1/8 of ``s``."""
-    N = s.count
-    out = MarchOutput.empty(N, s.k.dtype, s.k.device, OUT_OF_STEPS)
-    c = cell_setup(s, H, W)
-    c.alive, dead = torch.ones(N, dtype=torch.bool, device=s.k.device), 0
-    for _ in range(max_steps):
-        if c.count == dead:
-            break
-        nA = torch.minimum(c.tx, c.ty)                                              # edge crossed into the cell
-        stepx, stepy = c.tx <= c.ty, c.ty <= c.tx                                   # both: through a corner
-        c.cx, c.tx = torch.where(stepx, c.cx + c.stepDir, c.cx), torch.where(stepx, c.tx + 1, c.tx)
-        c.cy, c.ty = torch.where(stepy, c.cy + c.sy, c.cy), torch.where(stepy, c.ty + c.ddy, c.ty)
-        nB = torch.minimum(torch.minimum(c.tx, c.ty), c.nEnd)                       # where it leaves (or P1)
-        past = c.alive & (nA >= c.nEnd)
-        off = c.alive & ~past & ((c.cx < 0) | (c.cx >= c.Wm) | (c.cy < 0) | (c.cy >= c.Hm))
-        live = c.alive & ~past & ~off
-        px, py = torch.where(c.permute, c.cy, c.cx), torch.where(c.permute, c.cx, c.cy)
-        t = c.b * (H * W) + py.clamp(0, H - 1).long() * W + px.clamp(0, W - 1).long()
-        sceneZMax, m = tex[0][t], tex[1][t]
-        zA = ray_view_z(c.Qz + c.dQz * nA, c.k + c.dk * nA, c.zlo, c.zhi)
-        zB = ray_view_z(c.Qz + c.dQz * nB, c.k + c.dk * nB, c.zlo, c.zhi)
-        rayZMin, rayZMax = torch.minimum(zA, zB), torch.maximum(zA, zB)
-        hit = live & m & (rayZMax >= sceneZMax - z_thickness) & (rayZMin <= sceneZMax)
-        count_visits(out, visits, c.i, t, live)
-        hi = hit.nonzero().squeeze(1)
-        if hi.numel():
-            h = c.select(hi)
-            n = hit_at(h, nA[hi], nB[hi], zA[hi], sceneZMax[hi])
-            inside = lambda v, cell: torch.minimum(torch.maximum(v, cell), torch.nextafter(cell + 1, cell))  # noqa: E731
-            x, y = inside(h.Px + h.stepDir * n, h.cx), inside(h.Py + h.dPy * n, h.cy)
-            out.P[h.i] = torch.where(h.permute[:, None], torch.stack([y, x], 1), torch.stack([x, y], 1))
-            out.Q[h.i] = torch.stack([h.Q0x + h.dQx * n, h.Q0y + h.dQy * n, h.Qz + h.dQz * n], 1)
-            out.k[h.i] = h.k + h.dk * n
-        ended = torch.where(c.clipped, BEHIND_CAMERA, MAX_DISTANCE)
-        term = torch.where(past, ended, torch.where(off, OFF_SCREEN, HIT))
-        done = past | off | hit
-        di = done.nonzero().squeeze(1)
-        if di.numel():
-            out.term[c.i[di]] = term[di].to(torch.int8)
-            c.alive, dead = c.alive & ~done, dead + di.numel()
-            if 8 * dead >= c.count:                                                 # compact
-                c, dead = c.select(c.alive.nonzero().squeeze(1)), 0
-    return out
 
 
 @half_in_float32
@@ -206,7 +123,7 @@ def ssr_dda_supercover(gbuffer: GBuffer, params: SupercoverDDASSRParams = Superc
     g64 = gbuffer.select(("view_z", "normal", "mask")).to(dtype=torch.float64)   # the walk reads no colour
     sel = ray_pixels(g64)
     visits = torch.zeros(B * H * W, dtype=torch.int32, device=gbuffer.view_z.device) if debug else None
-    tex = (g64.view_z.reshape(-1), g64.mask.reshape(-1))
+    tex = depth_texels(g64, dda)                     # view z and mask, and view z with NaN off the mask (the walk's)
     o, P1 = march_in_chunks(sel, lambda part: dda_rays(g64, dda, zero, part),
                             lambda rays: supercover_march(rays, tex, params.z_thickness, params.max_steps, H, W,
                                                           visits))               # bounded working set

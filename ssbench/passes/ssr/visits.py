@@ -15,6 +15,7 @@ import torch
 from ...gbuffer import GBuffer
 from . import dda as D
 from . import dda_supercover as S
+from .dda_supercover_walk import supercover_march
 from ..common import make_generator
 
 __all__ = ["crossed_pixels", "visit_map"]
@@ -65,7 +66,7 @@ def visit_map(gbuffer: GBuffer, params: Union[D.DDASSRParams, S.SupercoverDDASSR
     one = s.select(torch.tensor([r], device=s.i.device))
     one.i, visits = one.i * 0, torch.zeros(B * H * W, dtype=torch.int32, device=gbuffer.view_z.device)
     tex = D.depth_texels(gbuffer, dda)
-    o = S.supercover_march(one, tex, params.z_thickness, params.max_steps, H, W, visits) if supercover else \
+    o = supercover_march(one, tex, params.z_thickness, params.max_steps, H, W, visits) if supercover else \
         D.dda_march(one, tex, params, H, W, visits)
     return {"visits": visits[:H * W].reshape(H, W).cpu(), "crossed": crossed_pixels(P0[r], P1[r], H, W),
             "p0": P0[r].tolist(), "p1": P1[r].tolist(), "termination": int(o.term[0])}

@@ -226,3 +226,18 @@ def test_float32_colour_equals_float64_on_cornell_box():
     r64, r32 = ssr_dda_supercover(g.to(dtype=torch.float64)), ssr_dda_supercover(g.to(dtype=torch.float32))
     assert torch.equal(r32.termination, r64.termination) and int(r64.hit.sum()) > 100
     assert float((r64.color - r32.color.double()).abs().max()) < 1e-4
+
+
+@pytest.mark.slow
+def test_the_compiled_walk_gives_the_eager_bits_at_two_sizes_without_recompiling():
+    """The cell walk steps through ``torch.compile`` (size-dynamic; eight steps per call, one with ``debug``): every
+    output and the visit map equal eager, with a thin bar, a thick texel and a step budget that is not a multiple of
+    eight; a second size compiles nothing."""
+    from ssbench.passes.compiled import STEPS_PER_CALL
+    from ssbench.passes.ssr.dda_supercover_walk import walk_steps
+    from tests.passes.compiled_check import check_compiled_at_two_sizes
+    settings = [P(max_ray_distance=30.0), P(max_ray_distance=30.0, z_thickness=1.0, max_steps=21)]
+    assert settings[-1].max_steps % STEPS_PER_CALL and walk_steps.eager is not walk_steps
+    for debug in (True, False):                                            # (each flag compiles its own kernel)
+        check_compiled_at_two_sizes(lambda w, h: room(w, h, torch.float32, slat=True),
+                                    lambda g, p: ssr_dda_supercover(g, p, debug=debug), settings, ((40, 30), (48, 36)))

@@ -1,0 +1,183 @@
+"""The supercover DDA's cell walk (:mod:`.dda_supercover`; J. Amanatides and A. Woo, "A Fast Voxel Traversal
+Algorithm for Ray Tracing", Eurographics 1987, http://www.cse.yorku.ca/~amana/research/grid.pdf) on its per-ray
+state: the start (:func:`cell_setup`), one cell per step for every ray of the working set (:func:`walk_step`,
+several per compiled call: :func:`walk_steps`), and the exact hit point in the hit cell (:func:`hit_at`), computed
+when a stopped ray is written back (:func:`flush`).
+
+The step keeps a fixed shape, as the DDA's (:func:`~ssbench.passes.ssr.dda_march.dda_step`) does: a ray that
+stops keeps its state, masked, until :func:`~ssbench.passes.ssr.dda_march.masked_march` compacts the set, so the
+step compiles (``torch.compile``) once for every working-set size. A hit ray keeps the cell it hit, its edge
+parameters after the step and the entry parameter ``nA`` of that cell: all :func:`hit_at` needs.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+from typing import Optional
+
+import torch
+
+from ..common import index_dtype
+from ..compiled import kernel
+from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS
+from .dda_march import masked_march, ray_view_z
+from .dda_state import DDARays, DepthTexels, MarchOutput
+
+__all__ = ["CellWalk", "cell_setup", "hit_at", "walk_step", "walk_steps", "supercover_march"]
+
+
+@dataclass(kw_only=True)
+class CellWalk(DDARays):
+    """:class:`~ssbench.passes.ssr.dda_state.DDARays` plus the Amanatides–Woo cell state, each :math:`(N,)`
+    (permuted frame, ``n`` in major-axis pixels from ``P0``): cell ``cx, cy``; edge parameters ``tx, ty``
+    (``tMaxX/Y``); ``nA``, where the ray entered its cell; ``ddy`` (``tDeltaY``; ``tDeltaX = 1``); ``sy``
+    (``stepY``; ``stepX = stepDir``); ``nEnd`` (``P1``); ``Wm, Hm``: the image's size along the major and minor
+    axes; and as the march keeps them: the batch index in the texel index dtype, ``permute``, ``clipped`` and
+    ``alive`` as int32, the fetches ``steps`` (int32) and the termination code ``term`` (int8)."""
+
+    cx: torch.Tensor
+    cy: torch.Tensor
+    tx: torch.Tensor
+    ty: torch.Tensor
+    nA: torch.Tensor
+    ddy: torch.Tensor
+    sy: torch.Tensor
+    nEnd: torch.Tensor
+    Wm: torch.Tensor
+    Hm: torch.Tensor
+    b_index: torch.Tensor
+    permute32: torch.Tensor
+    clipped32: torch.Tensor
+    alive32: torch.Tensor
+    steps: torch.Tensor
+    term: torch.Tensor
+
+
+#: the walk's per-step state and its per-ray constants, as :func:`walk_step` takes them (fields of CellWalk)
+STATE = ("cx", "cy", "tx", "ty", "nA", "alive32", "steps", "term")
+RAY = ("stepDir", "sy", "ddy", "nEnd", "Wm", "Hm", "Qz", "dQz", "k", "dk", "zlo", "zhi", "permute32", "clipped32",
+       "b_index")
+
+
+def cell_setup(s: DDARays, H: int, W: int, texels: int) -> CellWalk:
+    """The cell walk's start from the DDA's set-up ``s`` (``ssr.dda.dda_rays`` at stride 1, no jitter), over
+    ``texels`` depth texels (which picks the index dtype)."""
+    sd, dPy, N, dev = s.stepDir, s.dPy, s.count, s.k.device
+    cx, cy = s.Px.floor(), s.Py.floor()
+    safe = torch.where(dPy != 0, dPy, 1.0)
+    ty = torch.where(dPy > 0, (cy + 1 - s.Py) / safe, (cy - s.Py) / safe)
+    return CellWalk(**{f.name: v.contiguous() if isinstance(v := getattr(s, f.name), torch.Tensor) else v
+                       for f in fields(s)},                     # (columns of the set-up's tensors: strided)
+                    cx=cx, cy=cy, tx=((cx + (sd > 0).to(cx.dtype)) - s.Px) * sd,
+                    ty=torch.where(dPy != 0, ty, math.inf), nA=torch.zeros_like(cx),
+                    ddy=torch.where(dPy != 0, 1.0 / safe.abs(), math.inf), sy=torch.sign(dPy), nEnd=s.end - s.Px * sd,
+                    Wm=torch.where(s.permute, float(H), float(W)), Hm=torch.where(s.permute, float(W), float(H)),
+                    b_index=s.b.to(index_dtype(texels)), permute32=s.permute.to(torch.int32),
+                    clipped32=s.clipped.to(torch.int32), alive32=torch.ones(N, dtype=torch.int32, device=dev),
+                    steps=torch.zeros(N, dtype=torch.int32, device=dev),
+                    term=torch.full((N,), OUT_OF_STEPS, dtype=torch.int8, device=dev))
+
+
+def walk_step(state: tuple, ray: tuple, view_z: torch.Tensor, size: tuple, z_thickness: float,
+              go: Optional[torch.Tensor] = None) -> tuple:
+    """One cell of the walk for every ray of the working set: cross the nearer of the next column and row edge
+    (both at a lattice corner), ``texelFetch`` the cell entered and test the ray's z interval over it,
+    ``[z(nA), z(nB)]``, against the texel's box. A ray that has stopped keeps its state (a hit ray: its hit
+    cell); so does every ray where ``go`` (a 0-d bool, if given) is false.
+
+    Args:
+        state: the :data:`STATE` fields of :class:`CellWalk`; ray: its :data:`RAY` fields.
+        view_z: :math:`(B·H·W,)` the scene's view z, NaN off the mask (a NaN compares false: never hit).
+        size: ``(H, W)``; z_thickness: ``zThickness``.
+
+    Returns:
+        ``(state, done, t, live)``: the new state, the rays that stopped here, the fetched texels and the rays that
+        fetched them.
+    """
+    cx0, cy0, tx0, ty0, nA0, alive, steps, term0 = state
+    stepDir, sy, ddy, nEnd, Wm, Hm, Qz, dQz, k, dk, zlo, zhi, permute, clipped, b = ray
+    H, W = size
+    marching = alive != 0 if go is None else (alive != 0) & go
+    nA = torch.minimum(tx0, ty0)                                                   # edge crossed into the cell
+    stepx, stepy = tx0 <= ty0, ty0 <= tx0                                          # both: through a corner
+    cx, tx = torch.where(stepx, cx0 + stepDir, cx0), torch.where(stepx, tx0 + 1, tx0)
+    cy, ty = torch.where(stepy, cy0 + sy, cy0), torch.where(stepy, ty0 + ddy, ty0)
+    nB = torch.minimum(torch.minimum(tx, ty), nEnd)                                # where it leaves (or P1)
+    past = marching & (nA >= nEnd)
+    off = marching & ~past & ((cx < 0) | (cx >= Wm) | (cy < 0) | (cy >= Hm))
+    live = marching & ~past & ~off
+    t = texel(cx, cy, permute, b, H, W)
+    sceneZMax = view_z.index_select(0, t)
+    zA = ray_view_z(Qz + dQz * nA, k + dk * nA, zlo, zhi)
+    zB = ray_view_z(Qz + dQz * nB, k + dk * nB, zlo, zhi)
+    rayZMin, rayZMax = torch.minimum(zA, zB), torch.maximum(zA, zB)
+    hit = live & (rayZMax >= sceneZMax - z_thickness) & (rayZMin <= sceneZMax)
+    ended = torch.where(clipped != 0, BEHIND_CAMERA, MAX_DISTANCE)
+    term = torch.where(past, ended, torch.where(off, OFF_SCREEN, HIT))
+    done = past | off | hit
+    new = tuple(torch.where(marching, a, a0) for a, a0 in ((cx, cx0), (cy, cy0), (tx, tx0), (ty, ty0), (nA, nA0)))
+    state = new + (torch.where(done, 0, alive), steps + live.to(torch.int32), torch.where(done, term.to(torch.int8),
+                                                                                          term0))
+    return state, done, t, live
+
+
+def texel(cx, cy, permute, b, H: int, W: int) -> torch.Tensor:
+    """The flat texel index ``b·H·W + y·W + x`` of cell ``(cx, cy)`` (permuted frame; clamped into the image)."""
+    swap = permute != 0
+    px, py = torch.where(swap, cy, cx), torch.where(swap, cx, cy)
+    return b * (H * W) + py.clamp(0, H - 1).to(b.dtype) * W + px.clamp(0, W - 1).to(b.dtype)
+
+
+@kernel(dynamic=True, fuse_whole=True)
+def walk_steps(state: tuple, ray: tuple, tex: tuple, size: tuple, z_thickness: float, count: int,
+               left: Optional[torch.Tensor], debug: bool = False) -> tuple:
+    """``count`` steps of :func:`walk_step` (the walk's size-dynamic compilable kernel), the ``j``-th only while
+    ``j < left`` (``None``: all); ``tex``: the DDA's ``(view_z, back_z, second_z)`` step textures, of which the walk
+    reads the first. Returns the new state, how many rays stopped (0-d) and, with ``debug`` (``count`` 1), the
+    fetched texels and which rays fetched them (int32)."""
+    done = torch.zeros_like(state[5])
+    for j in range(count):
+        state, d, t, live = walk_step(state, ray, tex[0], size, z_thickness, None if left is None else left > j)
+        done = done | d.to(done.dtype)
+    return (state, done.sum()) + ((t, live.to(torch.int32)) if debug else ())
+
+
+def hit_at(h: DDARays, nA, nB, zA, sceneZMax):
+    """``n`` of the hit: ``nA`` if the ray enters the cell at or behind ``sceneZMax``, else where it crosses
+    ``z = sceneZMax`` (perspective-correct: ``Q_z(n) = sceneZMax·k(n)``), clamped to ``[nA, nB]``."""
+    den = h.dQz - sceneZMax * h.dk
+    n_star = (sceneZMax * h.k - h.Qz) / torch.where(den != 0, den, 1.0)
+    n_star = torch.where((den != 0) & torch.isfinite(n_star), n_star, nA)
+    return torch.where(zA <= sceneZMax, nA, torch.minimum(torch.maximum(n_star, nA), nB))
+
+
+def flush(out: MarchOutput, c: CellWalk, rows: torch.Tensor, view_z: torch.Tensor, H: int, W: int) -> None:
+    """Write the termination and fetches of the walk's ``rows`` into ``out``, and the hit points of its hits:
+    :func:`hit_at` in the hit cell, from the cell's entry ``nA`` and exit ``nB`` (``view_z``: the scene's)."""
+    i, term = c.i.index_select(0, rows), c.term.index_select(0, rows)
+    out.term.index_copy_(0, i, term)
+    out.steps.index_copy_(0, i, c.steps.index_select(0, rows))
+    hi = rows[term == HIT]
+    if not hi.numel():
+        return
+    h = c.select(hi)
+    nA, nB = h.nA, torch.minimum(torch.minimum(h.tx, h.ty), h.nEnd)
+    sceneZMax = view_z.index_select(0, texel(h.cx, h.cy, h.permute32, h.b_index, H, W))
+    n = hit_at(h, nA, nB, ray_view_z(h.Qz + h.dQz * nA, h.k + h.dk * nA, h.zlo, h.zhi), sceneZMax)
+    inside = lambda v, cell: torch.minimum(torch.maximum(v, cell), torch.nextafter(cell + 1, cell))  # noqa: E731
+    x, y = inside(h.Px + h.stepDir * n, h.cx), inside(h.Py + h.dPy * n, h.cy)
+    out.P[h.i] = torch.where(h.permute[:, None], torch.stack([y, x], 1), torch.stack([x, y], 1))
+    out.Q[h.i] = torch.stack([h.Q0x + h.dQx * n, h.Q0y + h.dQy * n, h.Qz + h.dQz * n], 1)
+    out.k[h.i] = h.k + h.dk * n
+
+
+def supercover_march(s: DDARays, tex: DepthTexels, z_thickness: float, max_steps: int, H: int, W: int,
+                     visits: Optional[torch.Tensor]) -> MarchOutput:
+    """The cell walk of the rays ``s`` over the textures ``tex`` (:func:`~ssbench.passes.ssr.dda.depth_texels`);
+    per-ray outputs by ``s.i``; ``visits`` (or ``None``): the debug visit map, counted per fetch."""
+    out = MarchOutput.empty(s.count, s.k.dtype, s.k.device, OUT_OF_STEPS)
+    c = cell_setup(s, H, W, tex.view_z.numel())
+    run = lambda state, ray, count, left: walk_steps(state, ray, tex.marched, (H, W), z_thickness, count,  # noqa: E731
+                                                     left, visits is not None)
+    masked_march(c, STATE, RAY, run, lambda c, rows: flush(out, c, rows, tex.view_z, H, W), max_steps, visits)
+    return out

@@ -8,6 +8,8 @@ The step keeps a fixed shape, as the DDA's (:func:`~ssbench.passes.ssr.dda_march
 stops keeps its state, masked, until :func:`~ssbench.passes.ssr.dda_march.masked_march` compacts the set, so the
 step compiles (``torch.compile``) once for every working-set size. A hit ray keeps the cell it hit, its edge
 parameters after the step and the entry parameter ``nA`` of that cell: all :func:`hit_at` needs.
+Each cell's exit z, ``z(nB)``, is the next cell's entry z (``prevZ``, as the DDA's ``prevZ``): one division per
+step, not two.
 """
 from __future__ import annotations
 
@@ -30,9 +32,10 @@ __all__ = ["CellWalk", "cell_setup", "hit_at", "walk_step", "walk_steps", "super
 class CellWalk(DDARays):
     """:class:`~ssbench.passes.ssr.dda_state.DDARays` plus the Amanatides–Woo cell state, each :math:`(N,)`
     (permuted frame, ``n`` in major-axis pixels from ``P0``): cell ``cx, cy``; edge parameters ``tx, ty``
-    (``tMaxX/Y``); ``nA``, where the ray entered its cell; ``ddy`` (``tDeltaY``; ``tDeltaX = 1``); ``sy``
-    (``stepY``; ``stepX = stepDir``); ``nEnd`` (``P1``); ``Wm, Hm``: the image's size along the major and minor
-    axes; and as the march keeps them: the batch index in the texel index dtype, ``permute``, ``clipped`` and
+    (``tMaxX/Y``); ``nA``, where the ray entered its cell; ``prevZ``, the ray's z where it leaves that cell (where it
+    enters the next; before the first step: where it enters the first); ``ddy`` (``tDeltaY``; ``tDeltaX = 1``);
+    ``sy`` (``stepY``; ``stepX = stepDir``); ``nEnd`` (``P1``); ``Wm, Hm``: the image's size along the major and
+    minor axes; and as the march keeps them: the batch index in the texel index dtype, ``permute``, ``clipped`` and
     ``alive`` as int32, the fetches ``steps`` (int32) and the termination code ``term`` (int8)."""
 
     cx: torch.Tensor
@@ -54,7 +57,7 @@ class CellWalk(DDARays):
 
 
 #: the walk's per-step state and its per-ray constants, as :func:`walk_step` takes them (fields of CellWalk)
-STATE = ("cx", "cy", "tx", "ty", "nA", "alive32", "steps", "term")
+STATE = ("cx", "cy", "tx", "ty", "nA", "prevZ", "alive32", "steps", "term")
 RAY = ("stepDir", "sy", "ddy", "nEnd", "Wm", "Hm", "Qz", "dQz", "k", "dk", "zlo", "zhi", "permute32", "clipped32",
        "b_index")
 
@@ -65,11 +68,13 @@ def cell_setup(s: DDARays, H: int, W: int, texels: int) -> CellWalk:
     sd, dPy, N, dev = s.stepDir, s.dPy, s.count, s.k.device
     cx, cy = s.Px.floor(), s.Py.floor()
     safe = torch.where(dPy != 0, dPy, 1.0)
-    ty = torch.where(dPy > 0, (cy + 1 - s.Py) / safe, (cy - s.Py) / safe)
-    return CellWalk(**{f.name: v.contiguous() if isinstance(v := getattr(s, f.name), torch.Tensor) else v
-                       for f in fields(s)},                     # (columns of the set-up's tensors: strided)
-                    cx=cx, cy=cy, tx=((cx + (sd > 0).to(cx.dtype)) - s.Px) * sd,
-                    ty=torch.where(dPy != 0, ty, math.inf), nA=torch.zeros_like(cx),
+    ty = torch.where(dPy != 0, (torch.where(dPy > 0, cy + 1, cy) - s.Py) / safe, math.inf)
+    tx = ((cx + (sd > 0).to(cx.dtype)) - s.Px) * sd
+    nA = torch.minimum(tx, ty)                                                     # the first cell's entry
+    first = {"prevZ": ray_view_z(s.Qz + s.dQz * nA, s.k + s.dk * nA, s.zlo, s.zhi)}
+    return CellWalk(**{f.name: first.get(f.name, v.contiguous() if isinstance(v := getattr(s, f.name), torch.Tensor)
+                                         else v) for f in fields(s)},   # (columns of the set-up's tensors: strided)
+                    cx=cx, cy=cy, tx=tx, ty=ty, nA=nA,
                     ddy=torch.where(dPy != 0, 1.0 / safe.abs(), math.inf), sy=torch.sign(dPy), nEnd=s.end - s.Px * sd,
                     Wm=torch.where(s.permute, float(H), float(W)), Hm=torch.where(s.permute, float(W), float(H)),
                     b_index=s.b.to(index_dtype(texels)), permute32=s.permute.to(torch.int32),
@@ -94,7 +99,7 @@ def walk_step(state: tuple, ray: tuple, view_z: torch.Tensor, size: tuple, z_thi
         ``(state, done, t, live)``: the new state, the rays that stopped here, the fetched texels and the rays that
         fetched them.
     """
-    cx0, cy0, tx0, ty0, nA0, alive, steps, term0 = state
+    cx0, cy0, tx0, ty0, nA0, prevZ0, alive, steps, term0 = state
     stepDir, sy, ddy, nEnd, Wm, Hm, Qz, dQz, k, dk, zlo, zhi, permute, clipped, b = ray
     H, W = size
     marching = alive != 0 if go is None else (alive != 0) & go
@@ -108,14 +113,15 @@ def walk_step(state: tuple, ray: tuple, view_z: torch.Tensor, size: tuple, z_thi
     live = marching & ~past & ~off
     t = texel(cx, cy, permute, b, H, W)
     sceneZMax = view_z.index_select(0, t)
-    zA = ray_view_z(Qz + dQz * nA, k + dk * nA, zlo, zhi)
+    zA = prevZ0                                   # z(nA): the last cell's z(nB), as nA is its nB (or the ray is past)
     zB = ray_view_z(Qz + dQz * nB, k + dk * nB, zlo, zhi)
     rayZMin, rayZMax = torch.minimum(zA, zB), torch.maximum(zA, zB)
     hit = live & (rayZMax >= sceneZMax - z_thickness) & (rayZMin <= sceneZMax)
     ended = torch.where(clipped != 0, BEHIND_CAMERA, MAX_DISTANCE)
     term = torch.where(past, ended, torch.where(off, OFF_SCREEN, HIT))
     done = past | off | hit
-    new = tuple(torch.where(marching, a, a0) for a, a0 in ((cx, cx0), (cy, cy0), (tx, tx0), (ty, ty0), (nA, nA0)))
+    new = tuple(torch.where(marching, a, a0) for a, a0 in ((cx, cx0), (cy, cy0), (tx, tx0), (ty, ty0), (nA, nA0),
+                                                           (zB, prevZ0)))
     state = new + (torch.where(done, 0, alive), steps + live.to(torch.int32), torch.where(done, term.to(torch.int8),
                                                                                           term0))
     return state, done, t, live
@@ -135,7 +141,7 @@ def walk_steps(state: tuple, ray: tuple, tex: tuple, size: tuple, z_thickness: f
     ``j < left`` (``None``: all); ``tex``: the DDA's ``(view_z, back_z, second_z)`` step textures, of which the walk
     reads the first. Returns the new state, how many rays stopped (0-d) and, with ``debug`` (``count`` 1), the
     fetched texels and which rays fetched them (int32)."""
-    done = torch.zeros_like(state[5])
+    done = torch.zeros_like(state[6])
     for j in range(count):
         state, d, t, live = walk_step(state, ray, tex[0], size, z_thickness, None if left is None else left > j)
         done = done | d.to(done.dtype)

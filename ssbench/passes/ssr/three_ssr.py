@@ -23,12 +23,16 @@ blends over the image with ``op`` as alpha). Terminations: ``OFF_SCREEN`` (left 
 ``MAX_DISTANCE`` (``i ≥ totalStep``, or stopped at a back face or beyond ``max_distance`` from the plane),
 ``OUT_OF_STEPS`` (``MAX_STEP``, by default ``⌊√(W² + H²)⌋`` as ``SSRPass`` sets it), ``NO_RAY`` off ``mask`` or at
 the far plane.
+
+The rays are set up (:mod:`.three_ssr_rays`) and marched :data:`RAY_CHUNK` at a time, so the working set stays
+bounded at any image size (at 1920×1080 the whole image's set-up and working set peaked above 1 GiB); rays do not
+interact, so the outputs are those of one chunk holding every ray (tested).
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Optional
+from typing import NamedTuple, Optional
 
 import torch
 from torch import nn
@@ -39,7 +43,8 @@ from ..compiled import step_blocks
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..registry import Method, SpeedPanel
 from .common import HIT, NO_RAY, OUT_OF_STEPS, SSRResult, compact_now, components, flat, unflat
-from .three_ssr_step import MarchRays, MarchState, StepTextures, march_steps, take_rows, unproject
+from .three_ssr_rays import Shading, ThreeRays
+from .three_ssr_step import MarchRays, MarchState, StepTextures, march_steps, take_rows
 
 REQUIRES = ("view_z", "normal", "mask", "color")
 DEFAULTS_SOURCE = "three.js SSRShader / SSRPass defaults (maxDistance 180, thickness 0.018, opacity 0.5)"
@@ -79,6 +84,58 @@ class ThreeSSRParams:
                 raise ValueError(f"{name}: expected True or False, got {getattr(self, name)!r}")
 
 
+#: rays set up and marched at once: the working set (about 40 values per ray) stays a few tens of MB at any size
+RAY_CHUNK = 1 << 18
+
+
+class MarchOutput(NamedTuple):
+    """Per ray, what the march hands the outputs, :math:`(m,)` or :math:`(m, C)`: ``term`` (int8), ``steps``
+    (int32), the hit texel ``hit_k`` (flat in its batch item), the hit's ``hit_xy`` (GL pixels) and ``hit_vp``."""
+
+    term: torch.Tensor
+    steps: torch.Tensor
+    hit_k: torch.Tensor
+    hit_xy: torch.Tensor
+    hit_vp: torch.Tensor
+
+
+def march_rays(ray: torch.Tensor, b: torch.Tensor, r: ThreeRays, shade: Shading, textures: StepTextures,
+               p: "ThreeSSRParams", max_step: int, out: MarchOutput) -> None:
+    """Steps 3–4 for the rays ``ray`` (their rows of ``out``; ``b`` their batch items in the texel index dtype, ``r``
+    their set-up): the pixel DDA, :data:`~ssbench.passes.compiled.STEPS_PER_CALL` steps per compiled call, stopped
+    rays dropped now and then; each ray's end and hit written into ``out``."""
+    dt, dev, m = r.vp.dtype, r.vp.device, len(ray)
+    ws = MarchRays(ray, b, components(r.d0), components(r.span), r.total, r.recip, r.recip_end, components(r.vp),
+                   components(r.d1v), (r.d1v - r.vp).norm(dim=1), components(r.refl), components(r.n), r.s_step)
+    zeros = lambda *shape, dtype=dt: torch.zeros(m, *shape, dtype=dtype, device=dev)   # noqa: E731
+    st = MarchState(torch.ones(m, dtype=torch.bool, device=dev), zeros(dtype=torch.int8).fill_(OUT_OF_STEPS),
+                    zeros(dtype=torch.int32), r.s_step.clone(), zeros(dtype=out.hit_k.dtype), components(zeros(2)),
+                    components(zeros(3)))
+
+    def write_back(rows: torch.Tensor) -> None:   # the working set's rays at ``rows``: their ends and hits
+        at = ws.ray.index_select(0, rows)
+        out.term.index_copy_(0, at, st.term.index_select(0, rows))
+        out.steps.index_copy_(0, at, st.steps.index_select(0, rows))
+        out.hit_k.index_copy_(0, at, st.hit_tex.index_select(0, rows))
+        out.hit_xy.index_copy_(0, at, take_rows(st.hit_xy, rows))
+        out.hit_vp.index_copy_(0, at, take_rows(st.hit_vp, rows))
+
+    thickness = torch.tensor(p.thickness, dtype=dt, device=dev)
+    i = 1
+    for count, left in step_blocks(max_step - 1, False, dev):          # steps i = 1 … max_step − 1
+        if ws.ray.numel() == 0:
+            break
+        at = i if left is None else torch.tensor(i, device=dev)    # the number 1 would specialise the first call
+        st = march_steps(at, ws, st, textures, shade.size, shade.camera.far, thickness, p.infinite_thick,
+                         p.max_distance, count, left)
+        i += count
+        if compact_now(int(st.alive.sum()), ws.ray.numel()):             # drop the stopped rays now and then
+            write_back((~st.alive).nonzero().squeeze(1))
+            keep = st.alive.nonzero().squeeze(1)
+            ws, st = ws.take(keep), st.take(keep)
+    write_back(torch.arange(ws.ray.numel(), device=dev))
+
+
 @half_in_float32
 def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
               generator: Optional[torch.Generator] = None, debug: bool = False) -> SSRResult:
@@ -105,74 +162,33 @@ def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
     colour = flat(gbuffer.color.to(dt)).reshape(B, HW, 3)
     vz_tex = cam.depth_to_view_z(depth)                                           # getViewZ of every texel
     max_step = p.max_step or int(math.sqrt(W * W + H * H))
-
-    # ---- 1–2: per pixel, the ray (rays only where the shader does not return early) ----
-    b, k = torch.nonzero(gbuffer.mask.reshape(B, HW) & (-vz_tex < far), as_tuple=True)
-    row, col = k // W, k % W
-    d0 = torch.stack([col.to(dt) + 0.5, (H - 1 - row).to(dt) + 0.5], -1)          # gl_FragCoord.xy
-    vuv = d0 / torch.tensor([W, H], dtype=dt, device=dev)
-    minv = cam.inverse_projection_matrix(dtype=dt, device=dev)
-    vp = unproject(minv, vuv[:, 0], vuv[:, 1], depth[b, k], -vz_tex[b, k])       # viewPosition
-    n = normal[b, k]
-    inc = vp / vp.norm(dim=1, keepdim=True)                                      # viewIncidentDir
-    refl = inc - 2.0 * (n * inc).sum(1, keepdim=True) * n                         # reflect(I, N)
-    d1v = vp + refl * (p.max_distance / (-inc * n).sum(1, keepdim=True))
-    cross_near = d1v[:, 2] > -cam.near
-    t = (-cam.near - vp[:, 2]) / refl[:, 2]
-    d1v = torch.where(cross_near[:, None], vp + refl * t[:, None], d1v)
-    ndc = cam.view_to_ndc(d1v, dim=-1)[:, :2]
-    d1 = (ndc + 1.0) / 2.0 * torch.tensor([W, H], dtype=dt, device=dev)         # viewPositionToXY
-    span = d1 - d0
-    total = span.abs().amax(1)                                                   # totalStep
-    span, s_step = span / total[:, None], 1.0 / total
-    recip = 1.0 / vp[:, 2]
-    recip_end = 1.0 / d1v[:, 2]
-
-    # ---- 3–5: the pixel DDA over the live rays ----
+    shade = Shading(cam, p.max_distance, (H, W), depth, vz_tex, normal)
+    b, k = torch.nonzero(gbuffer.mask.reshape(B, HW) & (-vz_tex < far), as_tuple=True)   # rays: no early return
     m = len(k)
-    term = torch.full((m,), OUT_OF_STEPS, dtype=torch.int8, device=dev)
-    steps = torch.zeros(m, dtype=torch.int32, device=dev)
-    hit_k = torch.zeros(m, dtype=index_dtype(B * HW), device=dev)
-    hit_xy = torch.zeros(m, 2, dtype=dt, device=dev)
-    hit_vp = torch.zeros(m, 3, dtype=dt, device=dev)
-    ws = MarchRays(torch.arange(m, device=dev), b.to(index_dtype(B * HW)), components(d0), components(span), total,
-                   recip, recip_end, components(vp), components(d1v), (d1v - vp).norm(dim=1), components(refl),
-                   components(n), s_step)
-    st = MarchState(torch.ones(m, dtype=torch.bool, device=dev), term.clone(), steps.clone(), s_step.clone(),
-                    hit_k.clone(), components(hit_xy), components(hit_vp))
-    textures = StepTextures(depth.reshape(-1), vz_tex.reshape(-1), minv, normal.reshape(B * HW, 3))
-
-    def write_back(rows: torch.Tensor) -> None:   # the working set's rays at ``rows``: their ends and hits
-        at = ws.ray.index_select(0, rows)
-        term.index_copy_(0, at, st.term.index_select(0, rows))
-        steps.index_copy_(0, at, st.steps.index_select(0, rows))
-        hit_k.index_copy_(0, at, st.hit_tex.index_select(0, rows))
-        hit_xy.index_copy_(0, at, take_rows(st.hit_xy, rows))
-        hit_vp.index_copy_(0, at, take_rows(st.hit_vp, rows))
-
-    thickness = torch.tensor(p.thickness, dtype=dt, device=dev)
-    i = 1
-    for count, left in step_blocks(max_step - 1, False, dev):          # steps i = 1 … max_step − 1
-        if ws.ray.numel() == 0:
-            break
-        at = i if left is None else torch.tensor(i, device=dev)    # the number 1 would specialise the first call
-        st = march_steps(at, ws, st, textures, (H, W), far, thickness, p.infinite_thick, p.max_distance, count, left)
-        i += count
-        if compact_now(int(st.alive.sum()), ws.ray.numel()):             # drop the stopped rays now and then
-            write_back((~st.alive).nonzero().squeeze(1))
-            keep = st.alive.nonzero().squeeze(1)
-            ws, st = ws.take(keep), st.take(keep)
-    write_back(torch.arange(ws.ray.numel(), device=dev))
+    out = MarchOutput(term=torch.full((m,), OUT_OF_STEPS, dtype=torch.int8, device=dev),
+                      steps=torch.zeros(m, dtype=torch.int32, device=dev),
+                      hit_k=torch.zeros(m, dtype=index_dtype(B * HW), device=dev),
+                      hit_xy=torch.zeros(m, 2, dtype=dt, device=dev), hit_vp=torch.zeros(m, 3, dtype=dt, device=dev))
+    textures = StepTextures(depth.reshape(-1), vz_tex.reshape(-1), shade.minv, normal.reshape(B * HW, 3))
+    ends = torch.zeros(m, 3, dtype=dt, device=dev) if debug else None
+    for c0 in range(0, m, RAY_CHUNK):                       # a bounded working set: RAY_CHUNK rays at a time
+        ray = torch.arange(c0, min(m, c0 + RAY_CHUNK), device=dev)
+        r = shade.rays(b[ray], k[ray])
+        if ends is not None:
+            ends[ray] = r.d1v
+        march_rays(ray, b[ray].to(index_dtype(B * HW)), r, shade, textures, p, max_step, out)
+    term, steps, hit_k, hit_xy, hit_vp = out
 
     # ---- outputs ----
     h = (term == HIT).nonzero().squeeze(1)
     raw = colour[b[h], hit_k[h]]
+    rh = shade.rays(b[h], k[h])                                     # the hit rays' set-up again (per ray: the same)
     op = torch.full((len(h),), float(p.opacity), dtype=dt, device=dev)
     if p.distance_attenuation:
-        plane = (n[h] * hit_vp[h]).sum(1) - (n[h] * vp[h]).sum(1)
+        plane = (rh.n * hit_vp[h]).sum(1) - (rh.n * rh.vp).sum(1)
         op = op * (1.0 - plane / p.max_distance) ** 2
     if p.fresnel:
-        op = op * ((inc[h] * refl[h]).sum(1) + 1.0) / 2.0
+        op = op * ((rh.inc * rh.refl).sum(1) + 1.0) / 2.0
     op = op.clamp(0.0, 1.0)                     # the blend's alpha: a hit behind the reflecting plane gives ratio > 1
     pixel = torch.stack([hit_xy[h, 0], H - hit_xy[h, 1]], -1)                   # ssbench pixels (y down)
     ray_pixel = b * HW + k
@@ -186,7 +202,7 @@ def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
                      hit_pixel=scatter(pixel, rows, -1.0, 2, dt), hit_view=scatter(hit_vp[h], rows, 0.0, 3, dt),
                      steps=scatter(steps, ray_pixel, 0, 1, torch.int32), termination=termination,
                      fade=scatter(op, rows, 1.0, 1, dt), raw_color=scatter(raw, rows, 0.0, 3, dt),
-                     debug={"ray_end": scatter(d1v, ray_pixel, 0.0, 3, dt)} if debug else {})
+                     debug={"ray_end": scatter(ends, ray_pixel, 0.0, 3, dt)} if debug else {})
 
 
 class ThreeSSR(nn.Module):

@@ -363,24 +363,26 @@ def test_last_footprint_reaches_the_image_edge(stride):
         assert r.hit_pixel[0, :, 20, 16].floor().tolist() == [16.0, 0.0]
 
 
-@pytest.mark.parametrize("method", ["dda", "dda_supercover", "hiz"])
+@pytest.mark.parametrize("method", ["dda", "dda_supercover", "hiz", "three_ssr"])
 def test_marching_in_chunks_of_rays_changes_no_bit(method, monkeypatch):
-    """The marchers that share :func:`~ssbench.passes.ssr.dda_state.march_in_chunks` march chunks of rays at a time
-    (a bounded working set: the DDA's MARCH_CHUNK, the supercover's and Hi-Z's RAY_CHUNK), each chunk setting up its
-    own rays (the pixel centres of its rays, not of the image): chunks of 7 rays give the same outputs, debug visit
-    counts included, as one chunk for every ray; with jitter and two images too."""
+    """The marchers that march chunks of rays at a time (a bounded working set: the DDA's MARCH_CHUNK, the
+    supercover's and Hi-Z's RAY_CHUNK through :func:`~ssbench.passes.ssr.dda_state.march_in_chunks`, three.js SSR's
+    RAY_CHUNK), each chunk setting up its own rays (the pixel centres of its rays, not of the image): chunks of 7
+    rays give the same outputs, debug buffers included, as one chunk for every ray; with jitter and two images too."""
     import dataclasses
 
     import ssbench.passes.ssr.dda as D
     import ssbench.passes.ssr.dda_state as DS
     import ssbench.passes.ssr.hiz as Z
+    import ssbench.passes.ssr.three_ssr as T
     from ssbench.passes import ssr_method
     from tests.passes.ssr_scenes import room
     g = room(40, 30, slat=True)
     g = dataclasses.replace(g, **{f.name: torch.cat([v, v.flip(-1)]) for f in dataclasses.fields(g)
                                   if isinstance(v := getattr(g, f.name), torch.Tensor)})     # two images
     fn, params_cls, _ = ssr_method(method)
-    module, name = {"dda": (D, "MARCH_CHUNK"), "dda_supercover": (DS, "RAY_CHUNK"), "hiz": (Z, "RAY_CHUNK")}[method]
+    module, name = {"dda": (D, "MARCH_CHUNK"), "dda_supercover": (DS, "RAY_CHUNK"), "hiz": (Z, "RAY_CHUNK"),
+                    "three_ssr": (T, "RAY_CHUNK")}[method]
     params = params_cls(jitter=0.5) if method == "dda" else params_cls()
 
     def run(chunk):
@@ -392,7 +394,9 @@ def test_marching_in_chunks_of_rays_changes_no_bit(method, monkeypatch):
         v = getattr(whole, f.name)
         if isinstance(v, torch.Tensor):
             assert torch.equal(v, getattr(chunked, f.name)), f.name
-    assert torch.equal(whole.debug["visits"], chunked.debug["visits"])
+    assert whole.debug and whole.debug.keys() == chunked.debug.keys()
+    for k, v in whole.debug.items():
+        assert torch.equal(v, chunked.debug[k]), k
 
 
 def _slabs(g, depth):

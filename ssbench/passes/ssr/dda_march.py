@@ -195,17 +195,26 @@ def dda_march(s: DDARays, tex: DepthTexels, params: "DDASSRParams", H: int, W: i
     (:func:`refine_hits`), and the set compacted (:func:`masked_march`)."""
     N = s.count
     out = MarchOutput.empty(N, s.k.dtype, s.k.device, OUT_OF_STEPS)
-    s = MarchingRays(**{f.name: v.contiguous() if isinstance(v := getattr(s, f.name), torch.Tensor) else v
-                        for f in dataclasses.fields(s)},            # (columns of the set-up's tensors: strided)
-                     b_index=s.b.to(index_dtype(tex.view_z.numel())), permute32=s.permute.to(torch.int32),
-                     clipped32=s.clipped.to(torch.int32), alive32=torch.ones(N, dtype=torch.int32, device=s.k.device),
-                     steps=torch.zeros(N, dtype=torch.int32, device=s.k.device),
-                     term=torch.full((N,), OUT_OF_STEPS, dtype=torch.int8, device=s.k.device))
+    s = MarchingRays(**marching_fields(s, tex.view_z.numel()))
     run = lambda state, ray, count, left: dda_steps(state, ray, tex.marched, (H, W), params.z_thickness,  # noqa: E731
                                                     count, left, visits is not None)
     masked_march(s, STATE, RAY, run, lambda s, rows: flush(out, s, rows, tex, params, H, W, visits),
                  params.max_steps, visits)
     return out
+
+
+def marching_fields(s: DDARays, texels: int) -> dict:
+    """The fields of the set-up's rays ``s`` as a masked march keeps them (:class:`MarchingRays`, the supercover's
+    ``CellWalk``): each column contiguous (the set-up's are strided views; a compiled step compiles again for views),
+    the batch index in the index dtype of ``texels`` texels, ``permute``, ``clipped`` and ``alive`` as int32, no
+    fetches yet (``steps``) and the termination ``OUT_OF_STEPS``."""
+    N, dev = s.count, s.k.device
+    return dict({f.name: v.contiguous() if isinstance(v := getattr(s, f.name), torch.Tensor) else v
+                 for f in dataclasses.fields(s)},
+                b_index=s.b.to(index_dtype(texels)), permute32=s.permute.to(torch.int32),
+                clipped32=s.clipped.to(torch.int32), alive32=torch.ones(N, dtype=torch.int32, device=dev),
+                steps=torch.zeros(N, dtype=torch.int32, device=dev),
+                term=torch.full((N,), OUT_OF_STEPS, dtype=torch.int8, device=dev))
 
 
 #: the DDA's per-step state and its per-ray constants, as :func:`dda_step` takes them (fields of MarchingRays)

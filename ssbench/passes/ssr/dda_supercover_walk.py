@@ -14,15 +14,14 @@ step, not two.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import Optional
 
 import torch
 
-from ..common import index_dtype
 from ..compiled import kernel
 from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS
-from .dda_march import masked_march, ray_view_z
+from .dda_march import marching_fields, masked_march, ray_view_z
 from .dda_state import DDARays, DepthTexels, MarchOutput
 
 __all__ = ["CellWalk", "cell_setup", "hit_at", "walk_step", "walk_steps", "supercover_march"]
@@ -65,22 +64,16 @@ RAY = ("stepDir", "sy", "ddy", "nEnd", "Wm", "Hm", "Qz", "dQz", "k", "dk", "zlo"
 def cell_setup(s: DDARays, H: int, W: int, texels: int) -> CellWalk:
     """The cell walk's start from the DDA's set-up ``s`` (``ssr.dda.dda_rays`` at stride 1, no jitter), over
     ``texels`` depth texels (which picks the index dtype)."""
-    sd, dPy, N, dev = s.stepDir, s.dPy, s.count, s.k.device
+    sd, dPy = s.stepDir, s.dPy
     cx, cy = s.Px.floor(), s.Py.floor()
     safe = torch.where(dPy != 0, dPy, 1.0)
     ty = torch.where(dPy != 0, (torch.where(dPy > 0, cy + 1, cy) - s.Py) / safe, math.inf)
     tx = ((cx + (sd > 0).to(cx.dtype)) - s.Px) * sd
     nA = torch.minimum(tx, ty)                                                     # the first cell's entry
     first = {"prevZ": ray_view_z(s.Qz + s.dQz * nA, s.k + s.dk * nA, s.zlo, s.zhi)}
-    return CellWalk(**{f.name: first.get(f.name, v.contiguous() if isinstance(v := getattr(s, f.name), torch.Tensor)
-                                         else v) for f in fields(s)},   # (columns of the set-up's tensors: strided)
-                    cx=cx, cy=cy, tx=tx, ty=ty, nA=nA,
+    return CellWalk(**{**marching_fields(s, texels), **first}, cx=cx, cy=cy, tx=tx, ty=ty, nA=nA,
                     ddy=torch.where(dPy != 0, 1.0 / safe.abs(), math.inf), sy=torch.sign(dPy), nEnd=s.end - s.Px * sd,
-                    Wm=torch.where(s.permute, float(H), float(W)), Hm=torch.where(s.permute, float(W), float(H)),
-                    b_index=s.b.to(index_dtype(texels)), permute32=s.permute.to(torch.int32),
-                    clipped32=s.clipped.to(torch.int32), alive32=torch.ones(N, dtype=torch.int32, device=dev),
-                    steps=torch.zeros(N, dtype=torch.int32, device=dev),
-                    term=torch.full((N,), OUT_OF_STEPS, dtype=torch.int8, device=dev))
+                    Wm=torch.where(s.permute, float(H), float(W)), Hm=torch.where(s.permute, float(W), float(H)))
 
 
 def walk_step(state: tuple, ray: tuple, view_z: torch.Tensor, size: tuple, z_thickness: float,

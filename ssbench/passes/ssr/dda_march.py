@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Optional
+from typing import TYPE_CHECKING, NamedTuple, Optional
 
 import torch
 
@@ -93,48 +93,81 @@ def refine_hits(h: DDARays, tex, params: "DDASSRParams", H: int, W: int, out: Ma
         setattr(h, key, best[key])
 
 
-def dda_step(state: tuple, ray: tuple, tex: tuple, size: tuple, z_thickness: float,
+class DDAState(NamedTuple):
+    """What one DDA step changes, per ray of the working set (each :math:`(N,)`; fields of :class:`MarchingRays`):
+    the sample ``Px, Py`` (permuted frame), ``Qz``, ``k``, the step count ``n``, the ray's z at the end of the last
+    footprint ``prevZ``, ``alive32`` and ``steps`` (fetches), int32 (a compiled kernel loads bool arrays lane by
+    lane), and ``term``, the int8 termination code (``OUT_OF_STEPS`` until the ray stops)."""
+
+    Px: torch.Tensor
+    Py: torch.Tensor
+    Qz: torch.Tensor
+    k: torch.Tensor
+    n: torch.Tensor
+    prevZ: torch.Tensor
+    alive32: torch.Tensor
+    steps: torch.Tensor
+    term: torch.Tensor
+
+
+class DDARay(NamedTuple):
+    """What one DDA step reads and leaves as it is, per ray (fields of :class:`MarchingRays`): the step ``dPx, dPy,
+    dQz, dk``, the ``stride``, ``stepDir``, where the footprints stop (``stop``) and the ray ends (``end``), the
+    z clamp ``zlo, zhi``, ``permute32`` and ``clipped32`` (int32) and the batch index ``b_index``."""
+
+    dPx: torch.Tensor
+    dPy: torch.Tensor
+    dQz: torch.Tensor
+    dk: torch.Tensor
+    stride: torch.Tensor
+    stepDir: torch.Tensor
+    stop: torch.Tensor
+    end: torch.Tensor
+    zlo: torch.Tensor
+    zhi: torch.Tensor
+    permute32: torch.Tensor
+    clipped32: torch.Tensor
+    b_index: torch.Tensor
+
+
+def dda_step(state: DDAState, ray: DDARay, tex: tuple, size: tuple, z_thickness: float,
              go: Optional[torch.Tensor] = None) -> tuple:
     """One DDA step of :func:`dda_march` for every ray of the working set: advance by a stride, shorten the last
     footprint at ``stop``, ``texelFetch`` and the depth test. A ray that has stopped keeps its state (a hit ray:
     where it hit, for the refinement); so does every ray where ``go`` (a 0-d bool, if given) is false.
 
     Args:
-        state: ``(Px, Py, Qz, k, n, prevZ, alive, steps, term)``, ``alive`` and ``steps`` (fetches) int32 (a
-            compiled kernel loads bool arrays lane by lane), ``term`` the int8 termination code (``OUT_OF_STEPS``
-            until the ray stops); ray: ``(dPx, dPy, dQz, dk, stride, stepDir, stop, end, zlo, zhi, permute,
-            clipped, b)``, ``permute`` and ``clipped`` int32.
+        state: :class:`DDAState`; ray: :class:`DDARay`.
         tex: ``(front, back, second)`` flat: the scene view z with NaN off the mask (a NaN compares false, so a
             cleared texel is never hit), the back-face and second-layer z (or ``None``) likewise.
 
     Returns:
-        ``(state, done, t, live)``: the new state, the rays that stopped here, the fetched texels and the rays that
-        fetched them.
+        ``(state, done, t, live)``: the new :class:`DDAState`, the rays that stopped here, the fetched texels and
+        the rays that fetched them.
     """
-    Px0, Py0, Qz0, k0, n0, prevZ0, alive, steps, term0 = state
-    dPx, dPy, dQz, dk, stride, stepDir, stop, end, zlo, zhi, permute, clipped, b = ray
+    st, r = state, ray
     front, back_z, second_z = tex
     H, W = size
-    marching = alive != 0 if go is None else (alive != 0) & go
-    Px, Py, Qz, k = Px0 + dPx, Py0 + dPy, Qz0 + dQz, k0 + dk
-    n = n0 + 1.0
-    u = Px * stepDir
-    beyond = marching & (u > stop)                                                # centre past P1 / the edge
-    f = ((stop - u) / stride + 0.5).clamp(0.0, 1.0)                               # footprint share before stop
+    marching = st.alive32 != 0 if go is None else (st.alive32 != 0) & go
+    Px, Py, Qz, k = st.Px + r.dPx, st.Py + r.dPy, st.Qz + r.dQz, st.k + r.dk
+    n = st.n + 1.0
+    u = Px * r.stepDir
+    beyond = marching & (u > r.stop)                                              # centre past P1 / the edge
+    f = ((r.stop - u) / r.stride + 0.5).clamp(0.0, 1.0)                           # footprint share before stop
     partial = beyond & (f > 0)                                                    # last, shortened footprint
     past = beyond & ~partial                                                      # nothing left to test: ended
     back = torch.where(partial, 0.5 * (1.0 - f), 0.0)                             # centre of [P − ½dP, stop]
-    Px, Py, Qz, k = Px - dPx * back, Py - dPy * back, Qz - dQz * back, k - dk * back
+    Px, Py, Qz, k = Px - r.dPx * back, Py - r.dPy * back, Qz - r.dQz * back, k - r.dk * back
     n = n - back
     half = torch.where(partial, 0.5 * f, 0.5)
-    swap = permute != 0
+    swap, b = r.permute32 != 0, r.b_index
     px, py = torch.where(swap, Py, Px), torch.where(swap, Px, Py)                 # hitPixel = permute ? P.yx : P
     on = (px >= 0) & (px < W) & (py >= 0) & (py < H)
     t = b * (H * W) + py.floor().clamp(0, H - 1).to(b.dtype) * W + px.floor().clamp(0, W - 1).to(b.dtype)
     sceneZMax = front.index_select(0, t)
     off, live = marching & ~past & ~on, marching & ~past & on                    # live: this sample is fetched
-    rayZMin = prevZ0
-    rayZMax = ray_view_z(dQz * half + Qz, dk * half + k, zlo, zhi)                # footprint end
+    rayZMin = st.prevZ
+    rayZMax = ray_view_z(r.dQz * half + Qz, r.dk * half + k, r.zlo, r.zhi)        # footprint end
     prevZ = rayZMax
     rayZMin, rayZMax = torch.minimum(rayZMin, rayZMax), torch.maximum(rayZMin, rayZMax)   # swap
     bottom = back_z.index_select(0, t) if back_z is not None else sceneZMax       # layered depth: the back face
@@ -142,19 +175,19 @@ def dda_step(state: tuple, ray: tuple, tex: tuple, size: tuple, z_thickness: flo
     if second_z is not None:                                                      # the second depth layer
         z2 = second_z.index_select(0, t)
         hit = hit | (live & (rayZMax >= z2 - z_thickness) & (rayZMin <= z2))
-    ended = torch.where(clipped != 0, BEHIND_CAMERA, MAX_DISTANCE)                # past P1
-    term = torch.where(u > end, ended, OFF_SCREEN)                                # the full step's centre
+    ended = torch.where(r.clipped32 != 0, BEHIND_CAMERA, MAX_DISTANCE)            # past P1
+    term = torch.where(u > r.end, ended, OFF_SCREEN)                              # the full step's centre
     term = torch.where(off, OFF_SCREEN, torch.where(hit, HIT, term))
     done = past | off | hit | partial
-    new = tuple(torch.where(marching, a, a0) for a, a0 in ((Px, Px0), (Py, Py0), (Qz, Qz0), (k, k0), (n, n0),
-                                                           (prevZ, prevZ0)))
-    state = new + (torch.where(done, 0, alive), steps + live.to(torch.int32),
-                   torch.where(done, term.to(torch.int8), term0))
+    keep = lambda a, a0: torch.where(marching, a, a0)                             # noqa: E731
+    state = DDAState(keep(Px, st.Px), keep(Py, st.Py), keep(Qz, st.Qz), keep(k, st.k), keep(n, st.n),
+                     keep(prevZ, st.prevZ), torch.where(done, 0, st.alive32), st.steps + live.to(torch.int32),
+                     torch.where(done, term.to(torch.int8), st.term))
     return state, done, t, live
 
 
 @kernel(dynamic=True, fuse_whole=True)
-def dda_steps(state: tuple, ray: tuple, tex: tuple, size: tuple, z_thickness: float, count: int,
+def dda_steps(state: DDAState, ray: DDARay, tex: tuple, size: tuple, z_thickness: float, count: int,
               left: Optional[torch.Tensor], debug: bool = False) -> tuple:
     """``count`` steps of :func:`dda_step` for every ray of the working set (the march's size-dynamic compilable
     kernel), the ``j``-th only while ``j < left`` (a 0-d count of the steps the march has left; ``None``: all;
@@ -165,7 +198,7 @@ def dda_steps(state: tuple, ray: tuple, tex: tuple, size: tuple, z_thickness: fl
         The new state, how many rays stopped (0-d) and, with ``debug`` (``count`` 1), the fetched texels and which
         rays fetched them (int32).
     """
-    done = torch.zeros_like(state[6])
+    done = torch.zeros_like(state.alive32)
     for j in range(count):
         state, d, t, live = dda_step(state, ray, tex, size, z_thickness, None if left is None else left > j)
         done = done | d.to(done.dtype)
@@ -198,7 +231,7 @@ def dda_march(s: DDARays, tex: DepthTexels, params: "DDASSRParams", H: int, W: i
     s = MarchingRays(**marching_fields(s, tex.view_z.numel()))
     run = lambda state, ray, count, left: dda_steps(state, ray, tex.marched, (H, W), params.z_thickness,  # noqa: E731
                                                     count, left, visits is not None)
-    masked_march(s, STATE, RAY, run, lambda s, rows: flush(out, s, rows, tex, params, H, W, visits),
+    masked_march(s, DDAState, DDARay, run, lambda s, rows: flush(out, s, rows, tex, params, H, W, visits),
                  params.max_steps, visits)
     return out
 
@@ -217,25 +250,20 @@ def marching_fields(s: DDARays, texels: int) -> dict:
                 term=torch.full((N,), OUT_OF_STEPS, dtype=torch.int8, device=dev))
 
 
-#: the DDA's per-step state and its per-ray constants, as :func:`dda_step` takes them (fields of MarchingRays)
-STATE = ("Px", "Py", "Qz", "k", "n", "prevZ", "alive32", "steps", "term")
-RAY = ("dPx", "dPy", "dQz", "dk", "stride", "stepDir", "stop", "end", "zlo", "zhi", "permute32", "clipped32",
-       "b_index")
-
-
-def masked_march(s, state: tuple, ray: tuple, run, flush, max_steps: int, visits: Optional[torch.Tensor]) -> None:
+def masked_march(s, state: type, ray: type, run, flush, max_steps: int, visits: Optional[torch.Tensor]) -> None:
     """A marcher's loop over fixed-shape masked steps (the DDA's, the supercover walk's): ``run(state, ray, count,
-    left)`` (a step kernel over :func:`~ssbench.passes.compiled.step_blocks`) advances the fields named ``state`` of
-    the per-ray dataclass ``s`` (``alive32`` among them) given its fields named ``ray``, and returns ``(state,
-    stopped)`` (plus the fetched texels and which rays fetched them, counted into ``visits`` if given). Once 1/8 of
-    the working set has stopped, ``flush(s, rows)`` writes the stopped rows back and the set is compacted; at the
-    end every row is flushed."""
+    left)`` (a step kernel over :func:`~ssbench.passes.compiled.step_blocks`) advances the fields of the per-ray
+    dataclass ``s`` that the named tuple ``state`` names (``alive32`` among them), given those that ``ray`` names,
+    and returns ``(state, stopped)`` (plus the fetched texels and which rays fetched them, counted into ``visits`` if
+    given). Once 1/8 of the working set has stopped, ``flush(s, rows)`` writes the stopped rows back and the set is
+    compacted; at the end every row is flushed."""
     dead = 0
     for count, left in step_blocks(max_steps, visits is not None, s.k.device):
         if s.count == dead:
             break
-        r = run(tuple(getattr(s, f) for f in state), tuple(getattr(s, f) for f in ray), count, left)
-        for f, v in zip(state, r[0]):
+        r = run(state(*(getattr(s, f) for f in state._fields)), ray(*(getattr(s, f) for f in ray._fields)), count,
+                left)
+        for f, v in zip(state._fields, r[0]):
             setattr(s, f, v)
         if visits is not None:
             add_visits(visits, *r[2:])

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Optional
+from typing import NamedTuple, Optional
 
 import torch
 
@@ -24,7 +24,8 @@ from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS
 from .dda_march import marching_fields, masked_march, ray_view_z
 from .dda_state import DDARays, DepthTexels, MarchOutput
 
-__all__ = ["CellWalk", "cell_setup", "hit_at", "walk_step", "walk_steps", "supercover_march"]
+__all__ = ["CellWalk", "WalkState", "WalkRay", "cell_setup", "hit_at", "walk_step", "walk_steps",
+           "supercover_march"]
 
 
 @dataclass(kw_only=True)
@@ -55,10 +56,41 @@ class CellWalk(DDARays):
     term: torch.Tensor
 
 
-#: the walk's per-step state and its per-ray constants, as :func:`walk_step` takes them (fields of CellWalk)
-STATE = ("cx", "cy", "tx", "ty", "nA", "prevZ", "alive32", "steps", "term")
-RAY = ("stepDir", "sy", "ddy", "nEnd", "Wm", "Hm", "Qz", "dQz", "k", "dk", "zlo", "zhi", "permute32", "clipped32",
-       "b_index")
+class WalkState(NamedTuple):
+    """What one cell of the walk changes, per ray of the working set (fields of :class:`CellWalk`): the cell ``cx,
+    cy``, the edge parameters ``tx, ty``, the entry ``nA``, ``prevZ``, ``alive32``, ``steps`` and ``term``."""
+
+    cx: torch.Tensor
+    cy: torch.Tensor
+    tx: torch.Tensor
+    ty: torch.Tensor
+    nA: torch.Tensor
+    prevZ: torch.Tensor
+    alive32: torch.Tensor
+    steps: torch.Tensor
+    term: torch.Tensor
+
+
+class WalkRay(NamedTuple):
+    """What one cell of the walk reads and leaves as it is, per ray (fields of :class:`CellWalk`): ``stepDir``,
+    ``sy``, ``ddy``, ``nEnd``, the image's size ``Wm, Hm`` along the major and minor axes, ``Qz, dQz, k, dk`` (the
+    ray's z), its clamp ``zlo, zhi``, ``permute32``, ``clipped32`` and the batch index ``b_index``."""
+
+    stepDir: torch.Tensor
+    sy: torch.Tensor
+    ddy: torch.Tensor
+    nEnd: torch.Tensor
+    Wm: torch.Tensor
+    Hm: torch.Tensor
+    Qz: torch.Tensor
+    dQz: torch.Tensor
+    k: torch.Tensor
+    dk: torch.Tensor
+    zlo: torch.Tensor
+    zhi: torch.Tensor
+    permute32: torch.Tensor
+    clipped32: torch.Tensor
+    b_index: torch.Tensor
 
 
 def cell_setup(s: DDARays, H: int, W: int, texels: int) -> CellWalk:
@@ -76,7 +108,7 @@ def cell_setup(s: DDARays, H: int, W: int, texels: int) -> CellWalk:
                     Wm=torch.where(s.permute, float(H), float(W)), Hm=torch.where(s.permute, float(W), float(H)))
 
 
-def walk_step(state: tuple, ray: tuple, view_z: torch.Tensor, size: tuple, z_thickness: float,
+def walk_step(state: WalkState, ray: WalkRay, view_z: torch.Tensor, size: tuple, z_thickness: float,
               go: Optional[torch.Tensor] = None) -> tuple:
     """One cell of the walk for every ray of the working set: cross the nearer of the next column and row edge
     (both at a lattice corner), ``texelFetch`` the cell entered and test the ray's z interval over it,
@@ -84,39 +116,38 @@ def walk_step(state: tuple, ray: tuple, view_z: torch.Tensor, size: tuple, z_thi
     cell); so does every ray where ``go`` (a 0-d bool, if given) is false.
 
     Args:
-        state: the :data:`STATE` fields of :class:`CellWalk`; ray: its :data:`RAY` fields.
+        state: :class:`WalkState`; ray: :class:`WalkRay`.
         view_z: :math:`(B·H·W,)` the scene's view z, NaN off the mask (a NaN compares false: never hit).
         size: ``(H, W)``; z_thickness: ``zThickness``.
 
     Returns:
-        ``(state, done, t, live)``: the new state, the rays that stopped here, the fetched texels and the rays that
-        fetched them.
+        ``(state, done, t, live)``: the new :class:`WalkState`, the rays that stopped here, the fetched texels and
+        the rays that fetched them.
     """
-    cx0, cy0, tx0, ty0, nA0, prevZ0, alive, steps, term0 = state
-    stepDir, sy, ddy, nEnd, Wm, Hm, Qz, dQz, k, dk, zlo, zhi, permute, clipped, b = ray
+    st, r = state, ray
     H, W = size
-    marching = alive != 0 if go is None else (alive != 0) & go
-    nA = torch.minimum(tx0, ty0)                                                   # edge crossed into the cell
-    stepx, stepy = tx0 <= ty0, ty0 <= tx0                                          # both: through a corner
-    cx, tx = torch.where(stepx, cx0 + stepDir, cx0), torch.where(stepx, tx0 + 1, tx0)
-    cy, ty = torch.where(stepy, cy0 + sy, cy0), torch.where(stepy, ty0 + ddy, ty0)
-    nB = torch.minimum(torch.minimum(tx, ty), nEnd)                                # where it leaves (or P1)
-    past = marching & (nA >= nEnd)
-    off = marching & ~past & ((cx < 0) | (cx >= Wm) | (cy < 0) | (cy >= Hm))
+    marching = st.alive32 != 0 if go is None else (st.alive32 != 0) & go
+    nA = torch.minimum(st.tx, st.ty)                                               # edge crossed into the cell
+    stepx, stepy = st.tx <= st.ty, st.ty <= st.tx                                  # both: through a corner
+    cx, tx = torch.where(stepx, st.cx + r.stepDir, st.cx), torch.where(stepx, st.tx + 1, st.tx)
+    cy, ty = torch.where(stepy, st.cy + r.sy, st.cy), torch.where(stepy, st.ty + r.ddy, st.ty)
+    nB = torch.minimum(torch.minimum(tx, ty), r.nEnd)                              # where it leaves (or P1)
+    past = marching & (nA >= r.nEnd)
+    off = marching & ~past & ((cx < 0) | (cx >= r.Wm) | (cy < 0) | (cy >= r.Hm))
     live = marching & ~past & ~off
-    t = texel(cx, cy, permute, b, H, W)
+    t = texel(cx, cy, r.permute32, r.b_index, H, W)
     sceneZMax = view_z.index_select(0, t)
-    zA = prevZ0                                   # z(nA): the last cell's z(nB), as nA is its nB (or the ray is past)
-    zB = ray_view_z(Qz + dQz * nB, k + dk * nB, zlo, zhi)
+    zA = st.prevZ                                 # z(nA): the last cell's z(nB), as nA is its nB (or the ray is past)
+    zB = ray_view_z(r.Qz + r.dQz * nB, r.k + r.dk * nB, r.zlo, r.zhi)
     rayZMin, rayZMax = torch.minimum(zA, zB), torch.maximum(zA, zB)
     hit = live & (rayZMax >= sceneZMax - z_thickness) & (rayZMin <= sceneZMax)
-    ended = torch.where(clipped != 0, BEHIND_CAMERA, MAX_DISTANCE)
+    ended = torch.where(r.clipped32 != 0, BEHIND_CAMERA, MAX_DISTANCE)
     term = torch.where(past, ended, torch.where(off, OFF_SCREEN, HIT))
     done = past | off | hit
-    new = tuple(torch.where(marching, a, a0) for a, a0 in ((cx, cx0), (cy, cy0), (tx, tx0), (ty, ty0), (nA, nA0),
-                                                           (zB, prevZ0)))
-    state = new + (torch.where(done, 0, alive), steps + live.to(torch.int32), torch.where(done, term.to(torch.int8),
-                                                                                          term0))
+    keep = lambda a, a0: torch.where(marching, a, a0)                             # noqa: E731
+    state = WalkState(keep(cx, st.cx), keep(cy, st.cy), keep(tx, st.tx), keep(ty, st.ty), keep(nA, st.nA),
+                      keep(zB, st.prevZ), torch.where(done, 0, st.alive32), st.steps + live.to(torch.int32),
+                      torch.where(done, term.to(torch.int8), st.term))
     return state, done, t, live
 
 
@@ -128,13 +159,13 @@ def texel(cx, cy, permute, b, H: int, W: int) -> torch.Tensor:
 
 
 @kernel(dynamic=True, fuse_whole=True)
-def walk_steps(state: tuple, ray: tuple, tex: tuple, size: tuple, z_thickness: float, count: int,
+def walk_steps(state: WalkState, ray: WalkRay, tex: tuple, size: tuple, z_thickness: float, count: int,
                left: Optional[torch.Tensor], debug: bool = False) -> tuple:
     """``count`` steps of :func:`walk_step` (the walk's size-dynamic compilable kernel), the ``j``-th only while
     ``j < left`` (``None``: all); ``tex``: the DDA's ``(view_z, back_z, second_z)`` step textures, of which the walk
     reads the first. Returns the new state, how many rays stopped (0-d) and, with ``debug`` (``count`` 1), the
     fetched texels and which rays fetched them (int32)."""
-    done = torch.zeros_like(state[6])
+    done = torch.zeros_like(state.alive32)
     for j in range(count):
         state, d, t, live = walk_step(state, ray, tex[0], size, z_thickness, None if left is None else left > j)
         done = done | d.to(done.dtype)
@@ -178,5 +209,5 @@ def supercover_march(s: DDARays, tex: DepthTexels, z_thickness: float, max_steps
     c = cell_setup(s, H, W, tex.view_z.numel())
     run = lambda state, ray, count, left: walk_steps(state, ray, tex.marched, (H, W), z_thickness, count,  # noqa: E731
                                                      left, visits is not None)
-    masked_march(c, STATE, RAY, run, lambda c, rows: flush(out, c, rows, tex.view_z, H, W), max_steps, visits)
+    masked_march(c, WalkState, WalkRay, run, lambda c, rows: flush(out, c, rows, tex.view_z, H, W), max_steps, visits)
     return out

@@ -172,11 +172,12 @@ def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
     textures = StepTextures(depth.reshape(-1), vz_tex.reshape(-1), shade.minv, normal.reshape(B * HW, 3))
     ends = torch.zeros(m, 3, dtype=dt, device=dev) if debug else None
     for c0 in range(0, m, RAY_CHUNK):                       # a bounded working set: RAY_CHUNK rays at a time
-        ray = torch.arange(c0, min(m, c0 + RAY_CHUNK), device=dev)
-        r = shade.rays(b[ray], k[ray])
+        c1 = min(m, c0 + RAY_CHUNK)
+        r = shade.rays(b[c0:c1], k[c0:c1])
         if ends is not None:
-            ends[ray] = r.d1v
-        march_rays(ray, b[ray].to(index_dtype(B * HW)), r, shade, textures, p, max_step, out)
+            ends[c0:c1] = r.d1v
+        march_rays(torch.arange(c0, c1, device=dev), b[c0:c1].to(index_dtype(B * HW)), r, shade, textures, p, max_step,
+                   out)
     term, steps, hit_k, hit_xy, hit_vp = out
 
     # ---- outputs ----

@@ -227,8 +227,13 @@ class Camera:
     def uv_to_pixel(self, uv: torch.Tensor, dim: int = -3) -> torch.Tensor:
         """UV (v up) → continuous pixel coordinates ``(px, py)`` (py down, row 0 at the top)."""
         u, v = split_components(uv, dim, 2, "uv")
+        return torch.stack(self.uv_to_pixel_xy(u, v), dim)
+
+    def uv_to_pixel_xy(self, u, v):
+        """:meth:`uv_to_pixel` on separate components, plain arithmetic (torch tensors, Dr.Jit arrays, floats):
+        ``(u · W, (1 − v) · H)``."""
         # NOTE: the row axis flips here: UV's v grows upward, image rows grow downward.
-        return torch.stack([u * self.width, (1.0 - v) * self.height], dim)
+        return u * self.width, (1.0 - v) * self.height
 
     def pixel_to_uv(self, px: torch.Tensor, dim: int = -3) -> torch.Tensor:
         """Continuous pixel coordinates → UV (inverse of :meth:`uv_to_pixel`)."""

@@ -24,9 +24,9 @@ full ground truth and the oracle use the same directions (paired comparison) and
 bits. Origins are offset by Mitsuba's ``spawn_ray`` so an open plane gives exactly 1.
 
 :func:`screen_space_oracle` traces the same rays against the *depth buffer as a height-field mesh* (every
-pixel centre a vertex, background at the far plane, neighbouring pixels joined across discontinuities): the
-only geometry a screen-space pass can see. ``oracle − full`` is the information loss; ``method − oracle`` is
-the estimator's own error.
+pixel centre a vertex, background at the far plane, neighbouring pixels joined across discontinuities,
+:mod:`ssbench.reference.heightfield`): the only geometry a screen-space pass can see. ``oracle − full`` is the
+information loss; ``method − oracle`` is the estimator's own error.
 """
 from __future__ import annotations
 
@@ -39,10 +39,11 @@ import torch
 
 from ..gbuffer import GBuffer
 from ..scenes import load as load_scene
-from . import ao_volume, backend, cache, convert
+from . import ao_volume, backend, cache, convert, heightfield
 
 WEIGHTINGS = ("uniform", "cosine", "obscurance") + ao_volume.VOLUME_WEIGHTINGS
 _KERNEL_VERSION = 2  # 2: Jeffreys standard errors (never 0)
+_ORACLE_VERSION = 3  # 3: the volume flavours by depth-buffer lookup (heightfield.behind), not by tracing
 
 
 @dataclass(frozen=True)
@@ -73,18 +74,18 @@ def check_arguments(gbuffer: GBuffer, radius: float, rays: int, weighting: str, 
         raise ValueError(f"gbuffer: batch size must be 1, got {gbuffer.batch_size}")
 
 
-def _estimate(mi, dr, mscene, origin_si, eye, n_view, R_v2s, active, radius, rays, weighting, seed, N):
+def _estimate(mi, dr, mscene, origin_si, is_inside, n_view, R_v2s, active, radius, rays, weighting, seed, N):
     """Accumulate per-pixel mean and variance over ``rays`` directions, in one Dr.Jit kernel (a symbolic
     ``while_loop`` over the rays: the same draws and sums, in the same order, as one kernel per ray, which
     launched ``rays`` kernels and ran 1.1–2.5× slower: 33 → 53 Mrays/s on cornell_box, cosine, 320×240, 256 rays,
-    2 threads)."""
+    2 threads). ``is_inside(s, active)`` is the volume flavours' inside test."""
     frame = mi.Frame3f(n_view)
     rng = mi.PCG32(size=N, initstate=dr.opaque(mi.UInt64, seed), initseq=dr.arange(mi.UInt64, N))
     R = dr.opaque(mi.Float, radius)
 
     def body(k, s1, s2, rng):
         if weighting in ao_volume.VOLUME_WEIGHTINGS:
-            v = ao_volume.visibility(mi, dr, mscene, origin_si.p, eye, frame, R_v2s, R, rng, active, weighting)
+            v = ao_volume.visibility(mi, dr, is_inside, origin_si.p, frame, R_v2s, R, rng, active, weighting)
         else:
             v = _ray_visibility(mi, dr, mscene, origin_si, frame, R_v2s, R, rng, active, weighting)
         return k + 1, s1 + v, s2 + v * v, rng
@@ -214,67 +215,16 @@ def ambient_occlusion(scene, gbuffer: GBuffer, radius: float, rays: int = 256, w
     mi, dr, mscene, ph = trace_primaries(sc, cam, "ambient_occlusion")
     W, H = cam.width, cam.height
     si, hit = ph.si, ph.hit
-    mean, err = _estimate(mi, dr, mscene, si, ph.ray.o, ph.n_view, ph.v2w, hit, float(radius), rays, weighting, seed,
+    def is_inside(s, active):
+        return ao_volume.inside(mi, dr, mscene, ph.ray.o, s, active)
+
+    mean, err = _estimate(mi, dr, mscene, si, is_inside, ph.n_view, ph.v2w, hit, float(radius), rays, weighting, seed,
                           W * H)
     ao, se = _to_torch(mi, dr, mean, err, hit, H, W)
     secs = time.perf_counter() - t0
     if use_cache:
         cache.store(key, {"ao": ao.numpy(), "stderr": se.numpy(), "seconds": np.array(secs)})
     return AOReference(ao, se, weighting, float(radius), rays, secs)
-
-
-def heightfield_mesh(gbuffer: GBuffer) -> tuple[np.ndarray, np.ndarray]:
-    """View-space vertices :math:`(H·W, 3)` (pixel-centre positions; background on the far plane) and
-    triangle indices :math:`(2(H−1)(W−1), 3)` joining every 2×2 block of pixels, counter-clockwise as seen
-    from the camera."""
-    gbuffer.require("position")
-    H, W = gbuffer.height, gbuffer.width
-    verts = gbuffer.position[0].permute(1, 2, 0).reshape(-1, 3).double().numpy().astype(np.float32)
-    j, i = np.meshgrid(np.arange(H - 1), np.arange(W - 1), indexing="ij")
-    a = (j * W + i).ravel()                       # top-left of each block (row 0 is the top)
-    b, c, d = a + 1, a + W, a + W + 1              # top-right, bottom-left, bottom-right
-    faces = np.concatenate([np.stack([a, c, b], 1), np.stack([b, c, d], 1)]).astype(np.uint32)
-    return verts, faces
-
-
-@dataclass(frozen=True)
-class HeightField:
-    """The depth buffer as a loaded Mitsuba scene (:func:`heightfield_mesh`) and the oracle's ray origins: the
-    G-buffer's ``position`` and ``normal`` per pixel (Dr.Jit arrays of length H·W) and ``hit`` (its ``mask``)."""
-
-    scene: object
-    origin: object
-    n_view: object
-    hit: object
-
-
-#: the last G-buffer's height field (its BVH takes ~0.2 s at 640×360 and every flavour of the oracle traces it)
-_LAST_HEIGHTFIELD: dict = {}
-
-
-def _heightfield_scene(mi, dr, gbuffer: GBuffer, digest: str) -> HeightField:
-    """:class:`HeightField` of ``gbuffer`` (``digest``: the hash of its position, normal and mask), built once and
-    kept for the next call on the same G-buffer."""
-    key = (digest, gbuffer.height, gbuffer.width)
-    if key in _LAST_HEIGHTFIELD:
-        return _LAST_HEIGHTFIELD[key]
-    _LAST_HEIGHTFIELD.clear()
-    verts, faces = heightfield_mesh(gbuffer)
-    mesh = mi.Mesh("heightfield", len(verts), len(faces), has_vertex_normals=False)
-    params = mi.traverse(mesh)
-    params["vertex_positions"] = mi.Float(verts.ravel())
-    params["faces"] = mi.UInt32(faces.ravel())
-    params.update()
-    mscene = mi.load_dict({"type": "scene", "heightfield": mesh})
-    p = gbuffer.position[0].reshape(3, -1).float()
-    n = gbuffer.normal[0].reshape(3, -1).float()
-    origin = dr.zeros(mi.SurfaceInteraction3f, gbuffer.height * gbuffer.width)   # spawn_ray reads p, n, time, λ
-    origin.p = mi.Point3f(mi.Float(p[0].contiguous()), mi.Float(p[1].contiguous()), mi.Float(p[2].contiguous()))
-    n_view = mi.Vector3f(mi.Float(n[0].contiguous()), mi.Float(n[1].contiguous()), mi.Float(n[2].contiguous()))
-    origin.n = mi.Normal3f(n_view)
-    hf = HeightField(mscene, origin, n_view, mi.Bool(gbuffer.mask.reshape(-1).contiguous()))
-    _LAST_HEIGHTFIELD[key] = hf
-    return hf
 
 
 def screen_space_oracle(gbuffer: GBuffer, radius: float, rays: int = 256, weighting: str = "cosine",
@@ -289,7 +239,7 @@ def screen_space_oracle(gbuffer: GBuffer, radius: float, rays: int = 256, weight
     h = hashlib.sha256()
     for t in (gbuffer.position, gbuffer.normal, gbuffer.mask):
         h.update(t.contiguous().numpy().tobytes())
-    key = cache.make_key("oracle", _KERNEL_VERSION, h.hexdigest(), gbuffer.camera, float(radius), rays,
+    key = cache.make_key("oracle", _ORACLE_VERSION, h.hexdigest(), gbuffer.camera, float(radius), rays,
                          weighting, seed)
     hit_c = cache.load(key) if use_cache else None
     if hit_c is not None:
@@ -301,8 +251,12 @@ def screen_space_oracle(gbuffer: GBuffer, radius: float, rays: int = 256, weight
     mi = backend.mitsuba()
     import drjit as dr
     H, W = gbuffer.height, gbuffer.width
-    hf = _heightfield_scene(mi, dr, gbuffer, h.hexdigest())
-    mean, err = _estimate(mi, dr, hf.scene, hf.origin, mi.Point3f(0.0), hf.n_view, mi.Transform4f(), hf.hit,
+    hf = heightfield.load(mi, dr, gbuffer, h.hexdigest())
+
+    def is_inside(s, active):
+        return heightfield.behind(mi, dr, hf, s, active)
+
+    mean, err = _estimate(mi, dr, hf.scene, hf.origin, is_inside, hf.n_view, mi.Transform4f(), hf.hit,
                           float(radius), rays, weighting, seed, W * H)
     ao, se = _to_torch(mi, dr, mean, err, hf.hit, H, W)
     secs = time.perf_counter() - t0

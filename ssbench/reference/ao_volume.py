@@ -26,8 +26,9 @@ to the eye is met from its back side (geometric normal along the ray, ``n·d > 0
 an open surface (a floor, a wall) as the camera sees it. A segment that meets nothing, or meets a surface's
 front first, leaves ``S`` outside: in the open, possibly behind a thin object — which is exactly where a
 depth-buffer count goes wrong (information loss, scored by the oracle). Run against the height-field mesh of
-the depth buffer (the oracle), "inside" is "behind the depth buffer": what the passes count. (Aiming the
-segment at ``P`` instead would meet the height field exactly at a vertex, where rays slip through.)
+the depth buffer (the oracle), "inside" is "behind the depth buffer": what the passes count; there the segment
+lies on one line of sight, so :func:`ssbench.reference.heightfield.behind` answers it by lookup instead of tracing.
+(Aiming the segment at ``P`` instead would meet the height field exactly at a vertex, where rays slip through.)
 """
 from __future__ import annotations
 
@@ -65,8 +66,10 @@ def inside(mi, dr, mscene, eye, s, active):
     return ok & si.is_valid() & (dr.dot(si.n, d) > 0)
 
 
-def visibility(mi, dr, mscene, p, eye, frame, R_v2s, radius, rng, active, weighting: str):
-    """Per-sample visibility (1 outside, 0 inside) of one kernel point ``S = p + R·k`` per pixel."""
+def visibility(mi, dr, is_inside, p, frame, R_v2s, radius, rng, active, weighting: str):
+    """Per-sample visibility (1 outside, 0 inside) of one kernel point ``S = p + R·k`` per pixel; ``is_inside(s,
+    active)`` answers the inside test (:func:`inside` against the scene, or
+    :func:`ssbench.reference.heightfield.behind` for the oracle)."""
     k = kernel_point(mi, dr, rng, weighting)
     s = p + (R_v2s @ frame.to_world(k)) * radius
-    return dr.select(inside(mi, dr, mscene, eye, s, active), 0.0, 1.0)
+    return dr.select(is_inside(s, active), 0.0, 1.0)

@@ -215,6 +215,7 @@ def ambient_occlusion(scene, gbuffer: GBuffer, radius: float, rays: int = 256, w
     mi, dr, mscene, ph = trace_primaries(sc, cam, "ambient_occlusion")
     W, H = cam.width, cam.height
     si, hit = ph.si, ph.hit
+
     def is_inside(s, active):
         return ao_volume.inside(mi, dr, mscene, ph.ray.o, s, active)
 

@@ -33,6 +33,7 @@ from __future__ import annotations
 import hashlib
 import time
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 import torch
@@ -74,20 +75,42 @@ def check_arguments(gbuffer: GBuffer, radius: float, rays: int, weighting: str, 
         raise ValueError(f"gbuffer: batch size must be 1, got {gbuffer.batch_size}")
 
 
-def _estimate(mi, dr, mscene, origin_si, is_inside, n_view, R_v2s, active, radius, rays, weighting, seed, N):
+@dataclass(frozen=True)
+class RaySource:
+    """Where each pixel's samples start and what they are tested against (Dr.Jit values, one per pixel).
+
+    Attributes:
+        scene: the Mitsuba scene the ray flavours trace (the full scene, or the depth buffer's height field).
+        origin: a ``SurfaceInteraction3f`` whose ``spawn_ray`` offsets each ray (reads ``p``, ``n``).
+        n_view: the view-space normal, the frame the directions are drawn in.
+        view_to_tracing: the rotation from view space to the space ``scene`` lives in.
+        active: ``Bool``, pixels with a surface.
+        is_inside: ``is_inside(s, active)``, the volume flavours' inside test of points in tracing space.
+    """
+
+    scene: object
+    origin: object
+    n_view: object
+    view_to_tracing: object
+    active: object
+    is_inside: Callable
+
+
+def _estimate(mi, dr, src: RaySource, radius: float, rays: int, weighting: str, seed: int):
     """Accumulate per-pixel mean and variance over ``rays`` directions, in one Dr.Jit kernel (a symbolic
     ``while_loop`` over the rays: the same draws and sums, in the same order, as one kernel per ray, which
     launched ``rays`` kernels and ran 1.1–2.5× slower: 33 → 53 Mrays/s on cornell_box, cosine, 320×240, 256 rays,
-    2 threads). ``is_inside(s, active)`` is the volume flavours' inside test."""
-    frame = mi.Frame3f(n_view)
+    2 threads)."""
+    N, active, R_v2s = dr.width(src.active), src.active, src.view_to_tracing
+    frame = mi.Frame3f(src.n_view)
     rng = mi.PCG32(size=N, initstate=dr.opaque(mi.UInt64, seed), initseq=dr.arange(mi.UInt64, N))
     R = dr.opaque(mi.Float, radius)
 
     def body(k, s1, s2, rng):
         if weighting in ao_volume.VOLUME_WEIGHTINGS:
-            v = ao_volume.visibility(mi, dr, is_inside, origin_si.p, frame, R_v2s, R, rng, active, weighting)
+            v = ao_volume.visibility(mi, dr, src.is_inside, src.origin.p, frame, R_v2s, R, rng, active, weighting)
         else:
-            v = _ray_visibility(mi, dr, mscene, origin_si, frame, R_v2s, R, rng, active, weighting)
+            v = _ray_visibility(mi, dr, src, frame, R, rng, weighting)
         return k + 1, s1 + v, s2 + v * v, rng
 
     _, s1, s2, rng = dr.while_loop((mi.UInt32(0), dr.zeros(mi.Float, N), dr.zeros(mi.Float, N), rng),
@@ -101,12 +124,13 @@ def _estimate(mi, dr, mscene, origin_si, is_inside, n_view, R_v2s, active, radiu
     return mean, dr.sqrt(var)
 
 
-def _ray_visibility(mi, dr, mscene, origin_si, frame, R_v2s, R, rng, active, weighting):
+def _ray_visibility(mi, dr, src: RaySource, frame, R, rng, weighting: str):
     """Visibility of one hemisphere direction per pixel (uniform / cosine: binary; obscurance: (t/R)²)."""
+    mscene, active = src.scene, src.active
     u = mi.Point2f(rng.next_float32(), rng.next_float32())
     local = (mi.warp.square_to_cosine_hemisphere(u) if weighting == "cosine"
              else mi.warp.square_to_uniform_hemisphere(u))
-    ray = origin_si.spawn_ray(R_v2s @ frame.to_world(local))               # view frame -> tracing space
+    ray = src.origin.spawn_ray(src.view_to_tracing @ frame.to_world(local))   # view frame -> tracing space
     ray.maxt = R
     if weighting == "obscurance":
         pi = mscene.ray_intersect_preliminary(ray, active=active)
@@ -214,14 +238,13 @@ def ambient_occlusion(scene, gbuffer: GBuffer, radius: float, rays: int = 256, w
     t0 = time.perf_counter()
     mi, dr, mscene, ph = trace_primaries(sc, cam, "ambient_occlusion")
     W, H = cam.width, cam.height
-    si, hit = ph.si, ph.hit
 
     def is_inside(s, active):
         return ao_volume.inside(mi, dr, mscene, ph.ray.o, s, active)
 
-    mean, err = _estimate(mi, dr, mscene, si, is_inside, ph.n_view, ph.v2w, hit, float(radius), rays, weighting, seed,
-                          W * H)
-    ao, se = _to_torch(mi, dr, mean, err, hit, H, W)
+    src = RaySource(mscene, ph.si, ph.n_view, ph.v2w, ph.hit, is_inside)
+    mean, err = _estimate(mi, dr, src, float(radius), rays, weighting, seed)
+    ao, se = _to_torch(mi, dr, mean, err, ph.hit, H, W)
     secs = time.perf_counter() - t0
     if use_cache:
         cache.store(key, {"ao": ao.numpy(), "stderr": se.numpy(), "seconds": np.array(secs)})
@@ -257,8 +280,8 @@ def screen_space_oracle(gbuffer: GBuffer, radius: float, rays: int = 256, weight
     def is_inside(s, active):
         return heightfield.behind(mi, dr, hf, s, active)
 
-    mean, err = _estimate(mi, dr, hf.scene, hf.origin, is_inside, hf.n_view, mi.Transform4f(), hf.hit,
-                          float(radius), rays, weighting, seed, W * H)
+    src = RaySource(hf.scene, hf.origin, hf.n_view, mi.Transform4f(), hf.hit, is_inside)
+    mean, err = _estimate(mi, dr, src, float(radius), rays, weighting, seed)
     ao, se = _to_torch(mi, dr, mean, err, hf.hit, H, W)
     secs = time.perf_counter() - t0
     if use_cache:

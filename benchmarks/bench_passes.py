@@ -181,12 +181,11 @@ def main() -> int:
     ap.add_argument("--one", nargs=3, metavar=("EFFECT", "METHOD", "GBUFFER"), help=argparse.SUPPRESS)
     ap.add_argument("--compiled", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args()
-    from ssbench.bench.timing import TimingSpec
+    from ssbench.bench.timing import TimingSpec, TimingSpecError
     try:                                            # the timing arguments, checked before any G-buffer is rendered
         TimingSpec(min_run_time=a.min_run_time, warmup=1, rounds=a.rounds)
-    except ValueError as e:
-        name, why = str(e).split(": ", 1)
-        ap.error(f"--{name.replace('_', '-')}: {why}")
+    except TimingSpecError as e:
+        ap.error(f"--{e.field.replace('_', '-')}: {e.reason}")
     if a.one:
         print(json.dumps(one(*a.one, a.compiled, a.min_run_time, a.threads, a.rounds)))
         return 0

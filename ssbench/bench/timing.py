@@ -44,8 +44,8 @@ import torch
 
 from .heap import steady_heap
 
-__all__ = ["TimingSpec", "nonfinite_on_valid", "median_iqr", "steady_heap", "sync_device", "timeit_calls",
-           "warm_up", "plan_rounds", "run_rounds", "round_fields", "prepare", "time_pass", "agree",
+__all__ = ["TimingSpec", "TimingSpecError", "nonfinite_on_valid", "median_iqr", "steady_heap", "sync_device",
+           "timeit_calls", "warm_up", "plan_rounds", "run_rounds", "round_fields", "prepare", "time_pass", "agree",
            "TIMING_FIELDS", "MIN_ROUNDS"]
 
 TIMING_FIELDS = ("time_median_ms", "time_iqr_ms", "time_blocks", "floor_median_ms", "floor_iqr_ms",
@@ -60,6 +60,14 @@ MIN_ROUNDS = 9
 
 def _is_int(v: Any) -> bool:
     return isinstance(v, int) and not isinstance(v, bool)
+
+
+class TimingSpecError(ValueError):
+    """A bad :class:`TimingSpec` field: ``field`` names it, ``reason`` says why; the message is ``"field: reason"``."""
+
+    def __init__(self, field: str, reason: str) -> None:
+        super().__init__(f"{field}: {reason}")
+        self.field, self.reason = field, reason
 
 
 @dataclasses.dataclass(frozen=True)
@@ -98,18 +106,18 @@ class TimingSpec:
     def __post_init__(self) -> None:
         if isinstance(self.min_run_time, bool) or not isinstance(self.min_run_time, (int, float)) \
                 or not self.min_run_time > 0 or not math.isfinite(self.min_run_time):
-            raise ValueError(f"min_run_time: must be a number > 0, got {self.min_run_time!r}")
+            raise TimingSpecError("min_run_time", f"must be a number > 0, got {self.min_run_time!r}")
         if not _is_int(self.warmup) or self.warmup < 0:
-            raise ValueError(f"warmup: must be an integer >= 0, got {self.warmup!r}")
+            raise TimingSpecError("warmup", f"must be an integer >= 0, got {self.warmup!r}")
         for name in ("floor", "fused_floor"):
             if not isinstance(getattr(self, name), bool):
-                raise ValueError(f"{name}: expected true or false, got {getattr(self, name)!r}")
+                raise TimingSpecError(name, f"expected true or false, got {getattr(self, name)!r}")
         if not _is_int(self.rounds) or self.rounds < 3:
-            raise ValueError(f"rounds: must be an integer >= 3, got {self.rounds!r}")
+            raise TimingSpecError("rounds", f"must be an integer >= 3, got {self.rounds!r}")
         if not _is_int(self.interleave) or self.interleave < 0 or self.interleave == 1:
-            raise ValueError(f"interleave: must be 0 (off) or an integer >= 2, got {self.interleave!r}")
+            raise TimingSpecError("interleave", f"must be 0 (off) or an integer >= 2, got {self.interleave!r}")
         if not _is_int(self.processes) or self.processes < 1:
-            raise ValueError(f"processes: must be an integer >= 1, got {self.processes!r}")
+            raise TimingSpecError("processes", f"must be an integer >= 1, got {self.processes!r}")
 
 
 def nonfinite_on_valid(output: torch.Tensor, valid: torch.Tensor) -> int:

@@ -129,10 +129,13 @@ def test_floor_off_and_thread_count_restored():
 
 @pytest.mark.parametrize("kw, field", [({"min_run_time": 0}, "min_run_time"), ({"warmup": -1}, "warmup"),
                                        ({"floor": "yes"}, "floor"), ({"rounds": 2}, "rounds"),
-                                       ({"rounds": True}, "rounds")])
+                                       ({"rounds": True}, "rounds"), ({"fused_floor": 1}, "fused_floor"),
+                                       ({"interleave": 1}, "interleave"), ({"processes": 0}, "processes")])
 def test_spec_validation(kw, field):
-    with pytest.raises(ValueError, match=f"^{field}:"):
+    with pytest.raises(T.TimingSpecError, match=f"^{field}:") as e:        # a ValueError naming the field
         T.TimingSpec(**kw)
+    assert isinstance(e.value, ValueError) and e.value.field == field
+    assert e.value.reason.startswith(("must", "expected"))
 
 
 def test_agree_is_within_the_iqr():

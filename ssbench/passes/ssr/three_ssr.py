@@ -88,7 +88,7 @@ class ThreeSSRParams:
 RAY_CHUNK = 1 << 18
 
 
-class MarchOutput(NamedTuple):
+class RayEnds(NamedTuple):
     """Per ray, what the march hands the outputs, :math:`(m,)` or :math:`(m, C)`: ``term`` (int8), ``steps``
     (int32), the hit texel ``hit_k`` (flat in its batch item), the hit's ``hit_xy`` (GL pixels) and ``hit_vp``."""
 
@@ -100,7 +100,7 @@ class MarchOutput(NamedTuple):
 
 
 def march_rays(ray: torch.Tensor, b: torch.Tensor, r: ThreeRays, shade: Shading, textures: StepTextures,
-               p: "ThreeSSRParams", max_step: int, out: MarchOutput) -> None:
+               p: "ThreeSSRParams", max_step: int, out: RayEnds) -> None:
     """Steps 3–4 for the rays ``ray`` (their rows of ``out``; ``b`` their batch items in the texel index dtype, ``r``
     their set-up): the pixel DDA, :data:`~ssbench.passes.compiled.STEPS_PER_CALL` steps per compiled call, stopped
     rays dropped now and then; each ray's end and hit written into ``out``."""
@@ -165,7 +165,7 @@ def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
     shade = Shading(cam, p.max_distance, (H, W), depth, vz_tex, normal)
     b, k = torch.nonzero(gbuffer.mask.reshape(B, HW) & (-vz_tex < far), as_tuple=True)   # rays: no early return
     m = len(k)
-    out = MarchOutput(term=torch.full((m,), OUT_OF_STEPS, dtype=torch.int8, device=dev),
+    out = RayEnds(term=torch.full((m,), OUT_OF_STEPS, dtype=torch.int8, device=dev),
                       steps=torch.zeros(m, dtype=torch.int32, device=dev),
                       hit_k=torch.zeros(m, dtype=index_dtype(B * HW), device=dev),
                       hit_xy=torch.zeros(m, 2, dtype=dt, device=dev), hit_vp=torch.zeros(m, 3, dtype=dt, device=dev))

@@ -100,6 +100,7 @@ def bent_normals(scene, gbuffer: GBuffer, radius: float, rays: int = 256, seed: 
     b = m / length.clamp_min(1e-300)[:, None]
     perp = (cov.diagonal(dim1=1, dim2=2).sum(1) - torch.einsum("pi,pij,pj->p", b, cov, b)).clamp_min(0.0)
     err = torch.rad2deg((perp / n).sqrt() / length.clamp_min(1e-300))
+    dr.eval(ph.hit, ph.n_view)                          # together: each conversion alone re-traced the primaries
     hit = ph.hit.torch().bool()
     shading = ph.n_view.torch().double().T                                        # (3, P) -> (P, 3)
     some = length > 0

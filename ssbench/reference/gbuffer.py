@@ -121,6 +121,7 @@ def _render_jit(sc: Scene, cam: Camera, chans: tuple[str, ...]) -> dict[str, np.
     r = _trace(mi, dr, mscene, cam, "back_z" in chans, "albedo" in chans and any(_albedo_at_hit(sc)),
                "second_z" in chans)
     H, W = cam.height, cam.width
+    dr.eval(r)                                   # every channel in one kernel (one conversion each re-traced)
     # Dr.Jit -> torch by DLPack (.torch(): zero-copy for flat arrays); numpy views of those for the cache
     img = lambda a: a.torch().reshape(1, 1, H, W).numpy()                        # noqa: E731
     vec = lambda v: np.concatenate([img(v.x), img(v.y), img(v.z)], 1)            # noqa: E731

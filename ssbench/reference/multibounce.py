@@ -119,8 +119,9 @@ def multibounce_ao(scene, gbuffer: GBuffer, radius: float, rays: int = 256, seed
     n = float(rays)
     mean = torch.stack(sums[:3], 1) / n                                            # (P, 3)
     var = ((torch.stack(sums[3:6], 1) - n * mean * mean) / (n - 1.0)).clamp_min(0.0)
-    hit = ph.hit.torch().bool()
     own = ph.si.bsdf().eval_diffuse_reflectance(ph.si, ph.hit)
+    dr.eval(ph.hit, own)                                # together: each conversion alone re-traced the primaries
+    hit = ph.hit.torch().bool()
     albedo = torch.stack([own.x.torch(), own.y.torch(), own.z.torch()], 1).double() * float(albedo_scale)
     img = lambda x, c: x.float().reshape(H, W, c).permute(2, 0, 1)[None].contiguous()    # noqa: E731
     out = {"ao": img(torch.where(hit[:, None], mean, 1.0), 3),

@@ -132,10 +132,13 @@ def reflections(scene, gbuffer: GBuffer, *, spp: int = 16, seed: int = 0, use_ca
         sampler.seed(dr.opaque(mi.UInt32, pass_seed(seed, k)), N)
         L, _, _ = integrator.sample(mscene, sampler, mi.RayDifferential3f(rray), None, valid)
         L = dr.select(valid, L, 0.0)
+        dr.eval(L)                                   # one kernel for x, y, z (one conversion each traced 3 paths)
         acc += torch.stack([L.x.torch(), L.y.torch(), L.z.torch()]).double()
     radiance = (acc / spp).reshape(1, 3, H, W).float()
 
     # ---- To torch, project the hits (float64) ----
+    ray_t = si_r.t + step
+    dr.eval(hit, valid, p, visible, back_face, hit_shape, ray_t)       # one kernel, not one trace per conversion
     mask = lambda b: b.torch().reshape(1, 1, H, W).clone()                   # noqa: E731
     hit_t, valid_t = mask(hit), mask(valid)
     pw = torch.where(hit_t, _vec(p, H, W), torch.zeros(1, 3, H, W, dtype=torch.float64))
@@ -144,7 +147,7 @@ def reflections(scene, gbuffer: GBuffer, *, spp: int = 16, seed: int = 0, use_ca
     px = torch.where(in_front, cam.view_to_pixel(torch.where(in_front, pv, -torch.ones_like(pv))),
                      torch.full((1, 2, H, W), -1.0, dtype=torch.float64))
     on_screen = in_front & (px[:, :1] >= 0) & (px[:, :1] < W) & (px[:, 1:] >= 0) & (px[:, 1:] < H)
-    length = torch.where(hit_t, (si_r.t + step).torch().double().reshape(1, 1, H, W),
+    length = torch.where(hit_t, ray_t.torch().double().reshape(1, 1, H, W),
                          torch.full((1, 1, H, W), float("inf"), dtype=torch.float64))
     out = dict(valid=valid_t, hit=hit_t, hit_world=pw.float(), hit_view=pv.float(), hit_pixel=px.float(),
                on_screen=on_screen, visible=mask(visible), back_face=mask(back_face),

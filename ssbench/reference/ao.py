@@ -157,7 +157,7 @@ def jeffreys_variance(k, n):
     return (k + 0.5) * (n - k + 0.5) / ((n + 1.0) ** 2 * (n + 2.0))
 
 
-def _to_torch(mi, dr, mean, err, hit, H, W) -> tuple[torch.Tensor, torch.Tensor]:
+def _to_torch(dr, mean, err, hit, H, W) -> tuple[torch.Tensor, torch.Tensor]:
     """AO and its standard error as torch images. Both are evaluated in one kernel: converting one lazy array at a
     time ran the whole ray loop once per array (twice the tracing)."""
     ao, se = dr.select(hit, mean, 1.0), dr.select(hit, err, 0.0)
@@ -246,7 +246,7 @@ def ambient_occlusion(scene, gbuffer: GBuffer, radius: float, rays: int = 256, w
 
     src = RaySource(mscene, ph.si, ph.n_view, ph.v2w, ph.hit, is_inside)
     mean, err = _estimate(mi, dr, src, float(radius), rays, weighting, seed)
-    ao, se = _to_torch(mi, dr, mean, err, ph.hit, H, W)
+    ao, se = _to_torch(dr, mean, err, ph.hit, H, W)
     secs = time.perf_counter() - t0
     if use_cache:
         cache.store(key, {"ao": ao.numpy(), "stderr": se.numpy(), "seconds": np.array(secs)})
@@ -284,7 +284,7 @@ def screen_space_oracle(gbuffer: GBuffer, radius: float, rays: int = 256, weight
 
     src = RaySource(hf.scene, hf.origin, hf.n_view, mi.Transform4f(), hf.hit, is_inside)
     mean, err = _estimate(mi, dr, src, float(radius), rays, weighting, seed)
-    ao, se = _to_torch(mi, dr, mean, err, hf.hit, H, W)
+    ao, se = _to_torch(dr, mean, err, hf.hit, H, W)
     secs = time.perf_counter() - t0
     if use_cache:
         cache.store(key, {"ao": ao.numpy(), "stderr": se.numpy(), "seconds": np.array(secs)})

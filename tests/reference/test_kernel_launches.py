@@ -41,10 +41,9 @@ def test_ao_truth_and_oracle_trace_their_rays_once(g, weighting):
     assert _kernels(lambda: screen_space_oracle(g, 0.5, 8, weighting, use_cache=False)) == 1
 
 
-def test_reflections_trace_each_sample_once():
+def test_reflections_trace_each_sample_once(g):
     """One kernel for the mirror rays, one per radiance sample, one for the hit records (it was 3 per sample and
     one per hit record)."""
-    g = gbuffer("reflective_floor", W, H, channels=CH)
     assert _kernels(lambda: reflections("reflective_floor", g, spp=3, use_cache=False)) == 3 + 2
 
 

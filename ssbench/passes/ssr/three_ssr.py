@@ -166,9 +166,9 @@ def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
     b, k = torch.nonzero(gbuffer.mask.reshape(B, HW) & (-vz_tex < far), as_tuple=True)   # rays: no early return
     m = len(k)
     out = RayEnds(term=torch.full((m,), OUT_OF_STEPS, dtype=torch.int8, device=dev),
-                      steps=torch.zeros(m, dtype=torch.int32, device=dev),
-                      hit_k=torch.zeros(m, dtype=index_dtype(B * HW), device=dev),
-                      hit_xy=torch.zeros(m, 2, dtype=dt, device=dev), hit_vp=torch.zeros(m, 3, dtype=dt, device=dev))
+                  steps=torch.zeros(m, dtype=torch.int32, device=dev),
+                  hit_k=torch.zeros(m, dtype=index_dtype(B * HW), device=dev),
+                  hit_xy=torch.zeros(m, 2, dtype=dt, device=dev), hit_vp=torch.zeros(m, 3, dtype=dt, device=dev))
     textures = StepTextures(depth.reshape(-1), vz_tex.reshape(-1), shade.minv, normal.reshape(B * HW, 3))
     ends = torch.zeros(m, 3, dtype=dt, device=dev) if debug else None
     for c0 in range(0, m, RAY_CHUNK):                       # a bounded working set: RAY_CHUNK rays at a time

@@ -120,6 +120,8 @@ def glossy_reflections(scene, gbuffer: GBuffer, *, rays: int = 32, seed: int = 0
     n = dr.select(dr.dot(si.sh_frame.n, ph.ray.d) > 0, -si.sh_frame.n, si.sh_frame.n)
     frame = mi.Frame3f(n)
     wi = frame.to_local(-ph.ray.d)
+    # the primary hits, once: left lazy, every ray's kernel below would trace the pixel-centre rays again
+    dr.eval(si.p, si.n, frame, wi, hit)
     distr = mi.MicrofacetDistribution(mi.MicrofacetType.GGX, mi.Float(np.maximum(rough.numpy() ** 2, 1e-3)), True)
     rng = mi.PCG32(size=N, initstate=dr.opaque(mi.UInt64, seed), initseq=dr.arange(mi.UInt64, N))
     sampler = mi.load_dict({"type": "independent"})

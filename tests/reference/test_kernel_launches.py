@@ -8,6 +8,7 @@ count, not a time, so they hold on any machine.
 import pytest
 
 from ssbench.reference import WEIGHTINGS, ambient_occlusion, backend, gbuffer, reflections, screen_space_oracle
+from ssbench.reference.glossy import GLOSSY_CHANNELS, glossy_reflections
 from ssbench.reference.multibounce import multibounce_ao
 
 pytestmark = [pytest.mark.slow, pytest.mark.mitsuba]
@@ -15,8 +16,9 @@ W, H = 32, 24
 CH = ("position", "normal", "mask", "view_z", "shape_id", "back_z", "second_z")
 
 
-def _kernels(fn) -> int:
-    """JIT kernels of the image's size that ``fn()`` launches (after a first call that compiles them)."""
+def _trace_sites(fn) -> list[int]:
+    """One entry per JIT kernel of the image's size that ``fn()`` launches (after a first call that compiles
+    them): the ray-tracing call sites in its LLVM IR (Dr.Jit marks each one), a static count."""
     backend.mitsuba()
     import drjit as dr
     fn()
@@ -27,7 +29,13 @@ def _kernels(fn) -> int:
         history = dr.kernel_history()
     finally:
         dr.set_flag(dr.JitFlag.KernelHistory, False)
-    return sum(1 for k in history if k.get("type") == dr.KernelType.JIT and k.get("size") == W * H)
+    return [k["ir"].getvalue().count("-------- Ray trace") for k in history
+            if k.get("type") == dr.KernelType.JIT and k.get("size") == W * H]
+
+
+def _kernels(fn) -> int:
+    """JIT kernels of the image's size that ``fn()`` launches."""
+    return len(_trace_sites(fn))
 
 
 @pytest.fixture(scope="module")
@@ -53,3 +61,13 @@ def test_gbuffer_renders_its_channels_in_one_kernel():
 
 def test_multibounce_converts_its_primaries_once(g):
     assert _kernels(lambda: multibounce_ao("reflective_floor", g, 0.5, 8, use_cache=False)) == 2
+
+
+def test_glossy_traces_its_primary_rays_once():
+    """The pixel-centre rays are traced in one kernel before the directions; each direction's kernel then holds
+    only its own tracing: the scene's path integrator (as in a radiance sample of :func:`reflections`), the
+    lobe ray's hit record and the camera's visibility test (it re-traced the primaries in every one)."""
+    g = gbuffer("reflective_floor", W, H, channels=GLOSSY_CHANNELS + ("position", "normal", "view_z"))
+    path = _trace_sites(lambda: reflections("reflective_floor", g, spp=2, use_cache=False))[1]
+    sites = _trace_sites(lambda: glossy_reflections("reflective_floor", g, rays=3, use_cache=False))
+    assert sites == [1] + [path + 2] * 3

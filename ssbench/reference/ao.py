@@ -101,14 +101,14 @@ def _estimate(mi, dr, src: RaySource, radius: float, rays: int, weighting: str, 
     ``while_loop`` over the rays: the same draws and sums, in the same order, as one kernel per ray, which
     launched ``rays`` kernels and ran 1.1–2.5× slower: 33 → 53 Mrays/s on cornell_box, cosine, 320×240, 256 rays,
     2 threads)."""
-    N, active, R_v2s = dr.width(src.active), src.active, src.view_to_tracing
+    N = dr.width(src.active)
     frame = mi.Frame3f(src.n_view)
     rng = mi.PCG32(size=N, initstate=dr.opaque(mi.UInt64, seed), initseq=dr.arange(mi.UInt64, N))
     R = dr.opaque(mi.Float, radius)
 
     def body(k, s1, s2, rng):
         if weighting in ao_volume.VOLUME_WEIGHTINGS:
-            v = ao_volume.visibility(mi, dr, src.is_inside, src.origin.p, frame, R_v2s, R, rng, active, weighting)
+            v = ao_volume.visibility(mi, dr, src, frame, R, rng, weighting)
         else:
             v = _ray_visibility(mi, dr, src, frame, R, rng, weighting)
         return k + 1, s1 + v, s2 + v * v, rng

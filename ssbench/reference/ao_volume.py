@@ -66,10 +66,13 @@ def inside(mi, dr, mscene, eye, s, active):
     return ok & si.is_valid() & (dr.dot(si.n, d) > 0)
 
 
-def visibility(mi, dr, is_inside, p, frame, R_v2s, radius, rng, active, weighting: str):
-    """Per-sample visibility (1 outside, 0 inside) of one kernel point ``S = p + R·k`` per pixel; ``is_inside(s,
-    active)`` answers the inside test (:func:`inside` against the scene, or
-    :func:`ssbench.reference.heightfield.behind` for the oracle)."""
+def visibility(mi, dr, src, frame, radius, rng, weighting: str):
+    """Per-sample visibility (1 outside, 0 inside) of one kernel point ``S = p + R·k`` per pixel.
+
+    ``src`` is the caller's :class:`ssbench.reference.ao.RaySource`: ``p`` is ``src.origin.p``, ``k`` turns from
+    the normal's ``frame`` into tracing space by ``src.view_to_tracing``, and ``src.is_inside(s, active)`` answers
+    the inside test (:func:`inside` against the scene, or :func:`ssbench.reference.heightfield.behind` for the
+    oracle) on the pixels ``src.active``."""
     k = kernel_point(mi, dr, rng, weighting)
-    s = p + (R_v2s @ frame.to_world(k)) * radius
-    return dr.select(is_inside(s, active), 0.0, 1.0)
+    s = src.origin.p + (src.view_to_tracing @ frame.to_world(k)) * radius
+    return dr.select(src.is_inside(s, src.active), 0.0, 1.0)

@@ -179,11 +179,18 @@ def dda_step(state: DDAState, ray: DDARay, tex: tuple, size: tuple, z_thickness:
     term = torch.where(u > r.end, ended, OFF_SCREEN)                              # the full step's centre
     term = torch.where(off, OFF_SCREEN, torch.where(hit, HIT, term))
     done = past | off | hit | partial
-    keep = lambda a, a0: torch.where(marching, a, a0)                             # noqa: E731
-    state = DDAState(keep(Px, st.Px), keep(Py, st.Py), keep(Qz, st.Qz), keep(k, st.k), keep(n, st.n),
-                     keep(prevZ, st.prevZ), torch.where(done, 0, st.alive32), st.steps + live.to(torch.int32),
-                     torch.where(done, term.to(torch.int8), st.term))
-    return state, done, t, live
+    return next_state(st, marching, (Px, Py, Qz, k, n, prevZ), done, live, term), done, t, live
+
+
+def next_state(state: NamedTuple, marching: torch.Tensor, moved: tuple, done: torch.Tensor, live: torch.Tensor,
+               term: torch.Tensor) -> NamedTuple:
+    """The state after one step of a masked march (:func:`dda_step`, the supercover walk's ``walk_step``): the
+    state's leading fields become ``moved`` (in field order) where the ray was ``marching`` and stay elsewhere;
+    then ``alive32`` is cleared where the ray stopped (``done``), ``steps`` counts the ``live`` fetches and ``term``
+    takes the step's termination code where the ray stopped."""
+    kept = [torch.where(marching, a, a0) for a, a0 in zip(moved, state)]
+    return type(state)(*kept, torch.where(done, 0, state.alive32), state.steps + live.to(torch.int32),
+                       torch.where(done, term.to(torch.int8), state.term))
 
 
 @kernel(dynamic=True, fuse_whole=True)

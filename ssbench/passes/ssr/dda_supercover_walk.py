@@ -21,7 +21,7 @@ import torch
 
 from ..compiled import kernel
 from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS
-from .dda_march import marching_fields, masked_march, ray_view_z
+from .dda_march import marching_fields, masked_march, next_state, ray_view_z
 from .dda_state import DDARays, DepthTexels, MarchOutput
 
 __all__ = ["CellWalk", "WalkState", "WalkRay", "cell_setup", "hit_at", "walk_step", "walk_steps",
@@ -144,11 +144,7 @@ def walk_step(state: WalkState, ray: WalkRay, view_z: torch.Tensor, size: tuple,
     ended = torch.where(r.clipped32 != 0, BEHIND_CAMERA, MAX_DISTANCE)
     term = torch.where(past, ended, torch.where(off, OFF_SCREEN, HIT))
     done = past | off | hit
-    keep = lambda a, a0: torch.where(marching, a, a0)                             # noqa: E731
-    state = WalkState(keep(cx, st.cx), keep(cy, st.cy), keep(tx, st.tx), keep(ty, st.ty), keep(nA, st.nA),
-                      keep(zB, st.prevZ), torch.where(done, 0, st.alive32), st.steps + live.to(torch.int32),
-                      torch.where(done, term.to(torch.int8), st.term))
-    return state, done, t, live
+    return next_state(st, marching, (cx, cy, tx, ty, nA, zB), done, live, term), done, t, live
 
 
 def texel(cx, cy, permute, b, H: int, W: int) -> torch.Tensor:

@@ -31,7 +31,9 @@ def test_time_pass_fields_and_the_floors_gather_the_pass_sample_count(monkeypatc
     row = T.time_pass(_inputs(samples=7), T.TimingSpec(min_run_time=0.01, warmup=0), threads=1)
     assert set(row) == set(T.TIMING_FIELDS)
     assert seen == [("torch", (1, 1, 6, 8), 7), ("fused", (1, 1, 6, 8), 7)] and row["floor_samples"] == 7
-    assert row["time_median_ms"] > 0 and row["floor_median_ms"] > 0 and row["time_blocks"] == 15   # fast calls
+    assert row["time_median_ms"] > 0 and row["floor_median_ms"] > 0
+    # fast calls run every round; a loaded machine can make the warm-up slow enough to cut them (plan_rounds)
+    assert min(T.MIN_ROUNDS, T.TimingSpec().rounds) <= row["time_blocks"] <= T.TimingSpec().rounds
     assert row["floor_ratio"] > 0 and row["floor_ratio_iqr"] >= 0
     fused = real_fused(_inputs().texture, 7)
     if fused is None:                                                   # no LLVM backend here: nan, not 0

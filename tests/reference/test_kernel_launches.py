@@ -2,8 +2,9 @@
 
 Dr.Jit arrays are lazy: converting one output to torch evaluates only that output, and the next conversion runs
 the whole computation behind it again (the AO truth traced its ray loop twice, once for the AO and once for its
-standard error). These tests count the JIT kernels a call launches over the image (Dr.Jit's kernel history), a
-count, not a time, so they hold on any machine.
+standard error). These tests count the JIT kernels a call launches over the image (Dr.Jit's kernel history) and,
+where a value left lazy is traced again inside later kernels, the ray-trace sites in each kernel's IR: counts, not
+times, so they hold on any machine.
 """
 import pytest
 

@@ -297,7 +297,7 @@ class Camera:
         """Linear depth → view z (``orthographicDepthToViewZ``)."""
         return linear_depth * (self.near - self.far) - self.near
 
-    # ------------------------------------------------- position from depth (the SSAO article's two ways)
+    # ------------------------------------------------------------------ position from depth (SSAO article's two ways)
     def uv_to_view_params(self) -> tuple[float, float, float, float]:
         """HBAO ``UvToViewParams`` (SSAO article §3.3): ``(−2/F₁, −2/F₂, 1/F₁, 1/F₂)``.
 

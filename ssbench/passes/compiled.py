@@ -34,9 +34,11 @@ ulp apart from ATen's in a quarter of the rays, whose cross product ATen may com
 the thickness bound could end differently). Glossy SSR's ray reuse (``glossy_reuse.reuse_ray``:
 one ray's weighted sums over the whole window in one loop, its inputs padded outside the kernel) is compiled too:
 its resolved colours are within 4.8e-7 of eager in float32 (measured on three scenes, four settings), as inductor's
-divisions and roots round differently; without reuse it gives the same bits. Not compiled: the DDA's hit
-refinement, and the linear march's per-pixel ray set-up: compiled, its normalised reflection directions differ from
-ATen's in the last bit (1.8e-7), which moved refined hit points by up to 0.8 px.
+divisions and roots round differently; without reuse it gives the same bits. The linear march's per-pixel ray set-up
+is compiled around its reflection (``linear_rays.ray_origin`` before it, ``ray_steps`` after it: exact operations,
+the same bits, size-dynamic); the reflection itself stays eager, because compiled its normalised directions differed
+from ATen's in the last bit (1.8e-7), which moved refined hit points by up to 0.8 px. Not compiled: the DDA's hit
+refinement.
 
 Kernels compile without inductor's bounds check on gathered indices (``assert_indirect_indexing``): every kernel
 clamps its texel indices itself and is tested equal to its eager form, where ATen checks them; the check cost the
@@ -63,6 +65,8 @@ import time
 from typing import Any, Callable, Iterator, Optional
 
 import torch
+
+from ..camera import Camera
 
 __all__ = ["enabled", "compiling", "kernel", "compile_seconds", "band_samples", "step_blocks", "ENV",
            "KERNEL_VARIANTS", "WHOLE_FUSION_SIZE", "STEPS_PER_CALL"]
@@ -109,7 +113,9 @@ def compiling(on: bool = True) -> Iterator[None]:
 def _signature(args: tuple, kwargs: dict, dynamic: bool = False) -> tuple:
     """What makes a compiled kernel compile again: tensor shapes, dtypes and devices (inside tuples too, never
     their values) and the other arguments' values (parameter dataclasses, cameras, flags). A ``dynamic`` kernel
-    compiles once for all sizes and numbers: only tensors' ranks, dtypes and devices and the other values count."""
+    compiles once for all sizes and numbers: only tensors' ranks, dtypes and devices and the other values count, and
+    of a camera all but its width and height (dynamo makes those symbolic too; it keeps the field of view, the
+    planes and the pose as constants)."""
     def one(v: Any) -> Any:
         if isinstance(v, torch.Tensor):
             return ("T", v.dim() if dynamic else tuple(v.shape), v.dtype, v.device.type)
@@ -117,6 +123,8 @@ def _signature(args: tuple, kwargs: dict, dynamic: bool = False) -> tuple:
             return ("S", tuple(one(x) for x in v))
         if dynamic and isinstance(v, (int, float)) and not isinstance(v, bool):
             return ("N", type(v).__name__)
+        if dynamic and isinstance(v, Camera):
+            return ("C", v.eye, v.target, v.up, v.fovy_deg, v.near, v.far)
         return ("V", repr(v))
     return tuple(one(v) for v in args) + tuple((k, one(v)) for k, v in sorted(kwargs.items()))
 

@@ -61,6 +61,52 @@ def test_a_dynamic_kernel_counts_one_compilation_for_every_size_and_number():
     assert C._signature((torch.zeros(3),), {}) != C._signature((torch.zeros(5),), {})
     assert C._signature((torch.zeros(3), True), {}, dynamic=True) != C._signature((torch.zeros(3), False), {}, dynamic=True)
 
+    from ssbench.camera import Camera
+    cam = lambda w, h, fovy=60.0: Camera.from_look_at((0, 0, 0), (0, 0, -1), (0, 1, 0), fovy, w, h, 0.1, 9.0)  # noqa
+    dynamic = lambda *a: C._signature(a, {}, dynamic=True)                                             # noqa: E731
+    assert dynamic(cam(8, 6)) == dynamic(cam(40, 20)) != dynamic(cam(8, 6, 45.0))   # a camera's size is a number
+    assert C._signature((cam(8, 6),), {}) != C._signature((cam(40, 20),), {})
+
+
+@pytest.mark.slow
+def test_compiled_ssr_marchers_follow_every_changed_setting_as_a_sweep_does():
+    """A sweep runs one marcher compiled over many settings in one process, and a size-dynamic kernel takes the
+    numbers as symbols: after the defaults compiled, each float setting changed in turn (×0.55, or ×1.6 where
+    it must not shrink) must give the eager
+    result. torch 2.13 kept the first value of a float that fills a tensor (``clip_ray_length``'s limit), so the
+    linear march and glossy SSR (which marches it) traced the default ``max_ray_distance`` for any other."""
+    from ssbench.passes import SSR_METHODS, ssr_method
+    from tests.passes.ssr_scenes import room
+    g = room(48, 36, torch.float32)
+    g = dataclasses.replace(g, roughness=torch.full_like(g.roughness, 0.3))
+    checked = 0
+    for method in SSR_METHODS:
+        fn, params_cls, _ = ssr_method(method)
+        p0 = params_cls()
+        changed = [c for c in (_changed(p0, f.name) for f in dataclasses.fields(p0)) if c is not None]
+        for p in [p0] + changed:
+            with C.compiling(False):
+                eager = fn(g, p, generator=torch.Generator().manual_seed(0))
+            with C.compiling(True):
+                comp = fn(g, p, generator=torch.Generator().manual_seed(0))
+            assert torch.equal(eager.hit, comp.hit), (method, p)
+            assert torch.allclose(eager.color, comp.color, rtol=0, atol=1e-5), (method, p)
+            checked += p is not p0
+    assert checked >= 2 * len(SSR_METHODS)
+
+
+def _changed(p, name: str):
+    """``p`` with its positive float field ``name`` scaled by 0.55 (by 1.6 where that is out of range); None when the
+    field is not such a float or neither scale is allowed."""
+    v = getattr(p, name)
+    if type(v) is not float or not v > 0:
+        return None
+    for scale in (0.55, 1.6):
+        try:
+            return dataclasses.replace(p, **{name: v * scale})
+        except ValueError:
+            pass
+    return None
 
 def test_a_static_kernel_compiles_every_signature_past_dynamos_default_of_eight():
     """Dynamo keeps 8 compilations per function and then runs it eager without a word: a sweep's ninth parameter

@@ -6,7 +6,7 @@ classification in ``ssbench.metrics.ssr`` can compare what the pass found with t
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import Optional, Union
 
 import torch
 
@@ -69,19 +69,24 @@ def reflection_rays(position: torch.Tensor, normal: torch.Tensor) -> torch.Tenso
     return r / length(r).clamp_min(torch.finfo(r.dtype).tiny)
 
 
-def clip_ray_length(origin_z: torch.Tensor, dir_z: torch.Tensor, max_distance: float,
+def clip_ray_length(origin_z: torch.Tensor, dir_z: torch.Tensor, max_distance: Union[float, torch.Tensor],
                     near: float) -> torch.Tensor:
     """Ray length clipped so the end point stays in front of the near plane (SSR article §1.2, appendix A).
 
     ``rayLength = (P.z + R.z·maxDistance > −near) ? (−near − P.z) / R.z : maxDistance`` — rays heading toward
     the camera stop just before the near plane instead of crossing ``w = 0``.
+
+    ``max_distance`` is a number or a 0-d tensor of the rays' dtype (the same bits). A size-dynamic compiled kernel
+    passes the tensor: torch 2.13's ``torch.compile(dynamic=True)`` keeps the first call's value of a float argument
+    that fills a tensor (``full_like``, a ``where`` operand) while it multiplies by the new one, so a float here gave
+    wrong lengths from the second ``max_distance`` on (a tensor is an input, never a constant).
     """
     end_z = origin_z + dir_z * max_distance
     crossing = end_z > -near
     safe = torch.where(dir_z.abs() > 0, dir_z, torch.ones_like(dir_z))
     clipped = ((-near - origin_z) / safe).clamp_min(0.0)
-    return torch.where(crossing, torch.minimum(clipped, torch.full_like(clipped, max_distance)),
-                       torch.full_like(clipped, max_distance))
+    limit = max_distance if isinstance(max_distance, torch.Tensor) else torch.full_like(clipped, max_distance)
+    return torch.where(crossing, torch.minimum(clipped, limit), limit)
 
 
 def ray_segments(gbuffer, sel: torch.Tensor, max_ray_distance: float, directions: Optional[torch.Tensor] = None):

@@ -334,3 +334,42 @@ def test_the_compiled_march_gives_the_eager_bits_at_two_sizes_without_recompilin
     assert C.compile_seconds() == seconds
     assert march_steps.eager is not march_steps
 
+
+
+@pytest.mark.slow
+def test_the_compiled_ray_set_up_gives_the_eager_bits_for_every_position_source_and_a_batch():
+    """The set-up's kernels (``ray_origin`` before the reflection, ``ray_steps`` after it) compiled: the same rays,
+    bit for bit, for each ``position_from``, with jitter, on a batch of two images; a second image size and other
+    settings (numbers) compile nothing new, a new field of view does."""
+    from torch._dynamo.utils import counters
+
+    from ssbench.passes import compiled as C
+    from ssbench.passes.ssr.linear_rays import linear_rays, ray_origin, ray_steps
+    assert ray_origin.eager is not ray_origin and ray_steps.eager is not ray_steps
+    fields = ("ray", "base", "origin", "delta", "start", "clipped", "ray_length", "jitter")
+
+    def batch(w, h, fovy=60.0):
+        g = scene(w, h, walls=((-5.0, 0.4, 1.2),), fovy=fovy, dtype=torch.float32)
+        two = {n: torch.cat([getattr(g, n), getattr(g, n).flip(-1)]) for n in g.channels}   # a mirrored second image
+        return GBuffer(g.camera, **two)
+
+    def compare(g, p):
+        with C.compiling(False):
+            eager = linear_rays(g, p, torch.Generator().manual_seed(3))
+        with C.compiling(True):
+            comp = linear_rays(g, p, torch.Generator().manual_seed(3))
+        assert eager.ray.numel() > 0
+        for f in fields:
+            a, b = getattr(eager, f), getattr(comp, f)
+            assert (a is None and b is None) or torch.equal(a, b), f
+        assert torch.equal(eager.test.scene_z, comp.test.scene_z)
+
+    settings = [LinearSSRParams(position_from=s, jitter=j) for s in ("depth", "view_z", "position") for j in (0.0, 0.5)]
+    for p in settings:
+        compare(batch(24, 18), p)
+    seconds, graphs = C.compile_seconds(), counters["stats"]["unique_graphs"]
+    for p in (LinearSSRParams(iterations=9, max_ray_distance=7.0, jitter=0.25), LinearSSRParams(position_from="view_z")):
+        compare(batch(28, 16), p)
+    assert counters["stats"]["unique_graphs"] == graphs and C.compile_seconds() == seconds   # nothing new
+    compare(batch(28, 16, fovy=45.0), settings[0])
+    assert counters["stats"]["unique_graphs"] > graphs and C.compile_seconds() > seconds     # a new camera compiles

@@ -71,10 +71,10 @@ def test_a_dynamic_kernel_counts_one_compilation_for_every_size_and_number():
 @pytest.mark.slow
 def test_compiled_ssr_marchers_follow_every_changed_setting_as_a_sweep_does():
     """A sweep runs one marcher compiled over many settings in one process, and a size-dynamic kernel takes the
-    numbers as symbols: after the defaults compiled, each float setting changed in turn (×0.55, or ×1.6 where
-    it must not shrink) must give the eager
-    result. torch 2.13 kept the first value of a float that fills a tensor (``clip_ray_length``'s limit), so the
-    linear march and glossy SSR (which marches it) traced the default ``max_ray_distance`` for any other."""
+    numbers as symbols: after the defaults compiled, each numeric setting changed in turn (:func:`_changed`) must
+    give the eager result. torch 2.13 kept the first value of a float that fills a tensor (``clip_ray_length``'s
+    limit), so the linear march and glossy SSR (which marches it) traced the default ``max_ray_distance`` for any
+    other."""
     from ssbench.passes import SSR_METHODS, ssr_method
     from tests.passes.ssr_scenes import room
     g = room(48, 36, torch.float32)
@@ -92,21 +92,27 @@ def test_compiled_ssr_marchers_follow_every_changed_setting_as_a_sweep_does():
             assert torch.equal(eager.hit, comp.hit), (method, p)
             assert torch.allclose(eager.color, comp.color, rtol=0, atol=1e-5), (method, p)
             checked += p is not p0
-    assert checked >= 2 * len(SSR_METHODS)
+    assert checked >= 3 * len(SSR_METHODS)
 
 
 def _changed(p, name: str):
-    """``p`` with its positive float field ``name`` scaled by 0.55 (by 1.6 where that is out of range); None when the
-    field is not such a float or neither scale is allowed."""
+    """``p`` with its numeric field ``name`` changed: a positive float scaled by 0.55 (1.6 where that is out of
+    range), an integer halved (3 more where that is out of range); None for other fields, the seed, or when no
+    change is allowed."""
     v = getattr(p, name)
-    if type(v) is not float or not v > 0:
+    if type(v) is float and v > 0:
+        candidates = (v * 0.55, v * 1.6)
+    elif type(v) is int and name != "seed":
+        candidates = (v // 2, v + 3)
+    else:
         return None
-    for scale in (0.55, 1.6):
+    for c in candidates:
         try:
-            return dataclasses.replace(p, **{name: v * scale})
+            return dataclasses.replace(p, **{name: c})
         except ValueError:
             pass
     return None
+
 
 def test_a_static_kernel_compiles_every_signature_past_dynamos_default_of_eight():
     """Dynamo keeps 8 compilations per function and then runs it eager without a word: a sweep's ninth parameter

@@ -45,6 +45,11 @@ clamps its texel indices itself and is tested equal to its eager form, where ATe
 SAO tap loop a fifth of its time. Two inductor habits shaped the kernels (measured): ``F.pad`` inside a kernel
 compiles to masked loads slower than eager (pad outside, slice inside), and a kernel that reads a neighbour's
 value of a fused intermediate recomputes it per neighbour (split the kernel where an intermediate is read shifted).
+One torch 2.13 bug shapes the size-dynamic kernels' arguments: ``torch.compile(dynamic=True)`` keeps the first
+call's value of a float argument that fills a tensor (``full_like``, a ``where`` operand) while the same float in
+arithmetic follows each call (``x * m + full_like(x, m)`` compiled at ``m = 20`` gives ``x * 7 + 20`` at ``m = 7``):
+such a number goes in as a 0-d tensor (``ssr.common.clip_ray_length``'s limit), and
+``tests/passes/test_compiled.py`` runs every SSR marcher compiled through each changed setting, as a sweep does.
 
 The switch, in order of precedence: :func:`compiling` (a context manager), else the environment variable
 ``SSBENCH_COMPILE`` (``1``/``true``: on; ``ssbench --compile …`` sets it, so sweep processes inherit it).
@@ -194,10 +199,11 @@ def kernel(fn: Optional[Callable] = None, *, dynamic: bool = False, fuse_whole: 
 def band_samples(samples: int) -> int:
     """The samples per pixel a pass whose compiled kernel fuses its whole sample loop sizes its row bands for
     (:func:`ssbench.passes.common.row_bands`): ``samples`` eager, where each operation stores a block of every sample
-    of the band, and 1 compiled, where such a kernel stores no per-sample block and each call costs tens of µs of
-    guards and wrappers. Bands of any size give the same bits. Measured at 640×360, compiled: Crytek 23 → 15 ms
-    (16 → 1 band), the visibility bitmask 195 → 183 ms; hemisphere SSAO, HBAO and GTAO, whose kernels still store
-    per-sample blocks, ran 8–45 % slower on the larger bands and keep theirs.
+    of the band, and 1 compiled, where the kernel stores at most one such block (Crytek's: its per-sample depth
+    differences, written in one loop and counted in a second, as inductor reduces over the sample axis) and each call
+    costs tens of µs of guards and wrappers. Bands of any size give the same bits. Measured at 640×360, compiled:
+    Crytek 23 → 15 ms (16 → 1 band), the visibility bitmask 195 → 183 ms; hemisphere SSAO, HBAO and GTAO, whose
+    kernels store several per-sample blocks, ran 8–45 % slower on the larger bands and keep theirs.
 
     Example:
         >>> with compiling(False):

@@ -37,8 +37,9 @@ its resolved colours are within 4.8e-7 of eager in float32 (measured on three sc
 divisions and roots round differently; without reuse it gives the same bits. The linear march's per-pixel ray set-up
 is compiled around its reflection (``linear_rays.ray_origin`` before it, ``ray_steps`` after it: exact operations,
 the same bits, size-dynamic); the reflection itself stays eager, because compiled its normalised directions differed
-from ATen's in the last bit (1.8e-7), which moved refined hit points by up to 0.8 px. Not compiled: the DDA's hit
-refinement.
+from ATen's in the last bit (1.8e-7), which moved refined hit points by up to 0.8 px. Hi-Z's per-ray constants
+(``hiz_march.ray_constants``, after the shared eager ``ray_segments``) compile the same way. Not compiled: the DDA's
+hit refinement.
 
 Kernels compile without inductor's bounds check on gathered indices (``assert_indirect_indexing``): every kernel
 clamps its texel indices itself and is tested equal to its eager form, where ATen checks them; the check cost the

@@ -32,8 +32,9 @@ from typing import Optional
 
 import torch
 
+from ...camera import Camera
 from ...gbuffer import GBuffer
-from ..compiled import step_blocks
+from ..compiled import kernel, step_blocks
 from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OUT_OF_STEPS, compact_now, ray_segments
 from .dda_state import MarchOutput
 from .hiz_pyramid import DepthPyramid, padded_levels
@@ -80,35 +81,41 @@ class HiZRays:
                        ended=take(self.ended), state=MarchState(*(take(v) for v in self.state)))
 
 
+@kernel(dynamic=True)
+def ray_constants(cam: Camera, px: torch.Tensor, o: torch.Tensor, d: torch.Tensor, end: torch.Tensor,
+                  max_ray_distance: float) -> tuple:
+    """The per-ray constants of :func:`hiz_rays` from the rays' pixels ``px`` :math:`(N,)`, origins, directions and
+    clipped ends :math:`(N, 3)`: ``(c, P0, P1, t, clipped)`` — :class:`HiZRays`' ``c`` :math:`(13, N)`, the segment's
+    ends in pixels :math:`(N, 2)`, the first ``t`` (``InitialAdvanceRay``) and whether the near plane shortened the
+    ray. A compilable, size-dynamic kernel (:mod:`ssbench.passes.compiled`; exact operations: the same bits)."""
+    P0 = cam.pixel_centers_at(px, o.dtype)                                        # (2, N) the origin pixel's centre
+    P1 = cam.view_to_pixel(end, dim=1)                                            # (N, 2)
+    oz = cam.near / -o[:, 2]                                                      # rz0
+    v = torch.stack([P1[:, 0] - P0[0], P1[:, 1] - P0[1], cam.near / -end[:, 2] - oz])   # v = (P1 − P0, rz1 − rz0)
+    inv = inverse(v[:2])
+    away = v[2] < 0
+    invz = torch.where(away, 1.0 / torch.where(away, v[2], -1.0), 0.0)
+    off = (v[:2] >= 0).to(o.dtype)
+    eps = torch.sign(v[:2]) * EPSILON
+    c = torch.cat([P0, oz[None], v, inv, invz[None], off, eps])                   # rows COLUMNS
+    one = torch.ones_like(oz)
+    t0 = torch.minimum(cell_exit(P0[0], inv[0], off[0], eps[0], P0[0].floor(), one),
+                       cell_exit(P0[1], inv[1], off[1], eps[1], P0[1].floor(), one))   # InitialAdvanceRay
+    clipped = o[:, 2] + d[:, 2] * max_ray_distance > -cam.near
+    return c, P0.T, P1, torch.minimum(t0, one), clipped
+
+
 def hiz_rays(gbuffer: GBuffer, max_ray_distance: float, sel: torch.Tensor, directions: Optional[torch.Tensor] = None):
     """Set-up of the rays of the pixels ``sel`` (flat ``b·H·W + j·W + i``): ``(HiZRays, sel, P0, P1)`` with the
     initial advance done; ``P0``, ``P1`` :math:`(N, 2)` the segment's ends in pixels. The rays follow
     ``directions`` :math:`(B, 3, H, W)` (unit, view space) when given, else the mirror reflections."""
-    cam, vz = gbuffer.camera, gbuffer.view_z
-    W = vz.shape[-1]
-    dt, dev = vz.dtype, vz.device
+    dev = gbuffer.view_z.device
     b, px, o, d, end = ray_segments(gbuffer, sel, max_ray_distance, directions)
-    P0 = cam.pixel_centers_at(px, dt).T                                           # the origin pixel's centre
-    P1 = cam.view_to_pixel(end, dim=1)
+    c, P0, P1, t, clipped = ray_constants(gbuffer.camera, px, o, d, end, float(max_ray_distance))
     n = sel.numel()
-    c = torch.empty(len(COLUMNS), n, dtype=dt, device=dev)                        # each row written in place
-    c[OX:OY + 1] = P0.T
-    c[OZ] = cam.near / -o[:, 2]                                                   # rz0
-    torch.sub(P1.T, P0.T, out=c[VX:VY + 1])                                       # v = (P1 − P0, rz1 − rz0)
-    torch.sub(cam.near / -end[:, 2], c[OZ], out=c[VZ])
-    v = c[VX:VZ + 1]                                                              # (3, n)
-    c[INVX:INVY + 1] = inverse(v[:2])
-    away = v[2] < 0
-    c[INVZ] = torch.where(away, 1.0 / torch.where(away, v[2], -1.0), 0.0)
-    c[OFFX:OFFY + 1] = v[:2] >= 0
-    torch.mul(torch.sign(v[:2]), EPSILON, out=c[EPSX:EPSY + 1])
-    one = torch.ones_like(c[OZ])
-    t0 = torch.minimum(cell_exit(c[OX], c[INVX], c[OFFX], c[EPSX], P0[:, 0].floor(), one),
-                       cell_exit(c[OY], c[INVY], c[OFFY], c[EPSY], P0[:, 1].floor(), one))   # InitialAdvanceRay
-    clipped = o[:, 2] + d[:, 2] * max_ray_distance > -cam.near
-    state = MarchState(t=torch.minimum(t0, one), mip=torch.zeros_like(b), alive=torch.ones(n, dtype=torch.bool,
-                       device=dev), term=torch.full((n,), OUT_OF_STEPS, dtype=torch.int8, device=dev),
-                       steps=torch.zeros(n, dtype=torch.int32, device=dev), hit_t=torch.zeros_like(c[OZ]))
+    state = MarchState(t=t, mip=torch.zeros_like(b), alive=torch.ones(n, dtype=torch.bool, device=dev),
+                       term=torch.full((n,), OUT_OF_STEPS, dtype=torch.int8, device=dev),
+                       steps=torch.zeros(n, dtype=torch.int32, device=dev), hit_t=torch.zeros_like(t))
     rays = HiZRays(i=torch.arange(n, device=dev), b=b, c=c, ray_dir=d.T.contiguous(),
                    ended=torch.where(clipped, BEHIND_CAMERA, MAX_DISTANCE).to(torch.int8), state=state)
     return rays, sel, P0, P1

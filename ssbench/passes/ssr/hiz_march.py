@@ -38,8 +38,8 @@ from ..compiled import kernel, step_blocks
 from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OUT_OF_STEPS, compact_now, ray_segments
 from .dda_state import MarchOutput
 from .hiz_pyramid import DepthPyramid, padded_levels
-from .hiz_step import (BIG, COLUMNS, EPSILON, OFFX, OFFY, EPSX, EPSY, INVX, INVY, INVZ, OX, OY, OZ, VX, VY, VZ,
-                       HiZRules, HiZTexels, MarchState, PyramidLayers, cell_exit, hiz_iterations, inverse)
+from .hiz_step import (BIG, COLUMNS, EPSILON, OX, OY, OZ, VX, VY, VZ, HiZRules, HiZTexels, MarchState, PyramidLayers,
+                       cell_exit, hiz_iterations, inverse)
 
 __all__ = ["HiZRays", "HiZTexels", "EPSILON", "BIG", "COLUMNS", "RAY_CHUNK", "hiz_rays", "march_layers", "hiz_march"]
 

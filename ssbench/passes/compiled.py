@@ -64,6 +64,7 @@ system temporary folder), which later runs reuse.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import functools
 import os
 import threading
@@ -130,7 +131,8 @@ def _signature(args: tuple, kwargs: dict, dynamic: bool = False) -> tuple:
         if dynamic and isinstance(v, (int, float)) and not isinstance(v, bool):
             return ("N", type(v).__name__)
         if dynamic and isinstance(v, Camera):
-            return ("C", v.eye, v.target, v.up, v.fovy_deg, v.near, v.far)
+            return ("C", tuple((f.name, getattr(v, f.name)) for f in dataclasses.fields(v)
+                               if f.name not in ("width", "height")))
         return ("V", repr(v))
     return tuple(one(v) for v in args) + tuple((k, one(v)) for k, v in sorted(kwargs.items()))
 

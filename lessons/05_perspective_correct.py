@@ -38,7 +38,8 @@ import torch
 
 from ssbench import reference
 from ssbench.passes.ssr.common import clip_ray_length, reflection_rays
-from ssbench.passes.ssr.dda import DDASSRParams, project_to_pixel_matrix
+from ssbench.passes.ssr.dda import DDASSRParams
+from ssbench.passes.ssr.dda_rays import project_to_pixel_matrix
 from ssbench.passes.ssr.visits import visit_map
 from ssbench.scenes import load
 from _setup import size
@@ -251,5 +252,5 @@ assert checks and all(checks.values())
 # ## See also
 #
 # * SSR article appendix A (the derivation), §2.2 (the DDA set-up with `H0`, `H1`, `k0`, `k1`, `Q0`, `Q1`, `P0`, `P1`).
-# * `ssbench/passes/ssr/dda.py` (`project_to_pixel_matrix`, `dda_rays`) and `passes/teaching/ssr_dda_basic.py`.
+# * `ssbench/passes/ssr/dda_rays.py` (`project_to_pixel_matrix`, `dda_rays`) and `passes/teaching/ssr_dda_basic.py`.
 # * Next: **lesson 6**, the DDA march itself.

@@ -43,7 +43,8 @@ import torch
 from ssbench import reference
 from ssbench.metrics import ssr as ssr_metrics
 from ssbench.passes.ssr.common import HIT, TERMINATION_NAMES, clip_ray_length, reflection_rays
-from ssbench.passes.ssr.dda import DDASSRParams, project_to_pixel_matrix, ssr_dda
+from ssbench.passes.ssr.dda import DDASSRParams, ssr_dda
+from ssbench.passes.ssr.dda_rays import project_to_pixel_matrix
 from ssbench.passes.ssr.dda_supercover import SupercoverDDASSRParams, ssr_dda_supercover
 from ssbench.passes.ssr.visits import crossed_pixels, visit_map
 from ssbench.scenes import load

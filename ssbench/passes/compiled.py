@@ -49,8 +49,10 @@ value of a fused intermediate recomputes it per neighbour (split the kernel wher
 One torch 2.13 bug shapes the size-dynamic kernels' arguments: ``torch.compile(dynamic=True)`` keeps the first
 call's value of a float argument that fills a tensor (``full_like``, a ``where`` operand) while the same float in
 arithmetic follows each call (``x * m + full_like(x, m)`` compiled at ``m = 20`` gives ``x * 7 + 20`` at ``m = 7``):
-such a number goes in as a 0-d tensor (``ssr.common.clip_ray_length``'s limit), and
-``tests/passes/test_compiled.py`` runs every SSR marcher compiled through each changed setting, as a sweep does.
+such a number goes in as a 0-d tensor (``ssr.common.clip_ray_length``'s limit). A float made from an int argument
+or an image size fills correctly (``torch.where(x > 0, float(n), 0.0)`` follows ``n``; ``ssr.dda_rays``' viewport
+edges). ``tests/passes/test_compiled.py`` runs every SSR marcher compiled through each changed setting, as a sweep
+does; ``tests/passes/ssr/test_dda_rays.py`` the DDA's set-up through changed settings and a second image size.
 
 The switch, in order of precedence: :func:`compiling` (a context manager), else the environment variable
 ``SSBENCH_COMPILE`` (``1``/``true``: on; ``ssbench --compile …`` sets it, so sweep processes inherit it).

@@ -59,14 +59,14 @@ from typing import Optional
 import torch
 from torch import nn
 
-from ...camera import Camera
 from ...gbuffer import GBuffer
 from ..common import check_count, make_generator
 from ..gbuffer_checks import check_gbuffer, half_in_float32
-from .common import SSRResult, nan_off_mask, ray_segments
+from .common import SSRResult, nan_off_mask
 from .dda_assemble import assemble
-from .dda_march import dda_march, ray_view_z
-from .dda_state import DDARays, DepthTexels, march_in_chunks
+from .dda_march import dda_march
+from .dda_rays import dda_rays, ray_pixels
+from .dda_state import DepthTexels, march_in_chunks
 from .fade import FadeParams
 from ..registry import Method, SpeedPanel
 
@@ -139,13 +139,6 @@ class DDASSRParams(FadeParams):
             raise ValueError(f"refinement: expected one of {REFINEMENTS}, got {self.refinement!r}")
 
 
-def project_to_pixel_matrix(camera: Camera, dtype=torch.float64, device=None) -> torch.Tensor:
-    """G3D's ``projectToPixelMatrix``: ``gluPerspective`` then NDC → pixels, so ``H.xy / H.w = view_to_pixel``."""
-    W, H = camera.width, camera.height                  # NOTE: the row flip, py = (0.5 − 0.5·ndc.y)·H
-    S = torch.tensor([[W / 2, 0, 0, W / 2], [0, -H / 2, 0, H / 2], [0, 0, 1, 0], [0, 0, 0, 1]], dtype=torch.float64)
-    return (S @ camera.projection_matrix()).to(dtype=dtype, device=device)
-
-
 def jitter_fractions(params: DDASSRParams, shape, generator: torch.Generator) -> torch.Tensor:
     """``jitter·U[0, 1)`` per pixel, float64 :math:`(B, 1, H, W)`; one ``torch.rand`` call (twin draws the same)."""
     return torch.rand(tuple(shape), generator=generator, dtype=torch.float64) * params.jitter
@@ -178,66 +171,6 @@ def depth_texels(gbuffer: GBuffer, params: DDASSRParams) -> DepthTexels:
     back, second = flat(gbuffer.back_z, params.use_back_face_depth), flat(gbuffer.second_z, params.use_second_layer)
     marched = tuple(None if x is None else nan_off_mask(x, mask) for x in (z, back, second))
     return DepthTexels(z, mask, back, second, marched)
-
-
-def ray_pixels(gbuffer: GBuffer) -> torch.Tensor:
-    """:math:`(N,)` flat indices ``b·H·W + j·W + i`` of the pixels that start a ray: ``mask`` pixels not nearer
-    than the near plane (such geometry cannot be in a depth buffer; its rays would start behind w = 0)."""
-    return (gbuffer.mask & (gbuffer.view_z <= -gbuffer.camera.near))[:, 0].reshape(-1).nonzero().squeeze(1)
-
-
-def dda_rays(gbuffer: GBuffer, params: DDASSRParams, jitter: torch.Tensor, sel: Optional[torch.Tensor] = None):
-    """Per-ray set-up (article §2.2 up to the loop) of the pixels ``sel`` (default :func:`ray_pixels`, every
-    pixel that starts a ray): ``(DDARays, sel, P0, P1)``, ``sel`` the rays' flat pixel indices
-    ``b·H·W + j·W + i`` and ``P0``, ``P1`` their end points in pixels. Per ray, so a subset of ``sel`` sets up
-    exactly those rays of the full set-up (the marchers set up and march chunks of rays)."""
-    cam, vz = gbuffer.camera, gbuffer.view_z
-    B, _, H, W = vz.shape
-    dt, dev = vz.dtype, vz.device
-    sel = ray_pixels(gbuffer) if sel is None else sel
-    b, _, o, d, end = ray_segments(gbuffer, sel, params.max_ray_distance)          # rayOrg, rayDir, rayEnd
-    M = project_to_pixel_matrix(cam, dt, dev)
-    o, end = o.T.contiguous(), end.T.contiguous()             # a row per component: columns of (N, 3) are strided
-    hom = lambda c: [c[0] * M[r, 0] + c[1] * M[r, 1] + c[2] * M[r, 2] + M[r, 3] for r in range(4)]  # noqa: E731
-    H0, H1 = hom(o), hom(end)                                                     # M·(c, 1), four rows
-    k0, k1 = 1.0 / H0[3], 1.0 / H1[3]
-    Q0, Q1 = [c * k0 for c in o], [c * k1 for c in end]
-    P0, P1 = [c * k0 for c in H0[:2]], [c * k1 for c in H1[:2]]                   # pixels (py down)
-    nudge = torch.where((P1[0] - P0[0]) ** 2 + (P1[1] - P0[1]) ** 2 < 0.0001, 0.01, 0.0)   # degenerate line
-    P1 = [c + nudge for c in P1]
-    delta = [P1[0] - P0[0], P1[1] - P0[1]]
-    permute = delta[0].abs() < delta[1].abs()                                     # more-vertical line
-    sw = lambda v: (torch.where(permute, v[1], v[0]), torch.where(permute, v[0], v[1]))   # noqa: E731  (.yx)
-    delta, P0p, P1p = sw(delta), sw(P0), sw(P1)
-    stepDir = torch.sign(delta[0])
-    invdx = stepDir / delta[0]
-    dQ, dk = [(a - c) * invdx for a, c in zip(Q1, Q0)], (k1 - k0) * invdx
-    slope = delta[1] * invdx                                                      # minor px per unit of u
-    dP = [stepDir, slope]
-    # where the segment leaves the viewport, as a signed major coordinate u = P.x·stepDir (permuted frame)
-    Wm, Hm = torch.where(permute, float(H), float(W)), torch.where(permute, float(W), float(H))
-    u0, y0 = P0p[0] * stepDir, P0p[1]
-    exit_ = torch.minimum(torch.where(stepDir > 0, Wm, 0.0) * stepDir,
-                          torch.where(slope > 0, u0 + (Hm - y0) / slope,
-                                      torch.where(slope < 0, u0 - y0 / slope, math.inf)))
-    strideScalar = 1.0 - torch.clamp(-o[2] / params.pixel_stride_z_cutoff, max=1.0)
-    pixelStride = 1.0 + strideScalar * (params.pixel_stride - 1.0)
-    if params.fit_stride_to_steps:                                                # max_steps samples reach P1
-        pixelStride = torch.maximum(pixelStride, torch.ceil(delta[0].abs() / params.max_steps))
-    dP, dQ, dk = [c * pixelStride for c in dP], [c * pixelStride for c in dQ], dk * pixelStride
-    j = jitter.to(device=dev).reshape(-1).index_select(0, sel).to(dt)           # (this chunk's rays only)
-    P0p, Q0, k0 = [a + c * j for a, c in zip(P0p, dP)], [a + c * j for a, c in zip(Q0, dQ)], k0 + dk * j
-    zlo, zhi = torch.minimum(o[2], end[2]), torch.maximum(o[2], end[2])
-    end = P1p[0] * stepDir
-    s = DDARays(i=torch.arange(sel.numel(), device=dev), b=b, Px=P0p[0], Py=P0p[1], Qz=Q0[2],
-                k=k0, n=torch.zeros_like(k0), dPx=dP[0], dPy=dP[1], dQz=dQ[2], dk=dk, stride=pixelStride,
-                Q0x=Q0[0], Q0y=Q0[1], dQx=dQ[0], dQy=dQ[1], end=end,
-                stop=torch.minimum(end, exit_),                                   # P1 or the viewport edge
-                stepDir=stepDir, permute=permute, zlo=zlo, zhi=zhi,
-                prevZ=ray_view_z(Q0[2] + 0.5 * dQ[2], k0 + 0.5 * dk, zlo, zhi),   # footprint edge of sample 1
-                clipped=o[2] + d[:, 2] * params.max_ray_distance > -cam.near)
-    P0, P1 = torch.stack(P0, 1), torch.stack(P1, 1)
-    return s, sel, P0, P1
 
 
 @half_in_float32

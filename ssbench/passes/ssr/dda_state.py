@@ -1,6 +1,6 @@
 """The per-ray state of the DDA marchers (SSR article §2.2; McGuire & Mara 2014), as dataclasses instead of dicts.
 
-:class:`DDARays` is what the set-up (:func:`~ssbench.passes.ssr.dda.dda_rays`) hands the march: every ray that
+:class:`DDARays` is what the set-up (:func:`~ssbench.passes.ssr.dda_rays.dda_rays`) hands the march: every ray that
 starts, flat over ``N`` rays, in the *permuted* frame (the major axis first, G3D's ``permute``). The march
 advances ``Px, Py, Qz, k, n`` in place and drops finished rays (:meth:`DDARays.select`); it is owned by one
 march at a time. :class:`MarchOutput` is what a march returns per ray for
@@ -131,7 +131,7 @@ def march_in_chunks(sel: torch.Tensor, setup: Callable[[torch.Tensor], tuple], m
     time and join the results: ``(MarchOutput, P1)`` for all ``N`` rays, in ``sel``'s order.
 
     ``setup(part)`` returns ``(DDARays, sel, P0, P1)`` for the pixels ``part`` (rows ``i`` = 0 … len(part)−1, as
-    :func:`~ssbench.passes.ssr.dda.dda_rays` does); ``march(rays)`` a :class:`MarchOutput`. Rays do not
+    :func:`~ssbench.passes.ssr.dda_rays.dda_rays` does); ``march(rays)`` a :class:`MarchOutput`. Rays do not
     interact and debug visit counts are sums, so the outputs are those of one chunk holding every ray, with a
     working set (set-up and march temporaries) that no longer grows with the image.
 

@@ -12,7 +12,7 @@ both at a lattice corner, which the segment crosses in no pixel's interior. So i
 excepted, as in the DDA).
 
 Everything else is the DDA's: the same near-plane clipping, homogeneous pixel-space endpoints and degenerate-line
-nudge (``ssr.dda.dda_rays`` at stride 1, no jitter), ``Q`` and ``k = 1/w`` linear in screen space (appendix A), the
+nudge (``ssr.dda_rays.dda_rays`` at stride 1, no jitter), ``Q`` and ``k = 1/w`` linear in screen space (appendix A), the
 same box test per texel. Only the z interval is exact: the ray enters the cell at ``nA`` and leaves at ``nB``
 (or at ``P1``), so
 
@@ -41,8 +41,8 @@ from ...gbuffer import GBuffer
 from ..common import check_count
 from .common import SSRResult
 from ..gbuffer_checks import half_in_float32
-from .dda import (DEFAULTS_SOURCE, EQUAL_SETTINGS, REQUIRES, DDASSRParams, check_inputs, dda_rays, depth_texels,
-                  ray_pixels)
+from .dda import DEFAULTS_SOURCE, EQUAL_SETTINGS, REQUIRES, DDASSRParams, check_inputs, depth_texels
+from .dda_rays import dda_rays, ray_pixels
 from .dda_assemble import assemble
 from .dda_state import march_in_chunks
 from .dda_supercover_walk import supercover_march

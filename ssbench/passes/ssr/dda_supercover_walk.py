@@ -94,7 +94,7 @@ class WalkRay(NamedTuple):
 
 
 def cell_setup(s: DDARays, H: int, W: int, texels: int) -> CellWalk:
-    """The cell walk's start from the DDA's set-up ``s`` (``ssr.dda.dda_rays`` at stride 1, no jitter), over
+    """The cell walk's start from the DDA's set-up ``s`` (``ssr.dda_rays.dda_rays`` at stride 1, no jitter), over
     ``texels`` depth texels (which picks the index dtype)."""
     sd, dPy = s.stepDir, s.dPy
     cx, cy = s.Px.floor(), s.Py.floor()

@@ -36,7 +36,7 @@ from ..common import check_count, check_positive
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..registry import Method, SpeedPanel
 from .common import SSRResult
-from .dda import ray_pixels
+from .dda_rays import ray_pixels
 from .dda_assemble import assemble
 from .dda_state import march_in_chunks
 from .fade import FadeParams

@@ -14,6 +14,7 @@ import torch
 
 from ...gbuffer import GBuffer
 from . import dda as D
+from .dda_rays import dda_rays
 from . import dda_supercover as S
 from .dda_supercover_walk import supercover_march
 from ..common import make_generator
@@ -61,7 +62,7 @@ def visit_map(gbuffer: GBuffer, params: Union[D.DDASSRParams, S.SupercoverDDASSR
     if not (0 <= x < W and 0 <= y < H) or not bool(gbuffer.mask[0, 0, y, x]):
         raise ValueError(f"pixel: must be a mask pixel inside the {W}x{H} image, got {pixel!r}")
     jitter = D.jitter_fractions(dda, (B, 1, H, W), make_generator(dda.seed, generator))
-    s, sel, P0, P1 = D.dda_rays(gbuffer, dda, jitter)
+    s, sel, P0, P1 = dda_rays(gbuffer, dda, jitter)
     r = int((sel == y * W + x).nonzero()[0, 0])
     one = s.select(torch.tensor([r], device=s.i.device))
     one.i, visits = one.i * 0, torch.zeros(B * H * W, dtype=torch.int32, device=gbuffer.view_z.device)

@@ -18,7 +18,8 @@ import torch
 from ...gbuffer import GBuffer
 from ..common import make_generator
 from ..ssr.common import BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, SSRResult
-from ..ssr.dda import DDASSRParams, check_inputs, jitter_fractions, project_to_pixel_matrix
+from ..ssr.dda import DDASSRParams, check_inputs, jitter_fractions
+from ..ssr.dda_rays import project_to_pixel_matrix
 
 TINY = sys.float_info.min                              # torch.finfo(float64).tiny
 

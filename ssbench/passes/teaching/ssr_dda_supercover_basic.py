@@ -1,7 +1,7 @@
 """The supercover DDA, one ray at a time: Amanatides & Woo's grid walk with their names, for reading.
 
 This file exists only to teach. The ray set-up (near-plane clipping, homogeneous pixel endpoints ``P0``/``P1``,
-``Q``, ``k``, ``permute``, ``stepDir``) is the DDA's (``ssr.dda.dda_rays`` at stride 1; the DDA's own teaching twin
+``Q``, ``k``, ``permute``, ``stepDir``) is the DDA's (``ssr.dda_rays.dda_rays`` at stride 1; the DDA's own teaching twin
 spells it out); what follows is the walk of :mod:`ssbench.passes.ssr.dda_supercover` as a plain Python loop over
 floats: ``X, Y`` the current pixel, ``tMaxX``/``tMaxY`` the line parameter of the next column / row edge,
 ``tDeltaX``/``tDeltaY`` the parameter per pixel, ``stepX``/``stepY`` the directions. The line parameter ``n`` is
@@ -16,7 +16,8 @@ import torch
 
 from ...gbuffer import GBuffer
 from ..ssr.common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS, SSRResult
-from ..ssr.dda import check_inputs, dda_rays
+from ..ssr.dda import check_inputs
+from ..ssr.dda_rays import dda_rays
 from ..ssr.dda_assemble import assemble
 from ..ssr.dda_state import MarchOutput
 from ..ssr.dda_supercover import SupercoverDDASSRParams

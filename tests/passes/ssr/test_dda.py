@@ -10,7 +10,7 @@ from ssbench.camera import Camera
 from ssbench.gbuffer import GBuffer
 from ssbench.passes.ssr.common import (BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS,
                                        reflection_rays)
-from ssbench.passes.ssr.dda import DDASSR, REQUIRES, DDASSRParams, dda_rays, project_to_pixel_matrix, ssr_dda
+from ssbench.passes.ssr.dda import DDASSR, REQUIRES, DDASSRParams, ssr_dda
 from ssbench.passes.ssr.visits import crossed_pixels, visit_map
 from ssbench.passes.teaching.ssr_dda_basic import ssr_dda_basic
 from tests.passes.ssr_scenes import FLOOR, WALL, analytic, one_ray, raycast, room
@@ -23,14 +23,6 @@ def at(t: torch.Tensor, x: int, y: int) -> int:
 
 
 # ----------------------------------------------------------------------------- projection and closed form
-def test_pixel_matrix_matches_camera():
-    cam = room().camera
-    p = torch.tensor([[0.3, -0.2, -1.0], [-2.0, 1.0, -7.5], [0.0, 0.0, -0.1]], dtype=F64)
-    Hc = torch.cat([p, torch.ones(3, 1, dtype=F64)], 1) @ project_to_pixel_matrix(cam).T
-    assert torch.allclose(Hc[:, :2] / Hc[:, 3:], cam.view_to_pixel(p, dim=-1), atol=1e-9)
-    assert torch.allclose(Hc[:, 3], -p[:, 2])                             # H.w = −z, so k = 1/H.w > 0
-
-
 @pytest.mark.parametrize("refinement", ["none", "binary", "remarch"])
 def test_mirror_floor_hits_wall_closed_form(refinement):
     g = room()
@@ -244,21 +236,6 @@ def test_fit_stride_reaches_long_rays_within_budget(refinement):
     assert float(err.max()) < (0.5 if refinement == "binary" else 4.0), float(err.max())
     if refinement == "none":
         assert int(fit.steps.max()) <= K                                  # DDA samples only: within the budget
-
-
-@pytest.mark.parametrize("kw", [dict(), dict(jitter=1.0), dict(pixel_stride=3.0, pixel_stride_z_cutoff=2.0)])
-def test_fit_stride_spans_the_segment(kw):
-    g, zero = room(), torch.zeros(1, 1, 36, 48, dtype=F64)
-    for K in (3, 8, 20):
-        p = DDASSRParams(max_ray_distance=50.0, max_steps=K, fit_stride_to_steps=True, **kw)
-        s, sel, P0, P1 = dda_rays(g, p, zero)
-        fixed = dda_rays(g, DDASSRParams(max_ray_distance=50.0, max_steps=K, **kw), zero)[0].stride
-        L = (P1 - P0).abs().amax(1)                                       # major-axis pixels, after clipping
-        assert torch.equal(s.stride, torch.maximum(fixed, torch.ceil(L / K)))   # the cutoff only scales the floor
-        assert bool((s.stride * K >= L).all())                         # K samples reach P1 …
-        if "pixel_stride" not in kw:
-            assert bool((s.stride <= L.clamp(min=1.0)).all())          # … and the first never jumps past it
-        assert OUT_OF_STEPS not in ssr_dda(g, p).termination.unique().tolist()
 
 
 def test_fit_stride_changes_nothing_when_the_budget_suffices():

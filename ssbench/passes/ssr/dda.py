@@ -145,7 +145,8 @@ def jitter_fractions(params: DDASSRParams, shape, generator: torch.Generator) ->
 
 
 def check_inputs(gbuffer: GBuffer, params: DDASSRParams) -> None:
-    """Type checks of ``params`` and the shared G-buffer contract (:func:`~ssbench.passes.gbuffer_checks.check_gbuffer`)."""
+    """Type checks of ``params`` and the shared G-buffer contract
+    (:func:`~ssbench.passes.gbuffer_checks.check_gbuffer`)."""
     if not isinstance(params, DDASSRParams):
         raise TypeError(f"params: expected DDASSRParams, got {type(params).__name__}")
     check_gbuffer(gbuffer, required_channels(params), finite=("color",), meta_ok=False)

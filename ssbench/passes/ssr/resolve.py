@@ -54,20 +54,26 @@ def schlick_fresnel(cos_theta: torch.Tensor, f0: torch.Tensor) -> torch.Tensor:
 
 
 def roughness_blur(reflection: torch.Tensor, roughness: torch.Tensor, max_sigma: float, levels: int) -> torch.Tensor:
-    """Blur :math:`(B, 3, H, W)` with σ = roughness · max_sigma, by per-pixel interpolation between levels."""
-    sigmas = torch.linspace(0.0, max_sigma, levels).tolist()
+    """Blur :math:`(B, C, H, W)` with σ = roughness · max_sigma, by per-pixel interpolation between ``levels`` σ
+    levels ``0 … max_sigma`` (:func:`kornia.filters.gaussian_blur2d`): ``a + (b − a)·frac`` of the two levels around
+    the pixel's σ. Only the levels some pixel weighs are blurred (a scene of mirrors and one rough material needs
+    two of five): a level read only with weight ``frac = 0`` stands in unblurred, which gives the same bits for a
+    finite ``reflection`` (``a + (b − a)·0 = a``)."""
+    pos = roughness.clamp(0, 1) * (levels - 1)                         # (B, 1, H, W)
+    lo = pos.floor().long().clamp(max=levels - 2)
+    frac = pos - lo
+    weight = torch.bincount(lo.reshape(-1), minlength=levels) + \
+        torch.bincount((lo + 1).reshape(-1), weights=frac.reshape(-1), minlength=levels)   # (not a sort: unique's)
+    weighed = set(weight.nonzero().reshape(-1).tolist())
     stack = []
-    for s in sigmas:                                                   # a handful of levels, not pixels
-        if s < 1e-3:
+    for i, s in enumerate(torch.linspace(0.0, max_sigma, levels).tolist()):   # a handful of levels, not pixels
+        if s < 1e-3 or i not in weighed:
             stack.append(reflection)
             continue
         k = 2 * int(3 * s) + 1
         stack.append(kornia.filters.gaussian_blur2d(reflection, (k, k), (s, s), border_type="replicate"))
-    stack_t = torch.stack(stack, 0)                                    # (L, B, 3, H, W)
-    pos = roughness.clamp(0, 1) * (levels - 1)                         # (B, 1, H, W)
-    lo = pos.floor().long().clamp(max=levels - 2)
-    frac = pos - lo
-    idx = lo.unsqueeze(0).expand(1, -1, 3, -1, -1)
+    stack_t = torch.stack(stack, 0)                                    # (L, B, C, H, W)
+    idx = lo.unsqueeze(0).expand(1, -1, reflection.shape[1], -1, -1)
     a = stack_t.gather(0, idx)[0]
     b = stack_t.gather(0, idx + 1)[0]
     return a + (b - a) * frac

@@ -49,3 +49,39 @@ def test_roughness_blur_levels_and_interpolation():
         resolve(GBuffer(CAM, color=torch.zeros(1, 3, 12, 16)), torch.zeros(1, 3, 12, 16))
     with pytest.raises(ValueError, match="reflection"):
         resolve(_gbuffer(), torch.zeros(1, 3, 5, 5, dtype=torch.float64))
+
+
+def _every_level_blur(x, roughness, max_sigma, levels):
+    """The blur with every σ level computed, interpolated pixel by pixel (the form before the skipped levels)."""
+    import kornia
+    stack = [x if s < 1e-3 else kornia.filters.gaussian_blur2d(x, (2 * int(3 * s) + 1,) * 2, (s, s),
+                                                               border_type="replicate")
+             for s in torch.linspace(0.0, max_sigma, levels).tolist()]
+    out = torch.empty_like(x)
+    for row in range(x.shape[-2]):
+        for col in range(x.shape[-1]):
+            pos = roughness[0, 0, row, col].clamp(0, 1) * (levels - 1)
+            i = min(int(pos.floor()), levels - 2)
+            a, b = stack[i][0, :, row, col], stack[i + 1][0, :, row, col]
+            out[0, :, row, col] = a + (b - a) * (pos - i)
+    return out
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_roughness_blur_blurs_only_the_weighed_levels_and_gives_the_bits_of_every_level(monkeypatch, dtype):
+    """Levels that no pixel weighs are not blurred (a mirror-and-matte scene needs two of five), and the result is
+    the blur of every level interpolated per pixel, bit for bit, for continuous, two-valued and on-level maps."""
+    import kornia
+    gen = torch.Generator().manual_seed(4)
+    x = torch.rand(1, 3, 9, 11, generator=gen, dtype=dtype)
+    u = torch.rand(1, 1, 9, 11, generator=gen, dtype=dtype)
+    maps = {"continuous": u, "mirror and matte": (u > 0.5).to(dtype), "on levels": (u * 5).floor() / 4,
+            "mirror": torch.zeros_like(u), "half": torch.full_like(u, 0.5)}
+    blurs = {"continuous": 4, "mirror and matte": 2, "on levels": 4, "mirror": 0, "half": 1}   # of σ = 1, 2, 3, 4
+    blur, sigmas = kornia.filters.gaussian_blur2d, []
+    monkeypatch.setattr(kornia.filters, "gaussian_blur2d", lambda *a, **k: sigmas.append(a[2]) or blur(*a, **k))
+    for name, rough in maps.items():
+        sigmas.clear()
+        got = roughness_blur(x, rough, 4.0, 5)
+        assert len(sigmas) == blurs[name], (name, sigmas)
+        assert torch.equal(got, _every_level_blur(x, rough, 4.0, 5)), name

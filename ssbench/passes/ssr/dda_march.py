@@ -212,16 +212,17 @@ def dda_steps(state: DDAState, ray: DDARay, tex: tuple, size: tuple, z_thickness
     return (state, done.sum()) + ((t, live.to(torch.int32)) if debug else ())
 
 
-def flush(out: MarchOutput, s: DDARays, rows: torch.Tensor, tex, params: "DDASSRParams", H: int, W: int,
-          visits: Optional[torch.Tensor]) -> None:
+def flush(out: MarchOutput, s: DDARays, rows: torch.Tensor, set_up: DDARays, tex, params: "DDASSRParams", H: int,
+          W: int, visits: Optional[torch.Tensor]) -> None:
     """Write the termination and fetches of the working set's ``rows`` (stopped rays, or every ray at the end)
-    into ``out``; refine the hits among them (:func:`refine_hits`) and write their hit points."""
+    into ``out``; refine the hits among them (:func:`refine_hits`) and write their hit points (``set_up``: the
+    rays before the march, for the fields :data:`HIT_ONLY`)."""
     i, term = s.i.index_select(0, rows), s.term.index_select(0, rows)
     out.term.index_copy_(0, i, term)
     out.steps.index_copy_(0, i, s.steps.index_select(0, rows))
     hi = rows[term == HIT]
     if hi.numel():
-        h = s.select(hi)
+        h = hit_rows(s, hi, set_up)
         refine_hits(h, tex, params, H, W, out, visits)
         out.P[h.i] = torch.where(h.permute[:, None], torch.stack([h.Py, h.Px], 1), torch.stack([h.Px, h.Py], 1))
         out.Q[h.i] = torch.stack([h.Q0x + h.dQx * h.n, h.Q0y + h.dQy * h.n, h.Qz], 1)
@@ -233,24 +234,40 @@ def dda_march(s: DDARays, tex: DepthTexels, params: "DDASSRParams", H: int, W: i
     """The DDA loop; per-ray outputs by ``s.i``. Each step is :func:`dda_step`; stopped rays keep their state,
     masked, until 1/8 of the working set has stopped; then they are written back, their hits refined
     (:func:`refine_hits`), and the set compacted (:func:`masked_march`)."""
-    N = s.count
+    N, set_up = s.count, s
     out = MarchOutput.empty(N, s.k.dtype, s.k.device, OUT_OF_STEPS)
     s = MarchingRays(**marching_fields(s, tex.view_z.numel()))
     run = lambda state, ray, count, left: dda_steps(state, ray, tex.marched, (H, W), params.z_thickness,  # noqa: E731
                                                     count, left, visits is not None)
-    masked_march(s, DDAState, DDARay, run, lambda s, rows: flush(out, s, rows, tex, params, H, W, visits),
+    masked_march(s, DDAState, DDARay, run, lambda s, rows: flush(out, s, rows, set_up, tex, params, H, W, visits),
                  params.max_steps, visits)
     return out
 
 
-def marching_fields(s: DDARays, texels: int) -> dict:
+#: the set-up's fields (:class:`DDARays`) that the DDA reads only where a ray hits: left out of the marching working
+#: set, whose compactions then copy 26 of its ~120 bytes per ray less, and read back from the set-up by row ``i``
+#: (:func:`hit_rows`)
+HIT_ONLY = ("b", "permute", "clipped", "Q0x", "Q0y", "dQx", "dQy")
+
+
+def hit_rows(s, rows: torch.Tensor, set_up: DDARays, hit_only: tuple = HIT_ONLY):
+    """The working set ``s``'s ``rows`` (a copy, :meth:`~.dda_state.DDARays.select`) with the fields ``hit_only``,
+    which the march left out (:func:`marching_fields`), read back from the rays before the march ``set_up``."""
+    h = s.select(rows)
+    return dataclasses.replace(h, **{f: getattr(set_up, f).index_select(0, h.i) for f in hit_only})
+
+
+def marching_fields(s: DDARays, texels: int, hit_only: tuple = HIT_ONLY) -> dict:
     """The fields of the set-up's rays ``s`` as a masked march keeps them (:class:`MarchingRays`, the supercover's
     ``CellWalk``): each column contiguous (the set-up's are strided views; a compiled step compiles again for views),
-    the batch index in the index dtype of ``texels`` texels, ``permute``, ``clipped`` and ``alive`` as int32, no
-    fetches yet (``steps``) and the termination ``OUT_OF_STEPS``."""
+    ``None`` for the fields ``hit_only`` (read back for the hits, :func:`hit_rows`), the batch index in the index
+    dtype of ``texels`` texels, ``permute``, ``clipped`` and ``alive`` as int32, no fetches yet (``steps``) and the
+    termination ``OUT_OF_STEPS``."""
     N, dev = s.count, s.k.device
-    return dict({f.name: v.contiguous() if isinstance(v := getattr(s, f.name), torch.Tensor) else v
-                 for f in dataclasses.fields(s)},
+
+    def kept(name: str, v):
+        return None if name in hit_only else v.contiguous() if isinstance(v, torch.Tensor) else v
+    return dict({f.name: kept(f.name, getattr(s, f.name)) for f in dataclasses.fields(s)},
                 b_index=s.b.to(index_dtype(texels)), permute32=s.permute.to(torch.int32),
                 clipped32=s.clipped.to(torch.int32), alive32=torch.ones(N, dtype=torch.int32, device=dev),
                 steps=torch.zeros(N, dtype=torch.int32, device=dev),

@@ -21,7 +21,7 @@ import torch
 
 from ..compiled import kernel
 from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS
-from .dda_march import marching_fields, masked_march, next_state, ray_view_z
+from .dda_march import HIT_ONLY, hit_rows, marching_fields, masked_march, next_state, ray_view_z
 from .dda_state import DDARays, DepthTexels, MarchOutput
 
 __all__ = ["CellWalk", "WalkState", "WalkRay", "cell_setup", "hit_at", "walk_step", "walk_steps",
@@ -93,9 +93,15 @@ class WalkRay(NamedTuple):
     b_index: torch.Tensor
 
 
+#: the set-up's fields that the walk reads only where a ray hits (the DDA's :data:`~.dda_march.HIT_ONLY`, the sample
+#: point and the DDA's per-stride state, which the cell walk replaces): read back by row for the hits
+#: (:func:`~.dda_march.hit_rows`), not copied by every compaction
+WALK_HIT_ONLY = HIT_ONLY + ("Px", "Py", "n", "dPx", "dPy", "stride", "end", "stop")
+
+
 def cell_setup(s: DDARays, H: int, W: int, texels: int) -> CellWalk:
     """The cell walk's start from the DDA's set-up ``s`` (``ssr.dda_rays.dda_rays`` at stride 1, no jitter), over
-    ``texels`` depth texels (which picks the index dtype)."""
+    ``texels`` depth texels (which picks the index dtype); the fields :data:`WALK_HIT_ONLY` are left out."""
     sd, dPy = s.stepDir, s.dPy
     cx, cy = s.Px.floor(), s.Py.floor()
     safe = torch.where(dPy != 0, dPy, 1.0)
@@ -103,7 +109,7 @@ def cell_setup(s: DDARays, H: int, W: int, texels: int) -> CellWalk:
     tx = ((cx + (sd > 0).to(cx.dtype)) - s.Px) * sd
     nA = torch.minimum(tx, ty)                                                     # the first cell's entry
     first = {"prevZ": ray_view_z(s.Qz + s.dQz * nA, s.k + s.dk * nA, s.zlo, s.zhi)}
-    return CellWalk(**{**marching_fields(s, texels), **first}, cx=cx, cy=cy, tx=tx, ty=ty, nA=nA,
+    return CellWalk(**{**marching_fields(s, texels, WALK_HIT_ONLY), **first}, cx=cx, cy=cy, tx=tx, ty=ty, nA=nA,
                     ddy=torch.where(dPy != 0, 1.0 / safe.abs(), math.inf), sy=torch.sign(dPy), nEnd=s.end - s.Px * sd,
                     Wm=torch.where(s.permute, float(H), float(W)), Hm=torch.where(s.permute, float(W), float(H)))
 
@@ -177,16 +183,18 @@ def hit_at(h: DDARays, nA, nB, zA, sceneZMax):
     return torch.where(zA <= sceneZMax, nA, torch.minimum(torch.maximum(n_star, nA), nB))
 
 
-def flush(out: MarchOutput, c: CellWalk, rows: torch.Tensor, view_z: torch.Tensor, H: int, W: int) -> None:
+def flush(out: MarchOutput, c: CellWalk, rows: torch.Tensor, set_up: DDARays, view_z: torch.Tensor, H: int,
+          W: int) -> None:
     """Write the termination and fetches of the walk's ``rows`` into ``out``, and the hit points of its hits:
-    :func:`hit_at` in the hit cell, from the cell's entry ``nA`` and exit ``nB`` (``view_z``: the scene's)."""
+    :func:`hit_at` in the hit cell, from the cell's entry ``nA`` and exit ``nB`` (``view_z``: the scene's;
+    ``set_up``: the rays before the walk, for the fields :data:`WALK_HIT_ONLY`)."""
     i, term = c.i.index_select(0, rows), c.term.index_select(0, rows)
     out.term.index_copy_(0, i, term)
     out.steps.index_copy_(0, i, c.steps.index_select(0, rows))
     hi = rows[term == HIT]
     if not hi.numel():
         return
-    h = c.select(hi)
+    h = hit_rows(c, hi, set_up, WALK_HIT_ONLY)
     nA, nB = h.nA, torch.minimum(torch.minimum(h.tx, h.ty), h.nEnd)
     sceneZMax = view_z.index_select(0, texel(h.cx, h.cy, h.permute32, h.b_index, H, W))
     n = hit_at(h, nA, nB, ray_view_z(h.Qz + h.dQz * nA, h.k + h.dk * nA, h.zlo, h.zhi), sceneZMax)
@@ -205,5 +213,6 @@ def supercover_march(s: DDARays, tex: DepthTexels, z_thickness: float, max_steps
     c = cell_setup(s, H, W, tex.view_z.numel())
     run = lambda state, ray, count, left: walk_steps(state, ray, tex.marched, (H, W), z_thickness, count,  # noqa: E731
                                                      left, visits is not None)
-    masked_march(c, WalkState, WalkRay, run, lambda c, rows: flush(out, c, rows, tex.view_z, H, W), max_steps, visits)
+    masked_march(c, WalkState, WalkRay, run, lambda c, rows: flush(out, c, rows, s, tex.view_z, H, W), max_steps,
+                 visits)
     return out

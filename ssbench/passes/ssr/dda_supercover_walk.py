@@ -5,7 +5,7 @@ several per compiled call: :func:`walk_steps`), and the exact hit point in the h
 when a stopped ray is written back (:func:`flush`).
 
 The step keeps a fixed shape, as the DDA's (:func:`~ssbench.passes.ssr.dda_march.dda_step`) does: a ray that
-stops keeps its state, masked, until :func:`~ssbench.passes.ssr.dda_march.masked_march` compacts the set, so the
+stops keeps its state, masked, until :func:`~ssbench.passes.ssr.masked_march.masked_march` compacts the set, so the
 step compiles (``torch.compile``) once for every working-set size. A hit ray keeps the cell it hit, its edge
 parameters after the step and the entry parameter ``nA`` of that cell: all :func:`hit_at` needs.
 Each cell's exit z, ``z(nB)``, is the next cell's entry z (``prevZ``, as the DDA's ``prevZ``): one division per
@@ -21,7 +21,8 @@ import torch
 
 from ..compiled import kernel
 from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS
-from .dda_march import HIT_ONLY, hit_rows, marching_fields, masked_march, next_state, ray_view_z
+from .dda_march import ray_view_z
+from .masked_march import HIT_ONLY, hit_rows, marching_fields, masked_march, next_state
 from .dda_state import DDARays, DepthTexels, MarchOutput
 
 __all__ = ["CellWalk", "WalkState", "WalkRay", "cell_setup", "hit_at", "walk_step", "walk_steps",

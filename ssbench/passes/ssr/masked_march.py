@@ -25,10 +25,10 @@ def add_visits(visits: torch.Tensor, t: torch.Tensor, active: torch.Tensor) -> N
 
 def next_state(state: NamedTuple, marching: torch.Tensor, moved: tuple, done: torch.Tensor, live: torch.Tensor,
                term: torch.Tensor) -> NamedTuple:
-    """The state after one step of a masked march (:func:`~.dda_march.dda_step`, the supercover walk's ``walk_step``): the
-    state's leading fields become ``moved`` (in field order) where the ray was ``marching`` and stay elsewhere;
-    then ``alive32`` is cleared where the ray stopped (``done``), ``steps`` counts the ``live`` fetches and ``term``
-    takes the step's termination code where the ray stopped."""
+    """The state after one step of a masked march (:func:`~.dda_march.dda_step`, the supercover walk's
+    ``walk_step``): the state's leading fields become ``moved`` (in field order) where the ray was ``marching`` and
+    stay elsewhere; then ``alive32`` is cleared where the ray stopped (``done``), ``steps`` counts the ``live``
+    fetches and ``term`` takes the step's termination code where the ray stopped."""
     kept = [torch.where(marching, a, a0) for a, a0 in zip(moved, state)]
     return type(state)(*kept, torch.where(done, 0, state.alive32), state.steps + live.to(torch.int32),
                        torch.where(done, term.to(torch.int8), state.term))
@@ -48,11 +48,11 @@ def hit_rows(s, rows: torch.Tensor, set_up: DDARays, hit_only: tuple = HIT_ONLY)
 
 
 def marching_fields(s: DDARays, texels: int, hit_only: tuple = HIT_ONLY) -> dict:
-    """The fields of the set-up's rays ``s`` as a masked march keeps them (:class:`MarchingRays`, the supercover's
-    ``CellWalk``): each column contiguous (the set-up's are strided views; a compiled step compiles again for views),
-    ``None`` for the fields ``hit_only`` (read back for the hits, :func:`hit_rows`), the batch index in the index
-    dtype of ``texels`` texels, ``permute``, ``clipped`` and ``alive`` as int32, no fetches yet (``steps``) and the
-    termination ``OUT_OF_STEPS``."""
+    """The fields of the set-up's rays ``s`` as a masked march keeps them (:class:`~.dda_march.MarchingRays`, the
+    supercover's ``CellWalk``): each column contiguous (the set-up's are strided views; a compiled step compiles again
+    for views), ``None`` for the fields ``hit_only`` (read back for the hits, :func:`hit_rows`), the batch index in
+    the index dtype of ``texels`` texels, ``permute``, ``clipped`` and ``alive`` as int32, no fetches yet (``steps``)
+    and the termination ``OUT_OF_STEPS``."""
     N, dev = s.count, s.k.device
 
     def kept(name: str, v):

@@ -58,7 +58,8 @@ def roughness_blur(reflection: torch.Tensor, roughness: torch.Tensor, max_sigma:
     levels ``0 … max_sigma`` (:func:`kornia.filters.gaussian_blur2d`): ``a + (b − a)·frac`` of the two levels around
     the pixel's σ. Only the levels some pixel weighs are blurred (a scene of mirrors and one rough material needs
     two of five): a level read only with weight ``frac = 0`` stands in unblurred, which gives the same bits for a
-    finite ``reflection`` (``a + (b − a)·0 = a``)."""
+    finite ``reflection`` (``a + (b − a)·0 = a``). A NaN roughness is a ``ValueError`` naming ``roughness``."""
+    checks.check_finite(roughness, "roughness")
     pos = roughness.clamp(0, 1) * (levels - 1)                         # (B, 1, H, W)
     lo = pos.floor().long().clamp(max=levels - 2)
     frac = pos - lo

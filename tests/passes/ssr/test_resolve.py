@@ -1,4 +1,6 @@
 """SSR resolve: Fresnel, roughness blur and blend against closed forms."""
+import math
+
 import pytest
 import torch
 
@@ -49,6 +51,12 @@ def test_roughness_blur_levels_and_interpolation():
         resolve(GBuffer(CAM, color=torch.zeros(1, 3, 12, 16)), torch.zeros(1, 3, 12, 16))
     with pytest.raises(ValueError, match="reflection"):
         resolve(_gbuffer(), torch.zeros(1, 3, 5, 5, dtype=torch.float64))
+    nan_rough = torch.zeros(1, 1, 21, 21, dtype=torch.float64)
+    nan_rough[..., 3, 4] = math.nan
+    with pytest.raises(ValueError, match="^roughness: contains NaN"):              # not an index error from torch
+        roughness_blur(x, nan_rough, 4.0, 5)
+    with pytest.raises(ValueError, match="^roughness"):
+        resolve(_gbuffer(roughness=math.nan), torch.zeros(1, 3, 12, 16, dtype=torch.float64))
 
 
 def _every_level_blur(x, roughness, max_sigma, levels):

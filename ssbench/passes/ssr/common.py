@@ -69,6 +69,13 @@ def reflection_rays(position: torch.Tensor, normal: torch.Tensor) -> torch.Tenso
     return r / length(r).clamp_min(torch.finfo(r.dtype).tiny)
 
 
+def crosses_near_plane(origin_z: torch.Tensor, dir_z: torch.Tensor, max_distance: Union[float, torch.Tensor],
+                       near: float) -> torch.Tensor:
+    """Whether the unclipped end point ``P.z + R.z·maxDistance`` lies beyond the near plane (``> −near``): the rays
+    :func:`clip_ray_length` shortens, which the marchers report ``BEHIND_CAMERA`` when they run out of segment."""
+    return origin_z + dir_z * max_distance > -near
+
+
 def clip_ray_length(origin_z: torch.Tensor, dir_z: torch.Tensor, max_distance: Union[float, torch.Tensor],
                     near: float) -> torch.Tensor:
     """Ray length clipped so the end point stays in front of the near plane (SSR article §1.2, appendix A).
@@ -81,8 +88,7 @@ def clip_ray_length(origin_z: torch.Tensor, dir_z: torch.Tensor, max_distance: U
     that fills a tensor (``full_like``, a ``where`` operand) while it multiplies by the new one, so a float here gave
     wrong lengths from the second ``max_distance`` on (a tensor is an input, never a constant).
     """
-    end_z = origin_z + dir_z * max_distance
-    crossing = end_z > -near
+    crossing = crosses_near_plane(origin_z, dir_z, max_distance, near)
     safe = torch.where(dir_z.abs() > 0, dir_z, torch.ones_like(dir_z))
     clipped = ((-near - origin_z) / safe).clamp_min(0.0)
     limit = max_distance if isinstance(max_distance, torch.Tensor) else torch.full_like(clipped, max_distance)

@@ -14,7 +14,7 @@ import torch
 from ...camera import Camera
 from ...gbuffer import GBuffer
 from ..compiled import kernel
-from .common import ray_segments
+from .common import crosses_near_plane, ray_segments
 from .dda_march import ray_view_z
 from .dda_state import DDARays
 
@@ -85,7 +85,7 @@ def ray_constants(cam: Camera, M: torch.Tensor, o: torch.Tensor, dz: torch.Tenso
                   stop=torch.minimum(end_u, exit_),                               # P1 or the viewport edge
                   stepDir=stepDir, permute=permute, zlo=zlo, zhi=zhi,
                   prevZ=ray_view_z(Q0[2] + 0.5 * dQ[2], k0 + 0.5 * dk, zlo, zhi),  # footprint edge of sample 1
-                  clipped=o[2] + dz * max_ray_distance > -cam.near)
+                  clipped=crosses_near_plane(o[2], dz, max_ray_distance, cam.near))
     return fields, torch.stack(P0, 1), torch.stack(P1, 1)
 
 

@@ -94,9 +94,9 @@ class WalkRay(NamedTuple):
     b_index: torch.Tensor
 
 
-#: the set-up's fields that the walk reads only where a ray hits (the DDA's :data:`~.dda_march.HIT_ONLY`, the sample
+#: the set-up's fields that the walk reads only where a ray hits (the DDA's :data:`~.masked_march.HIT_ONLY`, the sample
 #: point and the DDA's per-stride state, which the cell walk replaces): read back by row for the hits
-#: (:func:`~.dda_march.hit_rows`), not copied by every compaction
+#: (:func:`~.masked_march.hit_rows`), not copied by every compaction
 WALK_HIT_ONLY = HIT_ONLY + ("Px", "Py", "n", "dPx", "dPy", "stride", "end", "stop")
 
 

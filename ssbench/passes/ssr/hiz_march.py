@@ -35,7 +35,7 @@ import torch
 from ...camera import Camera
 from ...gbuffer import GBuffer
 from ..compiled import kernel, step_blocks
-from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OUT_OF_STEPS, compact_now, ray_segments
+from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OUT_OF_STEPS, compact_now, crosses_near_plane, ray_segments
 from .dda_state import MarchOutput
 from .hiz_pyramid import DepthPyramid, padded_levels
 from .hiz_step import (BIG, COLUMNS, EPSILON, OX, OY, OZ, VX, VY, VZ, HiZRules, HiZTexels, MarchState, PyramidLayers,
@@ -101,7 +101,7 @@ def ray_constants(cam: Camera, px: torch.Tensor, o: torch.Tensor, d: torch.Tenso
     one = torch.ones_like(oz)
     t0 = torch.minimum(cell_exit(P0[0], inv[0], off[0], eps[0], P0[0].floor(), one),
                        cell_exit(P0[1], inv[1], off[1], eps[1], P0[1].floor(), one))   # InitialAdvanceRay
-    clipped = o[:, 2] + d[:, 2] * max_ray_distance > -cam.near
+    clipped = crosses_near_plane(o[:, 2], d[:, 2], max_ray_distance, cam.near)
     return c, P0.T, P1, torch.minimum(t0, one), clipped
 
 

@@ -40,7 +40,7 @@ from .dda_rays import ray_pixels
 from .dda_assemble import assemble
 from .dda_state import march_in_chunks
 from .fade import FadeParams
-from .hiz_march import RAY_CHUNK, HiZTexels, hiz_march, hiz_rays, march_layers
+from .hiz_march import RAY_CHUNK, HiZTexels, hiz_march, hiz_rays, index_dtype, march_layers
 from .hiz_pyramid import depth_pyramid, reversed_depth
 
 REQUIRES = ("view_z", "normal", "mask", "color")
@@ -160,7 +160,8 @@ def march_hiz(gbuffer: GBuffer, params: HiZSSRParams, directions: Optional[torch
     sel = ray_pixels(gbuffer)
     visits = torch.zeros(B * H * W, dtype=torch.int32, device=dev) if debug else None
     level_reads = torch.zeros(pyr.count, dtype=torch.long, device=dev) if debug else None
-    o, P1 = march_in_chunks(sel, lambda part: hiz_rays(gbuffer, params.max_ray_distance, part, directions),
+    index = index_dtype(layers)                                                  # int32 while indices fit
+    o, P1 = march_in_chunks(sel, lambda part: hiz_rays(gbuffer, params.max_ray_distance, part, directions, index),
                             lambda rays: hiz_march(rays, layers, tex, params, gbuffer, visits, level_reads),
                             chunk=RAY_CHUNK)
     result = assemble(gbuffer, params, sel, P1, o, visits)

@@ -41,7 +41,8 @@ from .hiz_pyramid import DepthPyramid, padded_levels
 from .hiz_step import (BIG, COLUMNS, EPSILON, OX, OY, OZ, VX, VY, VZ, HiZRules, HiZTexels, MarchState, PyramidLayers,
                        cell_exit, hiz_iterations, inverse)
 
-__all__ = ["HiZRays", "HiZTexels", "EPSILON", "BIG", "COLUMNS", "RAY_CHUNK", "hiz_rays", "march_layers", "hiz_march"]
+__all__ = ["HiZRays", "HiZTexels", "EPSILON", "BIG", "COLUMNS", "RAY_CHUNK", "hiz_rays", "index_dtype", "march_layers",
+           "hiz_march"]
 
 #: rays marched at once: ~130 bytes of state per ray, so a chunk holds ~35 MB; larger than the DDA's chunk because
 #: every chunk pays the long tail of the few rays that need the most iterations
@@ -105,14 +106,18 @@ def ray_constants(cam: Camera, px: torch.Tensor, o: torch.Tensor, d: torch.Tenso
     return c, P0.T, P1, torch.minimum(t0, one), clipped
 
 
-def hiz_rays(gbuffer: GBuffer, max_ray_distance: float, sel: torch.Tensor, directions: Optional[torch.Tensor] = None):
+def hiz_rays(gbuffer: GBuffer, max_ray_distance: float, sel: torch.Tensor, directions: Optional[torch.Tensor] = None,
+             index: torch.dtype = torch.int64):
     """Set-up of the rays of the pixels ``sel`` (flat ``b·H·W + j·W + i``): ``(HiZRays, sel, P0, P1)`` with the
     initial advance done; ``P0``, ``P1`` :math:`(N, 2)` the segment's ends in pixels. The rays follow
-    ``directions`` :math:`(B, 3, H, W)` (unit, view space) when given, else the mirror reflections."""
+    ``directions`` :math:`(B, 3, H, W)` (unit, view space) when given, else the mirror reflections; their image
+    ``b`` and level have the integer type ``index`` (:func:`index_dtype`), which the march's index arithmetic
+    follows."""
     dev = gbuffer.view_z.device
     b, px, o, d, end = ray_segments(gbuffer, sel, max_ray_distance, directions)
     c, P0, P1, t, clipped = ray_constants(gbuffer.camera, px, o, d, end, float(max_ray_distance))
     n = sel.numel()
+    b = b.to(index)
     state = MarchState(t=t, mip=torch.zeros_like(b), alive=torch.ones(n, dtype=torch.bool, device=dev),
                        term=torch.full((n,), OUT_OF_STEPS, dtype=torch.int8, device=dev),
                        steps=torch.zeros(n, dtype=torch.int32, device=dev), hit_t=torch.zeros_like(t))
@@ -137,6 +142,18 @@ def write_back(out: MarchOutput, r: HiZRays, rows: torch.Tensor, gbuffer: GBuffe
         out.P.index_copy_(0, i_h, torch.stack([px, py], 1))
         uv = torch.stack([px / W, 1.0 - py / H], 0)
         out.Q.index_copy_(0, i_h, cam.uv_to_view(uv, -cam.near / pz, dim=0).T.to(out.Q.dtype))
+
+
+def index_dtype(layers: PyramidLayers) -> torch.dtype:
+    """The integer type of a march's images, levels, cells and texel indices over ``layers``: int32 while every
+    index into the pyramid fits in it, else int64. The step kernel's index arithmetic then runs on vectors of 32-bit
+    lanes, twice as many per instruction as 64-bit ones (and an AVX2 machine has no 64-bit vector multiply).
+
+    Example:
+        >>> index_dtype(PyramidLayers(torch.zeros(12), 2, 8))
+        torch.int32
+    """
+    return torch.int32 if layers.cells.numel() < 2 ** 31 else torch.int64
 
 
 def march_layers(pyr: DepthPyramid, max_mip: int, gbuffer: GBuffer) -> PyramidLayers:

@@ -121,12 +121,12 @@ def hiz_step(c: torch.Tensor, t: torch.Tensor, mip: torch.Tensor, b: torch.Tenso
     level = mip.clamp_min(0)                        # a stopped ray riding along masked may be at level −1
     scale = torch.bitwise_left_shift(torch.ones_like(level), level).to(x.dtype)       # 2^m pixels, exactly
     inv_s = 1.0 / scale
-    cx, cy = (x * inv_s).long(), (y * inv_s).long()                           # x, y ≥ 0 on screen: trunc = floor
+    cx, cy = (x * inv_s).to(b.dtype), (y * inv_s).to(b.dtype)                 # x, y ≥ 0 on screen: trunc = floor
     H2, W2 = (H + 1) // 2, (W + 1) // 2                                       # level ≥ 1: a half-size block each
     index = torch.where(level == 0, (b * H + cy) * W + cx,
                         pyramid.base + ((b * (pyramid.layers - 1) + level - 1) * H2 + cy) * W2 + cx)
     index = index.clamp(0, pyramid.cells.numel() - 1)
-    surface = torch.take(pyramid.cells, index)                                # garbage only for `off` rays
+    surface = pyramid.cells.index_select(0, index)                            # garbage only for `off` rays
     tx = cell_exit(c[OX], c[INVX], c[OFFX], c[EPSX], cx, scale)              # AdvanceRay: the borders
     ty = cell_exit(c[OY], c[INVY], c[OFFY], c[EPSY], cy, scale)
     tz = torch.where((c[INVZ] != 0) & (surface > 0), (surface - c[OZ]) * c[INVZ], torch.inf)   # its closest depth

@@ -178,6 +178,26 @@ def test_batch_dtype_and_module():
     assert all(bool(torch.isfinite(t).all()) for t in (a.color, a.hit_view, a.hit_pixel, f.color))
 
 
+def test_index_arithmetic_in_int32_gives_the_int64_bits(monkeypatch):
+    """The march indexes the pyramid in int32 while its cells fit (a meta tensor stands for a pyramid of 2³¹
+    cells, which takes int64); int64 indices give every output and debug count of the int32 ones."""
+    import ssbench.passes.ssr.hiz as hiz_module
+    from ssbench.passes.ssr.hiz_march import index_dtype
+    from ssbench.passes.ssr.hiz_step import PyramidLayers
+    assert index_dtype(PyramidLayers(torch.empty(2 ** 31 - 1, device="meta"), 7, 0)) == torch.int32
+    assert index_dtype(PyramidLayers(torch.empty(2 ** 31, device="meta"), 7, 0)) == torch.int64
+    g = GBuffer.cat([room(24, 18), room(24, 18, slat=True)])
+    for p in (HiZSSRParams(max_ray_distance=30.0), HiZSSRParams(max_ray_distance=30.0, trace_behind=True, max_mip=2)):
+        a = ssr_hiz(g, p, debug=True)
+        monkeypatch.setattr(hiz_module, "index_dtype", lambda layers: torch.int64)
+        b = ssr_hiz(g, p, debug=True)
+        monkeypatch.undo()
+        for name in ("termination", "steps", "hit_pixel", "hit_view", "color"):
+            assert torch.equal(getattr(a, name), getattr(b, name)), name
+        assert all(torch.equal(a.debug[k], b.debug[k]) for k in ("visits", "reads_per_level"))
+        assert int(a.debug["reads_per_level"][1:].sum()) > 0                  # it climbs: levels ≥ 1 are read
+
+
 @pytest.mark.parametrize("kw,name", [
     (dict(max_traversal_intersections=0), "max_traversal_intersections"),
     (dict(depth_buffer_thickness=-1.0), "depth_buffer_thickness"), (dict(max_ray_distance=math.inf), "max_ray_distance"),

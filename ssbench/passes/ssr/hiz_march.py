@@ -136,7 +136,7 @@ def write_back(out: MarchOutput, r: HiZRays, rows: torch.Tensor, gbuffer: GBuffe
     out.steps.index_copy_(0, i, r.state.steps.index_select(0, rows))
     h = rows[term == HIT]
     if h.numel():
-        t, c = r.state.hit_t.index_select(0, h), r.c.index_select(1, h)
+        t, c = r.state.hit_t.index_select(0, h), r.c[:VZ + 1].index_select(1, h)     # rows o and v
         px, py, pz = c[OX] + t * c[VX], c[OY] + t * c[VY], c[OZ] + t * c[VZ]
         i_h = r.i.index_select(0, h)
         out.P.index_copy_(0, i_h, torch.stack([px, py], 1))

@@ -161,14 +161,14 @@ def validate(ray_dir: torch.Tensor, texel: torch.Tensor, z: torch.Tensor, tex: H
     return ok | in2, front2, torch.where(front2, rules.near / -z2.clamp_max(-torch.finfo(z.dtype).tiny), 0.0)
 
 
-def judge(c: torch.Tensor, t: torch.Tensor, z: torch.Tensor, side: torch.Tensor, texel: torch.Tensor,
-          ray_dir: torch.Tensor, tex: HiZTexels, rules: HiZRules, thickness: torch.Tensor):
-    """The verdict on hit candidates at ``texel`` (constants ``c``, ``t``, ``rz`` = ``z`` and ``side`` of
-    :class:`StepGeometry`): ``(hit, go, t_hit)``: whether each hits (:func:`validate`, or it reaches the second
-    layer inside the texel), whether it crosses the texel at level 0 and goes on (with ``trace_behind``, or in
-    front of the second layer), and the ``t`` of its hit point."""
+def judge(oz: torch.Tensor, invz: torch.Tensor, t: torch.Tensor, z: torch.Tensor, side: torch.Tensor,
+          texel: torch.Tensor, ray_dir: torch.Tensor, tex: HiZTexels, rules: HiZRules, thickness: torch.Tensor):
+    """The verdict on hit candidates at ``texel`` (the constants ``oz`` and ``invz`` of :data:`COLUMNS`, ``t``,
+    ``rz`` = ``z`` and ``side`` of :class:`StepGeometry`): ``(hit, go, t_hit)``: whether each hits
+    (:func:`validate`, or it reaches the second layer inside the texel), whether it crosses the texel at level 0 and
+    goes on (with ``trace_behind``, or in front of the second layer), and the ``t`` of its hit point."""
     ok, front2, rz2 = validate(ray_dir, texel, z, tex, rules, thickness)
-    t2 = torch.where(front2 & (c[INVZ] != 0), (rz2 - c[OZ]) * c[INVZ], torch.inf)   # the second layer, in the texel
+    t2 = torch.where(front2 & (invz != 0), (rz2 - oz) * invz, torch.inf)          # the second layer, in the texel
     reach = front2 & (rz2 > 0) & (t2 <= side)                                      # (no layer behind: rz2 = 0)
     ok = ok | reach
     return ok, (~ok if rules.trace_behind else front2 & ~reach), torch.where(reach, t2, t)
@@ -189,12 +189,14 @@ def hiz_iteration(s: MarchState, c: torch.Tensor, b: torch.Tensor, ray_dir: torc
     cand = on & (g.mip < 0)
     texel = b * H * W + g.cy * W + g.cx
     if torch.compiler.is_compiling():            # one fused loop: every ray judged, the verdicts of non-candidates
-        hit, go, t_hit = judge(c, s.t, g.z, g.side, torch.where(cand, texel, 0), ray_dir, tex, rules, thickness)
+        hit, go, t_hit = judge(c[OZ], c[INVZ], s.t, g.z, g.side, torch.where(cand, texel, 0), ray_dir, tex, rules,
+                               thickness)
         hit, go = cand & hit, cand & go
     else:                                        # eager: only the candidates, each operation a pass over them
         i = cand.nonzero().squeeze(1)
         sub = lambda v: v.index_select(-1, i)    # noqa: E731
-        h, gi, th = judge(sub(c), sub(s.t), sub(g.z), sub(g.side), sub(texel), sub(ray_dir), tex, rules, thickness)
+        h, gi, th = judge(sub(c[OZ]), sub(c[INVZ]), sub(s.t), sub(g.z), sub(g.side), sub(texel), sub(ray_dir), tex,
+                          rules, thickness)                  # (of the constants, only the two rows it reads)
         hit, go = torch.zeros_like(cand).index_copy_(0, i, h), torch.zeros_like(cand).index_copy_(0, i, gi)
         t_hit = s.t.index_copy(0, i, th)
     t_new = torch.where(go, g.side, g.t_new)

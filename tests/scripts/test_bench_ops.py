@@ -28,7 +28,6 @@ def test_every_operation_gets_a_row_with_finite_numbers():
     assert list(rows) == names
     for name, (ns, ratio, iqr) in rows.items():
         assert math.isfinite(float(ns)) and float(ns) > 0 and float(ratio) > 0, name
-    assert rows["a + b"][1] == "1.0"                                   # the reference against itself
 
 
 @pytest.mark.parametrize("args,option", [(["--size", "64"], "--size"), (["--size", "0x8"], "--size"),

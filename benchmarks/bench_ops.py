@@ -5,15 +5,16 @@ cost. They do not all cost the same: this times each on ``N`` elements (default 
 torch thread, in rounds that alternate every operation with ``a + b`` in one process (``ssbench.bench.timing``), and
 prints the median ns per element and the median per-round ratio to ``a + b`` (which survives a loaded machine):
 
-* ``torch.where`` is an ATen loop of one element at a time with a branch (``cond ? a : b``), not a vector blend: a
-  few times an addition where the mask comes in long runs (a march's rays, neighbours in an image), many times where
-  it flips at random (the branch is mispredicted half the time). ``masked_fill`` and a product with a bool mask
-  (a cast per element) are no better. Compiled (``--compile``), a ``where`` whose mask is computed in the kernel is a
-  vector blend; one that reads a bool array is not faster than eager (the mask is built from the bytes lane by
-  lane): why the marchers keep their flags as int32 in the compiled steps;
+* ``torch.where`` (ATen's CPU kernel is a per-element ``cond ? a : b``): a few times an addition where the mask
+  comes in long runs (a march's rays, neighbours in an image), many times where it flips at random, as a branch
+  that the predictor misses would. ``masked_fill`` and a product with a bool mask (a cast per element) are no
+  better. Compiled (``--compile``), a ``where`` whose mask is computed in the same kernel is a vector blend and
+  costs what a compiled addition does; a lone one that reads a bool array measured no faster than eager, and just as
+  dependent on the mask (inductor's generated code turns the bytes into a vector mask): one reason the
+  marchers keep their flags as int32 in the compiled steps;
 * comparisons write one byte per element and cost more than an addition;
-* gathers: ``index_select`` and ``torch.take`` with int32 or int64 indices, and ``x[index]`` (advanced indexing),
-  at random indices into an image of ``N`` texels;
+* gathers at random indices into an image of ``N`` texels: ``index_select`` with int32 or int64 indices,
+  ``torch.take`` and ``x[index]`` (advanced indexing);
 * conversions float → int32 / int64 and integer products (int64 lanes are half as many per vector, and AVX2 has
   no 64-bit vector multiply): why the marchers and the AO passes keep texel indices in int32 where they fit.
 

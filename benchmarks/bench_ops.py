@@ -26,7 +26,7 @@ import argparse
 
 import torch
 
-from ssbench.bench.timing import median_iqr, run_rounds, warm_up
+from ssbench.bench.timing import median_iqr, plan_rounds, run_rounds, warm_up
 
 
 def operations(n: int, gen: torch.Generator) -> dict:
@@ -103,9 +103,8 @@ def main() -> None:
           f"median of {a.rounds} rounds, each operation alternated with a + b")
     print(f"{'operation':38s} {'ns/element':>10s} {'x a + b':>14s}")
     for name, call in ops.items():
-        best = warm_up([call, reference], at_least=3)
-        numbers = [max(1, int(a.block_ms / 1e3 / max(t, 1e-9))) for t in best]
-        op_s, ref_s = run_rounds([call, reference], numbers, a.rounds)
+        rounds, numbers = plan_rounds(warm_up([call, reference], at_least=3), a.block_ms / 1e3 * a.rounds, a.rounds)
+        op_s, ref_s = run_rounds([call, reference], numbers, rounds)
         ns, _ = median_iqr(op_s)
         ratio, iqr = median_iqr([x / y for x, y in zip(op_s, ref_s)])
         print(f"{name:38s} {ns * 1e9 / n:10.2f} {ratio:8.1f} ±{iqr:4.1f}")

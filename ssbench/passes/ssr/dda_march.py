@@ -199,9 +199,7 @@ def flush(out: MarchOutput, s: DDARays, rows: torch.Tensor, set_up: DDARays, tex
     """Write the termination and fetches of the working set's ``rows`` (stopped rays, or every ray at the end)
     into ``out``; refine the hits among them (:func:`refine_hits`) and write their hit points (``set_up``: the
     rays before the march, for the fields :data:`HIT_ONLY`)."""
-    i, term = s.i.index_select(0, rows), s.term.index_select(0, rows)
-    out.term.index_copy_(0, i, term)
-    out.steps.index_copy_(0, i, s.steps.index_select(0, rows))
+    term = out.write_ends(rows, s.i, s.term, s.steps)
     hi = rows[term == HIT]
     if hi.numel():
         h = hit_rows(s, hi, set_up)

@@ -124,6 +124,21 @@ class MarchOutput:
                    P=torch.full((n, 2), -1.0, dtype=dtype, device=device),
                    Q=torch.zeros(n, 3, dtype=dtype, device=device), k=torch.ones(n, dtype=dtype, device=device))
 
+    def write_ends(self, rows: torch.Tensor, i: torch.Tensor, term: torch.Tensor, steps: torch.Tensor) -> torch.Tensor:
+        """Copy the termination codes ``term`` and fetch counts ``steps`` of a working set's ``rows`` (its output
+        rows ``i``) into these outputs, as every marcher writes back its stopped rays; returns those rows' codes.
+
+        Example:
+            >>> out = MarchOutput.empty(3, torch.float32, "cpu", 4)
+            >>> out.write_ends(torch.tensor([1]), torch.tensor([2, 0]), torch.tensor([5, 1], dtype=torch.int8),
+            ...                torch.tensor([7, 9], dtype=torch.int32)).tolist(), out.term.tolist(), out.steps.tolist()
+            ([1], [1, 4, 4], [9, 0, 0])
+        """
+        at, codes = i.index_select(0, rows), term.index_select(0, rows)
+        self.term.index_copy_(0, at, codes)
+        self.steps.index_copy_(0, at, steps.index_select(0, rows))
+        return codes
+
 
 def march_in_chunks(sel: torch.Tensor, setup: Callable[[torch.Tensor], tuple], march: Callable[[DDARays], MarchOutput],
                     chunk: Optional[int] = None) -> tuple[MarchOutput, torch.Tensor]:

@@ -189,9 +189,7 @@ def flush(out: MarchOutput, c: CellWalk, rows: torch.Tensor, set_up: DDARays, vi
     """Write the termination and fetches of the walk's ``rows`` into ``out``, and the hit points of its hits:
     :func:`hit_at` in the hit cell, from the cell's entry ``nA`` and exit ``nB`` (``view_z``: the scene's;
     ``set_up``: the rays before the walk, for the fields :data:`WALK_HIT_ONLY`)."""
-    i, term = c.i.index_select(0, rows), c.term.index_select(0, rows)
-    out.term.index_copy_(0, i, term)
-    out.steps.index_copy_(0, i, c.steps.index_select(0, rows))
+    term = out.write_ends(rows, c.i, c.term, c.steps)
     hi = rows[term == HIT]
     if not hi.numel():
         return

@@ -131,9 +131,7 @@ def write_back(out: MarchOutput, r: HiZRays, rows: torch.Tensor, gbuffer: GBuffe
     hit (``P`` in pixels, ``Q`` in view space, from their hit ``t``)."""
     cam = gbuffer.camera
     H, W = gbuffer.view_z.shape[-2:]
-    i, term = r.i.index_select(0, rows), r.state.term.index_select(0, rows)
-    out.term.index_copy_(0, i, term)
-    out.steps.index_copy_(0, i, r.state.steps.index_select(0, rows))
+    term = out.write_ends(rows, r.i, r.state.term, r.state.steps)
     h = rows[term == HIT]
     if h.numel():
         t, c = r.state.hit_t.index_select(0, h), r.c[:VZ + 1].index_select(1, h)     # rows o and v

@@ -47,6 +47,23 @@ def test_a_kernel_runs_eager_when_off_and_compiled_once_per_signature_when_on():
     assert double.eager(x).tolist() == [0.0, 2.0, 4.0, 6.0]
 
 
+def test_a_kept_mask_is_bool_eager_and_float_inside_a_compiled_kernel():
+    @C.kernel
+    def hold(x):                                 # what the kernel stores: the kept mask itself, and a selection by it
+        m = C.kept_mask(x > 0)
+        return m, torch.where(C.is_set(m), x, -x)
+
+    x = torch.tensor([-2.0, 0.0, 3.0, float("nan")])
+    with C.compiling(False):
+        m, y = hold(x)
+        assert m.dtype == torch.bool and m.tolist() == [False, False, True, False]
+    with C.compiling(True):
+        mc, yc = hold(x)
+    assert mc.dtype == torch.float32 and mc.tolist() == [0.0, 0.0, 1.0, 0.0]
+    assert torch.equal(C.is_set(mc), m)
+    torch.testing.assert_close(yc, y, rtol=0, atol=0, equal_nan=True)     # the same selections
+
+
 def test_a_dynamic_kernel_counts_one_compilation_for_every_size_and_number():
     @C.kernel(dynamic=True)
     def scaled(x, s):

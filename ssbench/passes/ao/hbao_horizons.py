@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 import torch
 
 from ..common import component_dot, fetch_uv
-from ..compiled import kernel
+from ..compiled import is_set, kept_mask, kernel
 
 if TYPE_CHECKING:
     from .hbao import HBAOParams
@@ -141,9 +141,9 @@ def hbao_band(cam, uv0: torch.Tensor, mask: torch.Tensor, rand: torch.Tensor, z_
     T1 = snapped_duv[:, 0:1] * dPdu + snapped_duv[:, 1:2] * dPdv
     tanT = tangent(T1) + params.tan_angle_bias
     tanS, d2 = offset_to(uv0d + snapped_duv)
-    hit = active & (d2 < R2) & (tanS > tanT)
-    ao = torch.where(hit, (1.0 - d2 / R2) * (tan_to_sin(tanS) - tan_to_sin(tanT)).clamp(0.0, 1.0), 0.0)
-    tanH = torch.where(hit, torch.maximum(tanH, tanS), tanH)
+    hit = kept_mask(active & (d2 < R2) & (tanS > tanT))     # compiled: 0/1 floats, not a bool buffer
+    ao = torch.where(is_set(hit), (1.0 - d2 / R2) * (tan_to_sin(tanS) - tan_to_sin(tanT)).clamp(0.0, 1.0), 0.0)
+    tanH = torch.where(is_set(hit), torch.maximum(tanH, tanS), tanH)
     numStepsLeft = numSteps - 1.0                                            # --numSteps
     sinH = tan_to_sin(tanH)
     samples = torch.ones_like(numSteps)
@@ -154,10 +154,10 @@ def hbao_band(cam, uv0: torch.Tensor, mask: torch.Tensor, rand: torch.Tensor, z_
         samples = samples + live.to(dtype)
         uv = uv + deltaUV
         tanS, d2 = offset_to(uv)                                             # (B, D, h, W)
-        hit = live & (d2 < R2) & (tanS > tanH)
+        hit = kept_mask(live & (d2 < R2) & (tanS > tanH))
         sinS = tan_to_sin(tanS)
-        ao = ao + torch.where(hit, (1.0 - d2 / R2) * (sinS - sinH).clamp(0.0, 1.0), 0.0)
-        tanH, sinH = torch.where(hit, tanS, tanH), torch.where(hit, sinS, sinH)
+        ao = ao + torch.where(is_set(hit), (1.0 - d2 / R2) * (sinS - sinH).clamp(0.0, 1.0), 0.0)
+        tanH, sinH = torch.where(is_set(hit), tanS, tanH), torch.where(is_set(hit), sinS, sinH)
 
     out = (1.0 - ao.sum(1, keepdim=True) / D * params.ao_strength).clamp(0.0, 1.0)
     out = torch.where(active, out, torch.ones_like(out))

@@ -11,9 +11,9 @@ from typing import TYPE_CHECKING, NamedTuple, Optional
 import torch
 
 from ..compiled import kernel
-from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS
+from .common import HIT, OFF_SCREEN, OUT_OF_STEPS
 from .dda_state import DDARays, DepthTexels, MarchOutput
-from .masked_march import add_visits, hit_rows, marching_fields, masked_march, next_state
+from .masked_march import add_visits, end_code, hit_rows, marching_fields, masked_march, next_state
 
 if TYPE_CHECKING:                                        # (ssr_dda imports this module)
     from .dda import DDASSRParams
@@ -90,7 +90,7 @@ class DDAState(NamedTuple):
     """What one DDA step changes, per ray of the working set (each :math:`(N,)`; fields of :class:`MarchingRays`):
     the sample ``Px, Py`` (permuted frame), ``Qz``, ``k``, the step count ``n``, the ray's z at the end of the last
     footprint ``prevZ``, ``alive32`` and ``steps`` (fetches), int32 (a compiled kernel loads bool arrays lane by
-    lane), and ``term``, the int8 termination code (``OUT_OF_STEPS`` until the ray stops)."""
+    lane), and ``term``, the int32 termination code (``OUT_OF_STEPS`` until the ray stops)."""
 
     Px: torch.Tensor
     Py: torch.Tensor
@@ -168,8 +168,7 @@ def dda_step(state: DDAState, ray: DDARay, tex: tuple, size: tuple, z_thickness:
     if second_z is not None:                                                      # the second depth layer
         z2 = second_z.index_select(0, t)
         hit = hit | (live & (rayZMax >= z2 - z_thickness) & (rayZMin <= z2))
-    ended = torch.where(r.clipped32 != 0, BEHIND_CAMERA, MAX_DISTANCE)            # past P1
-    term = torch.where(u > r.end, ended, OFF_SCREEN)                              # the full step's centre
+    term = torch.where(u > r.end, end_code(r.clipped32), OFF_SCREEN)            # past P1; int32                              # the full step's centre
     term = torch.where(off, OFF_SCREEN, torch.where(hit, HIT, term))
     done = past | off | hit | partial
     return next_state(st, marching, (Px, Py, Qz, k, n, prevZ), done, live, term), done, t, live
@@ -228,7 +227,7 @@ def dda_march(s: DDARays, tex: DepthTexels, params: "DDASSRParams", H: int, W: i
 class MarchingRays(DDARays):
     """:class:`DDARays` as :func:`dda_march` marches them: the batch index in the texel index dtype, ``permute``,
     ``clipped`` and ``alive`` as int32 (for the compiled step), and each ray's fetches ``steps`` (int32) and
-    termination code ``term`` (int8), written back when the ray is dropped."""
+    termination code ``term`` (int32), written back when the ray is dropped."""
 
     b_index: Optional[torch.Tensor] = None
     permute32: Optional[torch.Tensor] = None

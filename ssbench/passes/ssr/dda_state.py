@@ -125,8 +125,8 @@ class MarchOutput:
                    Q=torch.zeros(n, 3, dtype=dtype, device=device), k=torch.ones(n, dtype=dtype, device=device))
 
     def write_ends(self, rows: torch.Tensor, i: torch.Tensor, term: torch.Tensor, steps: torch.Tensor) -> torch.Tensor:
-        """Copy the termination codes ``term`` and fetch counts ``steps`` of a working set's ``rows`` (its output
-        rows ``i``) into these outputs, as every marcher writes back its stopped rays; returns those rows' codes.
+        """Copy the termination codes ``term`` (any integer type) and fetch counts ``steps`` of a working set's
+        ``rows`` (its output rows ``i``) into these outputs, as every marcher writes back its stopped rays; returns those rows' codes.
 
         Example:
             >>> out = MarchOutput.empty(3, torch.float32, "cpu", 4)
@@ -135,7 +135,7 @@ class MarchOutput:
             ([1], [1, 4, 4], [9, 0, 0])
         """
         at, codes = i.index_select(0, rows), term.index_select(0, rows)
-        self.term.index_copy_(0, at, codes)
+        self.term.index_copy_(0, at, codes.to(self.term.dtype))
         self.steps.index_copy_(0, at, steps.index_select(0, rows))
         return codes
 

@@ -20,9 +20,9 @@ from typing import NamedTuple, Optional
 import torch
 
 from ..compiled import kernel
-from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, OUT_OF_STEPS
+from .common import HIT, OFF_SCREEN, OUT_OF_STEPS
 from .dda_march import ray_view_z
-from .masked_march import HIT_ONLY, hit_rows, marching_fields, masked_march, next_state
+from .masked_march import HIT_ONLY, end_code, hit_rows, marching_fields, masked_march, next_state
 from .dda_state import DDARays, DepthTexels, MarchOutput
 
 __all__ = ["CellWalk", "WalkState", "WalkRay", "cell_setup", "hit_at", "walk_step", "walk_steps",
@@ -37,7 +37,7 @@ class CellWalk(DDARays):
     enters the next; before the first step: where it enters the first); ``ddy`` (``tDeltaY``; ``tDeltaX = 1``);
     ``sy`` (``stepY``; ``stepX = stepDir``); ``nEnd`` (``P1``); ``Wm, Hm``: the image's size along the major and
     minor axes; and as the march keeps them: the batch index in the texel index dtype, ``permute``, ``clipped`` and
-    ``alive`` as int32, the fetches ``steps`` (int32) and the termination code ``term`` (int8)."""
+    ``alive`` as int32, the fetches ``steps`` (int32) and the termination code ``term`` (int32)."""
 
     cx: torch.Tensor
     cy: torch.Tensor
@@ -148,8 +148,7 @@ def walk_step(state: WalkState, ray: WalkRay, view_z: torch.Tensor, size: tuple,
     zB = ray_view_z(r.Qz + r.dQz * nB, r.k + r.dk * nB, r.zlo, r.zhi)
     rayZMin, rayZMax = torch.minimum(zA, zB), torch.maximum(zA, zB)
     hit = live & (rayZMax >= sceneZMax - z_thickness) & (rayZMin <= sceneZMax)
-    ended = torch.where(r.clipped32 != 0, BEHIND_CAMERA, MAX_DISTANCE)
-    term = torch.where(past, ended, torch.where(off, OFF_SCREEN, HIT))
+    term = torch.where(off, OFF_SCREEN, torch.where(past, end_code(r.clipped32), HIT))   # past, off: exclusive
     done = past | off | hit
     return next_state(st, marching, (cx, cy, tx, ty, nA, zB), done, live, term), done, t, live
 

@@ -59,7 +59,7 @@ class HiZRays:
             ``o`` in ``(px, py, rz)``, the segment ``v`` per unit of ``t``, ``inv = 1/v`` (:data:`BIG` for ``v.xy =
             0``; ``invz`` only for rays moving away, ``v.z < 0``, else 0), ``off = (v ≥ 0)`` (FidelityFX's
             ``floor_offset``) and the signed crossing ``eps = EPSILON·sign(v)`` per screen axis.
-        ray_dir: :math:`(3, N)` the unit view-space direction; ``ended``: int8, the code of reaching the segment's
+        ray_dir: :math:`(3, N)` the unit view-space direction; ``ended``: int32, the code of reaching the segment's
             end (``BEHIND_CAMERA`` where the near plane shortened it, else ``MAX_DISTANCE``).
         state: the changing :class:`~.hiz_step.MarchState` (``t``, level, termination, reads, hit ``t``).
     """
@@ -118,11 +118,11 @@ def hiz_rays(gbuffer: GBuffer, max_ray_distance: float, sel: torch.Tensor, direc
     c, P0, P1, t, clipped = ray_constants(gbuffer.camera, px, o, d, end, float(max_ray_distance))
     n = sel.numel()
     b = b.to(index)
-    state = MarchState(t=t, mip=torch.zeros_like(b), alive=torch.ones(n, dtype=torch.bool, device=dev),
-                       term=torch.full((n,), OUT_OF_STEPS, dtype=torch.int8, device=dev),
+    state = MarchState(t=t, mip=torch.zeros_like(b), alive32=torch.ones(n, dtype=torch.int32, device=dev),
+                       term=torch.full((n,), OUT_OF_STEPS, dtype=torch.int32, device=dev),
                        steps=torch.zeros(n, dtype=torch.int32, device=dev), hit_t=torch.zeros_like(t))
     rays = HiZRays(i=torch.arange(n, device=dev), b=b, c=c, ray_dir=d.T.contiguous(),
-                   ended=torch.where(clipped, BEHIND_CAMERA, MAX_DISTANCE).to(torch.int8), state=state)
+                   ended=torch.where(clipped, BEHIND_CAMERA, MAX_DISTANCE).to(torch.int32), state=state)
     return rays, sel, P0, P1
 
 
@@ -178,10 +178,11 @@ def hiz_march(r: HiZRays, pyramid: PyramidLayers, tex: HiZTexels, params, gbuffe
     debug = visits is not None or level_reads is not None
     done = r.state.t >= 1.0                                              # the initial advance left the segment
     if compact_now(int((~done).sum()), r.count):
-        out.term[r.i[done]] = r.ended[done]
+        out.term[r.i[done]] = r.ended[done].to(out.term.dtype)
         r = r.select((~done).nonzero().squeeze(1))
     else:                             # few: they ride along stopped (no copy of the whole set) until it is compacted
-        r.state = r.state._replace(alive=r.state.alive & ~done, term=torch.where(done, r.ended, r.state.term))
+        r.state = r.state._replace(alive32=torch.where(done, 0, r.state.alive32),
+                                   term=torch.where(done, r.ended, r.state.term))
     for count, left in step_blocks(params.max_traversal_intersections, debug, dev):
         if r.count == 0:
             break
@@ -195,7 +196,7 @@ def hiz_march(r: HiZRays, pyramid: PyramidLayers, tex: HiZTexels, params, gbuffe
             if visits is not None:
                 at0 = on & (level == 0)
                 visits.index_add_(0, (r.b * H * W + cy * W + cx)[at0], torch.ones_like(cx[at0], dtype=visits.dtype))
-        alive = r.state.alive
+        alive = r.state.alive32 != 0
         if compact_now(int(alive.sum()), r.count):
             write_back(out, r, (~alive).nonzero().squeeze(1), gbuffer)
             r = r.select(alive.nonzero().squeeze(1))

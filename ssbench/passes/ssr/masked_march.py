@@ -11,10 +11,10 @@ import torch
 
 from ..common import index_dtype
 from ..compiled import step_blocks
-from .common import OUT_OF_STEPS
+from .common import BEHIND_CAMERA, MAX_DISTANCE, OUT_OF_STEPS
 from .dda_state import DDARays
 
-__all__ = ["HIT_ONLY", "add_visits", "hit_rows", "marching_fields", "masked_march", "next_state"]
+__all__ = ["HIT_ONLY", "add_visits", "end_code", "hit_rows", "marching_fields", "masked_march", "next_state"]
 
 
 def add_visits(visits: torch.Tensor, t: torch.Tensor, active: torch.Tensor) -> None:
@@ -23,15 +23,28 @@ def add_visits(visits: torch.Tensor, t: torch.Tensor, active: torch.Tensor) -> N
     visits.index_add_(0, t[on], torch.ones_like(t[on], dtype=visits.dtype))
 
 
+def end_code(clipped32: torch.Tensor) -> torch.Tensor:
+    """The termination code of a ray that reached the end of its segment, int32 like ``clipped32`` (int32 0/1):
+    ``BEHIND_CAMERA`` where the segment was clipped at the near plane, else ``MAX_DISTANCE``. The march keeps its
+    codes in int32: a compiled step selected int8 codes through a per-lane conversion of each mask (perf: a fifth of
+    the DDA's step kernel), and ``where`` of two Python numbers is int64.
+
+    Example:
+        >>> end_code(torch.tensor([0, 1], dtype=torch.int32)).tolist() == [MAX_DISTANCE, BEHIND_CAMERA]
+        True
+    """
+    return torch.where(clipped32 != 0, BEHIND_CAMERA, torch.full_like(clipped32, MAX_DISTANCE))
+
+
 def next_state(state: NamedTuple, marching: torch.Tensor, moved: tuple, done: torch.Tensor, live: torch.Tensor,
                term: torch.Tensor) -> NamedTuple:
     """The state after one step of a masked march (:func:`~.dda_march.dda_step`, the supercover walk's
     ``walk_step``): the state's leading fields become ``moved`` (in field order) where the ray was ``marching`` and
     stay elsewhere; then ``alive32`` is cleared where the ray stopped (``done``), ``steps`` counts the ``live``
-    fetches and ``term`` takes the step's termination code where the ray stopped."""
+    fetches and ``term`` (int32) takes the step's termination code where the ray stopped."""
     kept = [torch.where(marching, a, a0) for a, a0 in zip(moved, state)]
     return type(state)(*kept, torch.where(done, 0, state.alive32), state.steps + live.to(torch.int32),
-                       torch.where(done, term.to(torch.int8), state.term))
+                       torch.where(done, term.to(state.term.dtype), state.term))
 
 
 #: the set-up's fields (:class:`DDARays`) that the DDA reads only where a ray hits: left out of the marching working
@@ -52,7 +65,7 @@ def marching_fields(s: DDARays, texels: int, hit_only: tuple = HIT_ONLY) -> dict
     supercover's ``CellWalk``): each column contiguous (the set-up's are strided views; a compiled step compiles again
     for views), ``None`` for the fields ``hit_only`` (read back for the hits, :func:`hit_rows`), the batch index in
     the index dtype of ``texels`` texels, ``permute``, ``clipped`` and ``alive`` as int32, no fetches yet (``steps``)
-    and the termination ``OUT_OF_STEPS``."""
+    and the termination ``OUT_OF_STEPS`` (int32, :func:`end_code`)."""
     N, dev = s.count, s.k.device
 
     def kept(name: str, v):
@@ -61,7 +74,7 @@ def marching_fields(s: DDARays, texels: int, hit_only: tuple = HIT_ONLY) -> dict
                 b_index=s.b.to(index_dtype(texels)), permute32=s.permute.to(torch.int32),
                 clipped32=s.clipped.to(torch.int32), alive32=torch.ones(N, dtype=torch.int32, device=dev),
                 steps=torch.zeros(N, dtype=torch.int32, device=dev),
-                term=torch.full((N,), OUT_OF_STEPS, dtype=torch.int8, device=dev))
+                term=torch.full((N,), OUT_OF_STEPS, dtype=torch.int32, device=dev))
 
 
 def masked_march(s, state: type, ray: type, run, flush, max_steps: int, visits: Optional[torch.Tensor]) -> None:

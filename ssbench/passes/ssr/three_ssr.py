@@ -108,13 +108,13 @@ def march_rays(ray: torch.Tensor, b: torch.Tensor, r: ThreeRays, shade: Shading,
     ws = MarchRays(ray, b, components(r.d0), components(r.span), r.total, r.recip, r.recip_end, components(r.vp),
                    components(r.d1v), (r.d1v - r.vp).norm(dim=1), components(r.refl), components(r.n), r.s_step)
     zeros = lambda *shape, dtype=dt: torch.zeros(m, *shape, dtype=dtype, device=dev)   # noqa: E731
-    st = MarchState(torch.ones(m, dtype=torch.bool, device=dev), zeros(dtype=torch.int8).fill_(OUT_OF_STEPS),
+    st = MarchState(torch.ones(m, dtype=torch.int32, device=dev), zeros(dtype=torch.int32).fill_(OUT_OF_STEPS),
                     zeros(dtype=torch.int32), r.s_step.clone(), zeros(dtype=out.hit_k.dtype), components(zeros(2)),
                     components(zeros(3)))
 
     def write_back(rows: torch.Tensor) -> None:   # the working set's rays at ``rows``: their ends and hits
         at = ws.ray.index_select(0, rows)
-        out.term.index_copy_(0, at, st.term.index_select(0, rows))
+        out.term.index_copy_(0, at, st.term.index_select(0, rows).to(out.term.dtype))
         out.steps.index_copy_(0, at, st.steps.index_select(0, rows))
         out.hit_k.index_copy_(0, at, st.hit_tex.index_select(0, rows))
         out.hit_xy.index_copy_(0, at, take_rows(st.hit_xy, rows))
@@ -129,9 +129,10 @@ def march_rays(ray: torch.Tensor, b: torch.Tensor, r: ThreeRays, shade: Shading,
         st = march_steps(at, ws, st, textures, shade.size, shade.camera.far, thickness, p.infinite_thick,
                          p.max_distance, count, left)
         i += count
-        if compact_now(int(st.alive.sum()), ws.ray.numel()):             # drop the stopped rays now and then
-            write_back((~st.alive).nonzero().squeeze(1))
-            keep = st.alive.nonzero().squeeze(1)
+        alive = st.alive32 != 0
+        if compact_now(int(alive.sum()), ws.ray.numel()):                 # drop the stopped rays now and then
+            write_back((~alive).nonzero().squeeze(1))
+            keep = alive.nonzero().squeeze(1)
             ws, st = ws.take(keep), st.take(keep)
     write_back(torch.arange(ws.ray.numel(), device=dev))
 

@@ -72,12 +72,13 @@ class MarchRays(NamedTuple):
 
 
 class MarchState(NamedTuple):
-    """Each ray's state, :math:`(N,)` per field: ``alive`` (still marching), ``term`` (its termination code once
-    stopped), ``steps``, ``s`` (the interpolation parameter, which does not advance on a background texel or a
-    hit) and the hit's record: ``hit_tex`` (the texel in its image), ``hit_xy`` (x, y) and ``hit_vp`` (x, y, z),
-    written when the ray stops on a hit that passes its verdict."""
+    """Each ray's state, :math:`(N,)` per field: ``alive32`` (1 while still marching), ``term`` (its termination
+    code once stopped), ``steps``, ``s`` (the interpolation parameter, which does not advance on a background texel
+    or a hit) and the hit's record: ``hit_tex`` (the texel in its image), ``hit_xy`` (x, y) and ``hit_vp`` (x, y, z),
+    written when the ray stops on a hit that passes its verdict. The flag and the code are int32: a compiled step
+    stores a bool array and selects int8 codes one lane at a time (perf: a quarter of its time)."""
 
-    alive: torch.Tensor
+    alive32: torch.Tensor
     term: torch.Tensor
     steps: torch.Tensor
     s: torch.Tensor
@@ -160,7 +161,7 @@ def pixel_step(i, ws: MarchRays, st: MarchState, tex: StepTextures, size: tuple[
     ``MAX_DISTANCE``. ``thickness`` is a 0-d tensor of the rays' dtype: as a number, the compiled steps would be
     specialised on its value (its ``clamp`` bound), compiling again for every thickness a sweep sets."""
     H, W = size
-    was = st.alive if go is None else st.alive & go
+    was = st.alive32 != 0 if go is None else (st.alive32 != 0) & go
     end = i >= ws.total
     x, y = ws.d0[0] + i * ws.span[0], ws.d0[1] + i * ws.span[1]                   # xy = d0 + i·span
     off = ~end & ((x < 0) | (x > W) | (y < 0) | (y > H))
@@ -187,7 +188,7 @@ def pixel_step(i, ws: MarchRays, st: MarchState, tex: StepTextures, size: tuple[
     if go is not None:
         s = torch.where(go, s, st.s)
     term, hit_tex, hit_xy, hit_vp = _end_hits(hit, term, st, (t, texel, (x, y), vpt), ws, tex, max_distance)
-    return MarchState(alive & ~hit, term, steps, s, hit_tex, hit_xy, hit_vp)
+    return MarchState((alive & ~hit).to(torch.int32), term, steps, s, hit_tex, hit_xy, hit_vp)
 
 
 @kernel(dynamic=True, fuse_whole=True)

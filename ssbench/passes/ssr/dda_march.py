@@ -168,7 +168,7 @@ def dda_step(state: DDAState, ray: DDARay, tex: tuple, size: tuple, z_thickness:
     if second_z is not None:                                                      # the second depth layer
         z2 = second_z.index_select(0, t)
         hit = hit | (live & (rayZMax >= z2 - z_thickness) & (rayZMin <= z2))
-    term = torch.where(u > r.end, end_code(r.clipped32), OFF_SCREEN)            # past P1; int32                              # the full step's centre
+    term = torch.where(u > r.end, end_code(r.clipped32), OFF_SCREEN)   # past P1 at the full step's centre; int32
     term = torch.where(off, OFF_SCREEN, torch.where(hit, HIT, term))
     done = past | off | hit | partial
     return next_state(st, marching, (Px, Py, Qz, k, n, prevZ), done, live, term), done, t, live

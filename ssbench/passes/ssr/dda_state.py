@@ -126,7 +126,8 @@ class MarchOutput:
 
     def write_ends(self, rows: torch.Tensor, i: torch.Tensor, term: torch.Tensor, steps: torch.Tensor) -> torch.Tensor:
         """Copy the termination codes ``term`` (any integer type) and fetch counts ``steps`` of a working set's
-        ``rows`` (its output rows ``i``) into these outputs, as every marcher writes back its stopped rays; returns those rows' codes.
+        ``rows`` (its output rows ``i``) into these outputs, as every marcher writes back its stopped rays; returns
+        those rows' codes.
 
         Example:
             >>> out = MarchOutput.empty(3, torch.float32, "cpu", 4)

@@ -205,7 +205,8 @@ def hiz_iteration(s: MarchState, c: torch.Tensor, b: torch.Tensor, ray_dir: torc
     done = alive & (g.off | hit | (mip < 0) | (t_new >= 1.0))
     code = torch.where(g.off, OFF_SCREEN, torch.where(hit, HIT, torch.where(mip < 0, BEHIND_SURFACE, ended)))  # int32
     state = MarchState(t=t_new, mip=mip, alive32=torch.where(done, 0, s.alive32),
-                       term=torch.where(done, code, s.term), steps=s.steps + on.int(), hit_t=torch.where(hit, t_hit, s.hit_t))
+                       term=torch.where(done, code, s.term), steps=s.steps + on.int(),
+                       hit_t=torch.where(hit, t_hit, s.hit_t))
     return state, on, g.cx, g.cy
 
 

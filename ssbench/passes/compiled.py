@@ -47,7 +47,8 @@ SAO tap loop a fifth of its time. Three inductor habits shaped the kernels (meas
 compiles to masked loads slower than eager (pad outside, slice inside); a kernel that reads a neighbour's
 value of a fused intermediate recomputes it per neighbour (split the kernel where an intermediate is read shifted);
 and a bool tensor that inductor stores between two loops of a kernel is written and read back one lane at a time
-(hold such a mask as 0/1 floats, :func:`kept_mask`).
+(hold such a mask as 0/1 floats, :func:`kept_mask`), as is the mask of every ``where`` that selects int8 values
+(the SSR marchers keep their termination codes and alive flags in int32).
 One torch 2.13 bug shapes the size-dynamic kernels' arguments: ``torch.compile(dynamic=True)`` keeps the first
 call's value of a float argument that fills a tensor (``full_like``, a ``where`` operand) while the same float in
 arithmetic follows each call (``x * m + full_like(x, m)`` compiled at ``m = 20`` gives ``x * 7 + 20`` at ``m = 7``):

@@ -11,9 +11,9 @@ from typing import TYPE_CHECKING, NamedTuple, Optional
 import torch
 
 from ..compiled import kernel
-from .common import HIT, OFF_SCREEN, OUT_OF_STEPS
+from .common import HIT, OFF_SCREEN, OUT_OF_STEPS, end_code
 from .dda_state import DDARays, DepthTexels, MarchOutput
-from .masked_march import add_visits, end_code, hit_rows, marching_fields, masked_march, next_state
+from .masked_march import add_visits, hit_rows, marching_fields, masked_march, next_state
 
 if TYPE_CHECKING:                                        # (ssr_dda imports this module)
     from .dda import DDASSRParams

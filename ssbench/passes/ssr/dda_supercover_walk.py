@@ -20,9 +20,9 @@ from typing import NamedTuple, Optional
 import torch
 
 from ..compiled import kernel
-from .common import HIT, OFF_SCREEN, OUT_OF_STEPS
+from .common import HIT, OFF_SCREEN, OUT_OF_STEPS, end_code
 from .dda_march import ray_view_z
-from .masked_march import HIT_ONLY, end_code, hit_rows, marching_fields, masked_march, next_state
+from .masked_march import HIT_ONLY, hit_rows, marching_fields, masked_march, next_state
 from .dda_state import DDARays, DepthTexels, MarchOutput
 
 __all__ = ["CellWalk", "WalkState", "WalkRay", "cell_setup", "hit_at", "walk_step", "walk_steps",

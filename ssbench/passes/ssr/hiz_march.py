@@ -35,7 +35,7 @@ import torch
 from ...camera import Camera
 from ...gbuffer import GBuffer
 from ..compiled import kernel, step_blocks
-from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OUT_OF_STEPS, compact_now, crosses_near_plane, ray_segments
+from .common import HIT, OUT_OF_STEPS, compact_now, crosses_near_plane, end_code, ray_segments
 from .dda_state import MarchOutput
 from .hiz_pyramid import DepthPyramid, padded_levels
 from .hiz_step import (BIG, COLUMNS, EPSILON, OX, OY, OZ, VX, VY, VZ, HiZRules, HiZTexels, MarchState, PyramidLayers,
@@ -122,7 +122,7 @@ def hiz_rays(gbuffer: GBuffer, max_ray_distance: float, sel: torch.Tensor, direc
                        term=torch.full((n,), OUT_OF_STEPS, dtype=torch.int32, device=dev),
                        steps=torch.zeros(n, dtype=torch.int32, device=dev), hit_t=torch.zeros_like(t))
     rays = HiZRays(i=torch.arange(n, device=dev), b=b, c=c, ray_dir=d.T.contiguous(),
-                   ended=torch.where(clipped, BEHIND_CAMERA, MAX_DISTANCE).to(torch.int32), state=state)
+                   ended=end_code(clipped), state=state)
     return rays, sel, P0, P1
 
 

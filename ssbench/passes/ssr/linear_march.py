@@ -15,8 +15,7 @@ from ...camera import Camera
 from ..common import index_dtype, texel_of, uv_to_texel
 from ..compiled import kernel, step_blocks
 from .dda_state import select_rows
-from .common import (BEHIND_CAMERA, HIT, MAX_DISTANCE, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, compact_now, components,
-                     nan_off_mask)
+from .common import (HIT, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, compact_now, components, end_code, nan_off_mask)
 
 __all__ = ["DepthTest", "MarchLog", "MarchOutcome", "LiveRays", "march_step", "march_steps", "march", "refine_step",
            "refine_steps", "refine"]
@@ -204,7 +203,7 @@ def march(test: DepthTest, log: MarchLog, Q: torch.Tensor, dS: torch.Tensor, bas
     out.flush(ws, (ws.live == 0).nonzero().squeeze(1))
     ids = ws.ids.index_select(0, ws.live.nonzero().squeeze(1))
     out.steps.index_fill_(0, ids, n_run)                                          # live to the loop's end
-    end = torch.where(clipped.index_select(0, ids), BEHIND_CAMERA, MAX_DISTANCE)  # reached the end point
+    end = end_code(clipped.index_select(0, ids))                                 # reached the end point
     out.term.index_copy_(0, ids, (end if n_run == iterations else torch.full_like(end, OUT_OF_STEPS)).to(torch.int8))
     return MarchOutcome(out.term, out.steps, out.hit_step, out.hit_q)
 

@@ -11,29 +11,16 @@ import torch
 
 from ..common import index_dtype
 from ..compiled import step_blocks
-from .common import BEHIND_CAMERA, MAX_DISTANCE, OUT_OF_STEPS
+from .common import OUT_OF_STEPS
 from .dda_state import DDARays
 
-__all__ = ["HIT_ONLY", "add_visits", "end_code", "hit_rows", "marching_fields", "masked_march", "next_state"]
+__all__ = ["HIT_ONLY", "add_visits", "hit_rows", "marching_fields", "masked_march", "next_state"]
 
 
 def add_visits(visits: torch.Tensor, t: torch.Tensor, active: torch.Tensor) -> None:
     """Count one fetch of texel ``t`` in the visit map for each ``active`` ray (bool, or int32 0/1)."""
     on = active if active.dtype == torch.bool else active != 0
     visits.index_add_(0, t[on], torch.ones_like(t[on], dtype=visits.dtype))
-
-
-def end_code(clipped32: torch.Tensor) -> torch.Tensor:
-    """The termination code of a ray that reached the end of its segment, int32 like ``clipped32`` (int32 0/1):
-    ``BEHIND_CAMERA`` where the segment was clipped at the near plane, else ``MAX_DISTANCE``. The march keeps its
-    codes in int32: a compiled step selected int8 codes through a per-lane conversion of each mask (perf: a fifth of
-    the DDA's step kernel), and ``where`` of two Python numbers is int64.
-
-    Example:
-        >>> end_code(torch.tensor([0, 1], dtype=torch.int32)).tolist() == [MAX_DISTANCE, BEHIND_CAMERA]
-        True
-    """
-    return torch.where(clipped32 != 0, BEHIND_CAMERA, torch.full_like(clipped32, MAX_DISTANCE))
 
 
 def next_state(state: NamedTuple, marching: torch.Tensor, moved: tuple, done: torch.Tensor, live: torch.Tensor,
@@ -65,7 +52,7 @@ def marching_fields(s: DDARays, texels: int, hit_only: tuple = HIT_ONLY) -> dict
     supercover's ``CellWalk``): each column contiguous (the set-up's are strided views; a compiled step compiles again
     for views), ``None`` for the fields ``hit_only`` (read back for the hits, :func:`hit_rows`), the batch index in
     the index dtype of ``texels`` texels, ``permute``, ``clipped`` and ``alive`` as int32, no fetches yet (``steps``)
-    and the termination ``OUT_OF_STEPS`` (int32, :func:`end_code`)."""
+    and the termination ``OUT_OF_STEPS`` (int32, :func:`~.common.end_code`)."""
     N, dev = s.count, s.k.device
 
     def kept(name: str, v):

@@ -81,7 +81,7 @@ import torch
 from ..camera import Camera
 
 __all__ = ["enabled", "compiling", "kernel", "compile_seconds", "band_samples", "step_blocks", "ENV",
-           "KERNEL_VARIANTS", "WHOLE_FUSION_SIZE", "STEPS_PER_CALL", "kept_mask", "is_set"]
+           "KERNEL_VARIANTS", "WHOLE_FUSION_SIZE", "STEPS_PER_CALL", "kept_mask", "is_set", "sample_axis"]
 
 #: environment variable of the switch
 ENV = "SSBENCH_COMPILE"
@@ -223,6 +223,24 @@ def kept_mask(mask: torch.Tensor) -> torch.Tensor:
 def is_set(mask: torch.Tensor) -> torch.Tensor:
     """The bool mask a :func:`kept_mask` holds (``mask`` itself when it is bool)."""
     return mask if mask.dtype == torch.bool else mask > 0
+
+
+def sample_axis() -> int:
+    """The axis along which a band kernel lays out its samples: 2 eager, :math:`(B, C, K, h, W)`, last inside
+    ``torch.compile``, :math:`(B, C, h, W, K)`.
+
+    Eager, each operation loops over a whole block, and with the samples outside the rows it runs along contiguous
+    rows of pixels (with them innermost, hemisphere SSAO ran 1.5× slower). Compiled, inductor writes a reduction
+    over a middle axis as two loops and stores every per-sample value the second one reads (hemisphere SSAO: three
+    :math:`(K, h, W)` blocks per band); over the last axis it fuses the whole sample loop and its count into one
+    loop, per pixel, and stores nothing per sample, so the bands can be as large as the image's rows allow. The
+    samples' arithmetic is the same in either layout: the same bits.
+
+    Example:
+        >>> sample_axis()
+        2
+    """
+    return -1 if torch.compiler.is_compiling() else 2
 
 
 def band_samples(samples: int) -> int:

@@ -36,10 +36,11 @@ from torch import nn
 
 from ...gbuffer import GBuffer
 from ..common import AOResult, make_generator, row_bands
-from ..compiled import band_samples, kernel
+from ..compiled import band_samples, kernel, sample_axis
 from ..sampling import noise_texel, noise_texture, sphere_kernel
 from ..gbuffer_checks import check_gbuffer, half_in_float32
-from .ssao_common import check_ssao_params, range_check_count, real_depth_texture, ssao_result, view_position
+from .ssao_common import (check_ssao_params, kernel_components, range_check_count, real_depth_texture, ssao_result,
+                          view_position)
 from ..registry import Method, SpeedPanel
 
 FLAVOUR = "volume_sphere"  # the ground truth this pass estimates (ssbench.reference.ao_volume)
@@ -83,20 +84,22 @@ class CrytekSSAOParams:
 
 
 @kernel
-def sphere_band(cam, position: torch.Tensor, rnd: torch.Tensor, k: torch.Tensor, real_depth: torch.Tensor,
+def sphere_band(cam, position: torch.Tensor, rnd: torch.Tensor, kernel: torch.Tensor, real_depth: torch.Tensor,
                 p: "CrytekSSAOParams") -> torch.Tensor:
     """Mittring's sample loop on a band of rows: each kernel vector reflected about the pixel's random plane,
     ``position + reflected · radius``, then the range-checked count (:func:`.ssao.range_check_count`).
 
-    ``position`` :math:`(B, 3, h, W)`, ``rnd`` :math:`(1, 3, 1, h, W)`, ``k`` :math:`(1, 3, K, 1, 1)`; returns the
-    :math:`(B, 1, h, W)` count (the pass's compilable kernel, :mod:`ssbench.passes.compiled`).
+    ``position`` :math:`(B, 3, h, W)`, ``rnd`` :math:`(1, 3, h, W)`, ``kernel`` :math:`(K, 3)`; returns the
+    :math:`(B, 1, h, W)` count (the pass's compilable kernel, :mod:`ssbench.passes.compiled`; its samples lie along
+    :func:`~ssbench.passes.compiled.sample_axis`).
     """
-    kc, rc = [k[:, c:c + 1] for c in range(3)], [rnd[:, c:c + 1] for c in range(3)]
-    dot = kc[0] * rc[0] + kc[1] * rc[1] + kc[2] * rc[2]                              # (1, 1, K, h, W)
+    axis = sample_axis()
+    kc, rc = kernel_components(kernel, axis), [rnd[:, c:c + 1].unsqueeze(axis) for c in range(3)]
+    dot = kc[0] * rc[0] + kc[1] * rc[1] + kc[2] * rc[2]                              # (1, 1, K, h, W) eager
     reflected = [kc[c] - 2.0 * dot * rc[c] for c in range(3)]       # per component: one fused loop compiled
-    sample_point = tuple(position[:, c:c + 1, None] + reflected[c] * p.kernel_radius
+    sample_point = tuple(position[:, c:c + 1].unsqueeze(axis) + reflected[c] * p.kernel_radius
                          for c in range(3))                                            # 3 × (B, 1, K, h, W)
-    return range_check_count(cam, sample_point, real_depth, p.min_distance, p.max_distance)
+    return range_check_count(cam, sample_point, real_depth, p.min_distance, p.max_distance, axis)
 
 
 @kernel
@@ -104,10 +107,10 @@ def sphere_frame(cam, view_z: torch.Tensor, noise: torch.Tensor, p: "CrytekSSAOP
     """Per pixel, before the sample loop (a compilable kernel, :mod:`ssbench.passes.compiled`): the view position
     :math:`(B, 3, H, W)` and the linear depth of every texel (:func:`.ssao_common.real_depth_texture`) from
     ``view_z`` :math:`(B, 1, H, W)`, and the random reflection
-    plane :math:`(1, 3, 1, H, W)` read from ``noise`` :math:`(3, S, S)` at texel ``(row, col)`` :math:`(H, W)`."""
+    plane :math:`(1, 3, H, W)` read from ``noise`` :math:`(3, S, S)` at texel ``(row, col)`` :math:`(H, W)`."""
     position, texture = view_position(cam, view_z, "view_z")                       # (B, 3, H, W)
     col, row = noise_texel(cam.uv_grid(view_z.dtype, view_z.device), cam.width, cam.height, p.noise_size)
-    random = noise[:, row, col].reshape(1, 3, 1, cam.height, cam.width)            # (1, 3, 1, H, W)
+    random = noise[:, row, col].unsqueeze(0)                                       # (1, 3, H, W)
     return position, real_depth_texture(cam, texture, False), random, row, col
 
 
@@ -151,10 +154,9 @@ def crytek_ssao(gbuffer: GBuffer, params: CrytekSSAOParams = CrytekSSAOParams(),
     noise = noise_texture(p.noise_size, g).to(dtype=dtype, device=device)          # (3, S, S) unit, z = 0
 
     position, real_depth, random, row, col = sphere_frame(cam, gbuffer.view_z, noise, p)
-    k = kernel.T.reshape(1, 3, -1, 1, 1)                                           # (1, 3, K, 1, 1)
     count = torch.empty(position.shape[0], 1, cam.height, cam.width, dtype=torch.int64, device=device)
     for rs in row_bands(cam.height, cam.width, band_samples(p.kernel_size), position.element_size()):   # cache-sized bands
-        count[..., rs, :] = sphere_band(cam, position[..., rs, :], random[..., rs, :], k, real_depth, p)
+        count[..., rs, :] = sphere_band(cam, position[..., rs, :], random[..., rs, :], kernel, real_depth, p)
     return ssao_result(count, p, mask, dtype=dtype, debug=debug, row=row, col=col, kernel=kernel, noise=noise)
 
 

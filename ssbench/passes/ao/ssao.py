@@ -44,11 +44,12 @@ from torch import nn
 from ...camera import Camera
 from ...gbuffer import GBuffer
 from ..common import AOResult, cross, length, make_generator, row_bands
-from ..compiled import kernel
+from ..compiled import band_samples, kernel, sample_axis
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..sampling import hemisphere_kernel, noise_texel, noise_texture
 from ..registry import Method, SpeedPanel
-from .ssao_common import check_ssao_params, range_check_count, real_depth_texture, ssao_result, view_position
+from .ssao_common import (check_ssao_params, kernel_components, range_check_count, real_depth_texture, ssao_result,
+                          view_position)
 
 FLAVOUR = "volume_hemisphere"  # the ground truth this pass estimates (ssbench.reference.ao_volume)
 #: continuous parameters ``ssbench tune`` may fit: name -> (lo, hi, relative); relative ranges are multiples of the
@@ -107,26 +108,29 @@ class HemisphereSSAOParams:
 
 
 @kernel
-def hemisphere_band(cam: Camera, position: torch.Tensor, tbn: tuple, k: tuple, real_depth: torch.Tensor,
+def hemisphere_band(cam: Camera, position: torch.Tensor, tbn: tuple, kernel: torch.Tensor, real_depth: torch.Tensor,
                     p: "HemisphereSSAOParams") -> torch.Tensor:
     """The sample loop of SSAO article §2.2 on a band of rows: ``samplePoint = viewPosition + (kernelMatrix ·
     Kernel[i]) · KernelRadius`` for every sample at once, then :func:`range_check_count`.
 
     Args:
         position: :math:`(B, 3, h, W)` ``viewPosition``; ``tbn``: tangent, bitangent, normal :math:`(B, 3, h, W)`;
-        k: the kernel's x, y, z :math:`(1, 1, K, 1, 1)`; real_depth: :math:`(B, 1, H, W)` ``getLinearDepth`` of
-            every texel (:func:`~.ssao_common.real_depth_texture`).
+        kernel: :math:`(K, 3)` ``Kernel[i]``; real_depth: :math:`(B, 1, H, W)` ``getLinearDepth`` of every texel
+            (:func:`~.ssao_common.real_depth_texture`).
 
     Returns:
-        :math:`(B, 1, h, W)` integer count (the pass's compilable kernel, :mod:`ssbench.passes.compiled`).
+        :math:`(B, 1, h, W)` integer count (the pass's compilable kernel, :mod:`ssbench.passes.compiled`; its
+        samples lie along :func:`~ssbench.passes.compiled.sample_axis`).
     """
-    (t, b, n), (kx, ky, kz) = tbn, k
+    (t, b, n), axis = tbn, sample_axis()
+    kx, ky, kz = kernel_components(kernel, axis)                                   # Kernel[i] along the axis
 
-    def component(c: int) -> torch.Tensor:                                           # (B, 1, K, h, W)
-        sample_vector = (t[:, c:c + 1, None] * kx + b[:, c:c + 1, None] * ky) + n[:, c:c + 1, None] * kz
-        return position[:, c:c + 1, None] + sample_vector * p.kernel_radius
+    def component(c: int) -> torch.Tensor:                                           # (B, 1, K, h, W) eager
+        sample_vector = (t[:, c:c + 1].unsqueeze(axis) * kx + b[:, c:c + 1].unsqueeze(axis) * ky) + \
+            n[:, c:c + 1].unsqueeze(axis) * kz
+        return position[:, c:c + 1].unsqueeze(axis) + sample_vector * p.kernel_radius
     return range_check_count(cam, (component(0), component(1), component(2)), real_depth, p.min_distance,
-                             p.max_distance)
+                             p.max_distance, axis)
 
 
 @half_in_float32
@@ -169,11 +173,10 @@ def hemisphere_ssao(gbuffer: GBuffer, params: HemisphereSSAOParams = HemisphereS
     cam, p, n = gbuffer.camera, params, fr.normal
 
     # ---- §2.2 sample loop, all K samples of a band of rows at once (the working set stays cache-sized) -
-    kx, ky, kz = (fr.kernel[:, c].reshape(1, 1, -1, 1, 1) for c in range(3))       # (1, 1, K, 1, 1)
     count = torch.empty(n.shape[0], 1, cam.height, cam.width, dtype=torch.int64, device=n.device)
-    for rs in row_bands(cam.height, cam.width, p.kernel_size, n.element_size()):
+    for rs in row_bands(cam.height, cam.width, band_samples(p.kernel_size), n.element_size()):
         count[..., rs, :] = hemisphere_band(cam, fr.position[..., rs, :], (fr.tangent[..., rs, :],
-                                            fr.bitangent[..., rs, :], n[..., rs, :]), (kx, ky, kz), fr.real_depth, p)
+                                            fr.bitangent[..., rs, :], n[..., rs, :]), fr.kernel, fr.real_depth, p)
     return ssao_result(count, p, gbuffer.mask, dtype=n.dtype, debug=debug, row=fr.row, col=fr.col, kernel=fr.kernel,
                        noise=fr.noise)
 

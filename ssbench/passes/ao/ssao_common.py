@@ -9,8 +9,8 @@ import torch
 from ...camera import Camera
 from ..common import AOResult, check_count, check_radius, fetch_texels, nan_to_zero, texel_of
 
-__all__ = ["check_ssao_params", "view_position", "real_depth_texture", "range_check_count", "occlusion_to_ao",
-           "ssao_result"]
+__all__ = ["check_ssao_params", "view_position", "real_depth_texture", "kernel_components", "range_check_count",
+           "occlusion_to_ao", "ssao_result"]
 
 
 def check_ssao_params(p) -> None:
@@ -54,17 +54,33 @@ def real_depth_texture(camera: Camera, texture: torch.Tensor, from_depth: bool) 
     return camera.view_z_to_orthographic_depth(view_z)                           # realDepth
 
 
+def kernel_components(kernel: torch.Tensor, axis: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """``Kernel[i]`` :math:`(K, 3)` as its x, y, z components laid along the sample ``axis`` of a band's blocks
+    (:func:`ssbench.passes.compiled.sample_axis`): :math:`(1, 1, K, 1, 1)` for axis 2, :math:`(1, 1, 1, 1, K)` for
+    the last.
+
+    Example:
+        >>> [c.shape[2] for c in kernel_components(torch.zeros(8, 3), 2)]
+        [8, 8, 8]
+    """
+    shape = [1, 1, 1, 1, 1]
+    shape[axis] = kernel.shape[0]
+    return tuple(kernel[:, c].reshape(shape) for c in range(3))
+
+
 def range_check_count(camera: Camera, sample_point: tuple, real_depth: torch.Tensor,
-                      min_distance: float, max_distance: float) -> torch.Tensor:
+                      min_distance: float, max_distance: float, axis: int = 2) -> torch.Tensor:
     """The shader's sample loop body for all samples at once: project, fetch, compare, count.
 
     Args:
-        sample_point: view-space ``samplePoint`` as its ``(x, y, z)`` components, each :math:`(B, 1, K, H, W)`
-            (kept apart, never stacked, so that a compiled kernel fuses the whole loop body into one pass).
+        sample_point: view-space ``samplePoint`` as its ``(x, y, z)`` components, each :math:`(B, 1, K, h, W)`, or
+            :math:`(B, 1, h, W, K)` with ``axis=-1`` (kept apart, never stacked, so that a compiled kernel fuses
+            the whole loop body into one pass).
         real_depth: :math:`(B, 1, H, W)` the ``realDepth`` of every texel (:func:`real_depth_texture`).
+        axis: the samples' axis (:func:`ssbench.passes.compiled.sample_axis`).
 
     Returns:
-        :math:`(B, 1, H, W)` integer count of samples with ``min_distance < delta < max_distance``.
+        :math:`(B, 1, h, W)` integer count of samples with ``min_distance < delta < max_distance``.
     """
     x, y, z = sample_point
     # NOTE: w = -z = 0 would divide by zero; the GPU result is undefined, ours reads as "just in front"
@@ -73,9 +89,9 @@ def range_check_count(camera: Camera, sample_point: tuple, real_depth: torch.Ten
     u, v = (nan_to_zero(camera.ndc_to_uv(c)) for c in camera.view_to_ndc_xy(x, y, z_proj))  # samplePointUv
     col, row = texel_of(u, v, real_depth.shape[-2], real_depth.shape[-1], nan_free=True, dtype=u.dtype)
     real = fetch_texels(real_depth, col.squeeze(1), row.squeeze(1)).reshape(z.shape)  # realDepth: NEAREST, clamp
-    sample_depth = camera.view_z_to_orthographic_depth(z)                        # sampleDepth, (B, 1, K, H, W)
+    sample_depth = camera.view_z_to_orthographic_depth(z)                        # sampleDepth
     delta = sample_depth - real
-    return ((delta > min_distance) & (delta < max_distance)).sum(2)              # (B, 1, H, W)
+    return ((delta > min_distance) & (delta < max_distance)).sum(axis)           # (B, 1, h, W)
 
 
 def occlusion_to_ao(count: torch.Tensor, kernel_size: int, strength: float, mask: torch.Tensor,

@@ -43,7 +43,7 @@ from torch import nn
 
 from ...camera import Camera
 from ...gbuffer import GBuffer
-from ..common import AOResult, cross, length, make_generator, row_bands
+from ..common import AOResult, component_dot, cross, make_generator, row_bands
 from ..compiled import band_samples, kernel, sample_axis
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..sampling import hemisphere_kernel, noise_texel, noise_texture
@@ -232,11 +232,13 @@ def frame_tensors(cam: Camera, view_z: torch.Tensor, n: torch.Tensor, noise: tor
     :math:`(3, S, S)`."""
     position, texture = view_position(cam, view_z, p.position_from)               # (B, 3, H, W) viewPosition
     col, row = noise_texel(cam.uv_grid(n.dtype, n.device), cam.width, cam.height, p.noise_size)   # (H, W)
-    random = noise[:, row, col].unsqueeze(0)                                       # (1, 3, H, W)
-    if p.noise_channels == "r":                                                    # three.js: vec3(noise.r)
-        random = random[:, :1].expand(-1, 3, -1, -1)
-    tangent = random - n * (random * n).sum(1, keepdim=True)                      # (B, 3, H, W) Gram–Schmidt
-    tangent = tangent / length(tangent).clamp_min(torch.finfo(n.dtype).tiny)
+    texel = noise[:, row, col]                                                     # (3, H, W) random
+    random = [texel[0]] * 3 if p.noise_channels == "r" else texel.unbind(0)       # three.js: vec3(noise.r)
+    normal = n.unbind(1)                                                           # 3 × (B, H, W)
+    # Gram–Schmidt on components (the channel sums' bits, in order; compiled, no per-channel loops)
+    tangent = [r - nc * component_dot(random, normal) for r, nc in zip(random, normal)]
+    norm = component_dot(tangent, tangent).sqrt().clamp_min(torch.finfo(n.dtype).tiny)
+    tangent = torch.stack([t / norm for t in tangent], 1)                          # (B, 3, H, W)
     real_depth = real_depth_texture(cam, texture, p.position_from == "depth")
     return position, texture, real_depth, tangent, cross(n, tangent, dim=1), row, col
 

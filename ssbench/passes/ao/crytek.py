@@ -108,8 +108,9 @@ def sphere_frame(cam, view_z: torch.Tensor, noise: torch.Tensor, p: "CrytekSSAOP
     :math:`(B, 3, H, W)` and the linear depth of every texel (:func:`.ssao_common.real_depth_texture`) from
     ``view_z`` :math:`(B, 1, H, W)`, and the random reflection
     plane :math:`(1, 3, H, W)` read from ``noise`` :math:`(3, S, S)` at texel ``(row, col)`` :math:`(H, W)`."""
-    position, texture = view_position(cam, view_z, "view_z")                       # (B, 3, H, W)
-    col, row = noise_texel(cam.uv_grid(view_z.dtype, view_z.device), cam.width, cam.height, p.noise_size)
+    uv = cam.uv_grid(view_z.dtype, view_z.device)                                  # (2, H, W) vUv
+    position, texture = view_position(cam, view_z, "view_z", uv)                   # (B, 3, H, W)
+    col, row = noise_texel(uv, cam.width, cam.height, p.noise_size)
     random = noise[:, row, col].unsqueeze(0)                                       # (1, 3, H, W)
     return position, real_depth_texture(cam, texture, False), random, row, col
 

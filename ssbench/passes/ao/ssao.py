@@ -230,8 +230,9 @@ def frame_tensors(cam: Camera, view_z: torch.Tensor, n: torch.Tensor, noise: tor
     ``random`` (``(row, col)``) and the Gram–Schmidt ``tangent`` and ``bitangent`` of ``kernelMatrix`` from
     ``view_z`` :math:`(B, 1, H, W)`, the unit normal ``n`` :math:`(B, 3, H, W)` and the noise texture
     :math:`(3, S, S)`."""
-    position, texture = view_position(cam, view_z, p.position_from)               # (B, 3, H, W) viewPosition
-    col, row = noise_texel(cam.uv_grid(n.dtype, n.device), cam.width, cam.height, p.noise_size)   # (H, W)
+    uv = cam.uv_grid(n.dtype, n.device)                                            # (2, H, W) vUv
+    position, texture = view_position(cam, view_z, p.position_from, uv)           # (B, 3, H, W) viewPosition
+    col, row = noise_texel(uv, cam.width, cam.height, p.noise_size)                # (H, W)
     texel = noise[:, row, col]                                                     # (3, H, W) random
     random = [texel[0]] * 3 if p.noise_channels == "r" else texel.unbind(0)       # three.js: vec3(noise.r)
     normal = n.unbind(1)                                                           # 3 × (B, H, W)

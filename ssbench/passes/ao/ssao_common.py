@@ -28,10 +28,12 @@ def check_ssao_params(p) -> None:
         raise ValueError(f"seed: must be a non-negative integer, got {p.seed!r}")
 
 
-def view_position(camera: Camera, view_z: torch.Tensor, position_from: str) -> tuple[torch.Tensor, torch.Tensor]:
+def view_position(camera: Camera, view_z: torch.Tensor, position_from: str,
+                  uv: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
     """``(viewPosition, texture)``: :math:`(B, 3, H, W)` positions and the :math:`(B, 1, H, W)` buffer
-    that ``getLinearDepth`` samples (the GL depth buffer for ``"depth"``, ``view_z`` otherwise)."""
-    uv = camera.uv_grid(view_z.dtype, view_z.device).unsqueeze(0)                # (1, 2, H, W) vUv
+    that ``getLinearDepth`` samples (the GL depth buffer for ``"depth"``, ``view_z`` otherwise). ``uv``: the
+    :math:`(2, H, W)` ``camera.uv_grid()``, when the caller has it already (a compiled kernel stores each grid)."""
+    uv = (camera.uv_grid(view_z.dtype, view_z.device) if uv is None else uv).unsqueeze(0)   # (1, 2, H, W) vUv
     if position_from == "depth":
         depth = camera.view_z_to_depth(view_z)                                   # getDepth(vUv)
         return camera.view_position_from_depth(uv.expand(view_z.shape[0], -1, -1, -1), depth), depth

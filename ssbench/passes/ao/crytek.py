@@ -39,8 +39,8 @@ from ..common import AOResult, make_generator, row_bands
 from ..compiled import band_samples, kernel, sample_axis
 from ..sampling import noise_texel, noise_texture, sphere_kernel
 from ..gbuffer_checks import check_gbuffer, half_in_float32
-from .ssao_common import (check_ssao_params, kernel_components, range_check_count, real_depth_texture, ssao_result,
-                          view_position)
+from .ssao_common import (band_result, check_ssao_params, kernel_components, range_check_count, real_depth_texture,
+                          ssao_result, view_position)
 from ..registry import Method, SpeedPanel
 
 FLAVOUR = "volume_sphere"  # the ground truth this pass estimates (ssbench.reference.ao_volume)
@@ -84,14 +84,15 @@ class CrytekSSAOParams:
 
 
 @kernel
-def sphere_band(cam, position: torch.Tensor, rnd: torch.Tensor, kernel: torch.Tensor, real_depth: torch.Tensor,
-                p: "CrytekSSAOParams") -> torch.Tensor:
+def sphere_band(cam, position: torch.Tensor, rnd: torch.Tensor, mask: torch.Tensor, kernel: torch.Tensor,
+                real_depth: torch.Tensor, p: "CrytekSSAOParams", debug: bool) -> tuple:
     """Mittring's sample loop on a band of rows: each kernel vector reflected about the pixel's random plane,
     ``position + reflected · radius``, then the range-checked count (:func:`.ssao.range_check_count`).
 
-    ``position`` :math:`(B, 3, h, W)`, ``rnd`` :math:`(1, 3, h, W)`, ``kernel`` :math:`(K, 3)`; returns the
-    :math:`(B, 1, h, W)` count (the pass's compilable kernel, :mod:`ssbench.passes.compiled`; its samples lie along
-    :func:`~ssbench.passes.compiled.sample_axis`).
+    ``position`` :math:`(B, 3, h, W)`, ``rnd`` :math:`(1, 3, h, W)`, ``mask`` :math:`(B, 1, h, W)`, ``kernel``
+    :math:`(K, 3)`; returns the band's :math:`(B, 1, h, W)` AO and, with ``debug``, its count
+    (:func:`.ssao_common.band_result`; the pass's compilable kernel, :mod:`ssbench.passes.compiled`; its samples lie
+    along :func:`~ssbench.passes.compiled.sample_axis`).
     """
     axis = sample_axis()
     kc, rc = kernel_components(kernel, axis), [rnd[:, c:c + 1].unsqueeze(axis) for c in range(3)]
@@ -99,7 +100,8 @@ def sphere_band(cam, position: torch.Tensor, rnd: torch.Tensor, kernel: torch.Te
     reflected = [kc[c] - 2.0 * dot * rc[c] for c in range(3)]       # per component: one fused loop compiled
     sample_point = tuple(position[:, c:c + 1].unsqueeze(axis) + reflected[c] * p.kernel_radius
                          for c in range(3))                                            # 3 × (B, 1, K, h, W)
-    return range_check_count(cam, sample_point, real_depth, p.min_distance, p.max_distance, axis)
+    count = range_check_count(cam, sample_point, real_depth, p.min_distance, p.max_distance, axis)
+    return band_result(count, p, mask, position.dtype, debug)
 
 
 @kernel
@@ -155,10 +157,15 @@ def crytek_ssao(gbuffer: GBuffer, params: CrytekSSAOParams = CrytekSSAOParams(),
     noise = noise_texture(p.noise_size, g).to(dtype=dtype, device=device)          # (3, S, S) unit, z = 0
 
     position, real_depth, random, row, col = sphere_frame(cam, gbuffer.view_z, noise, p)
-    count = torch.empty(position.shape[0], 1, cam.height, cam.width, dtype=torch.int64, device=device)
-    for rs in row_bands(cam.height, cam.width, band_samples(p.kernel_size), position.element_size()):   # cache-sized bands
-        count[..., rs, :] = sphere_band(cam, position[..., rs, :], random[..., rs, :], kernel, real_depth, p)
-    return ssao_result(count, p, mask, dtype=dtype, debug=debug, row=row, col=col, kernel=kernel, noise=noise)
+    ao = torch.empty(position.shape[0], 1, cam.height, cam.width, dtype=dtype, device=device)
+    count = torch.empty(ao.shape, dtype=torch.int64, device=device) if debug else None
+    for rs in row_bands(cam.height, cam.width, band_samples(p.kernel_size), position.element_size()):   # cache-sized
+        band_ao, band_count = sphere_band(cam, position[..., rs, :], random[..., rs, :], mask[..., rs, :], kernel,
+                                          real_depth, p, debug)
+        ao[..., rs, :] = band_ao
+        if debug:
+            count[..., rs, :] = band_count
+    return ssao_result(ao, count, p, mask, row=row, col=col, kernel=kernel, noise=noise)
 
 
 class CrytekSSAO(nn.Module):

@@ -48,8 +48,8 @@ from ..compiled import band_samples, kernel, sample_axis
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..sampling import hemisphere_kernel, noise_texel, noise_texture
 from ..registry import Method, SpeedPanel
-from .ssao_common import (check_ssao_params, kernel_components, range_check_count, real_depth_texture, ssao_result,
-                          view_position)
+from .ssao_common import (band_result, check_ssao_params, kernel_components, range_check_count, real_depth_texture,
+                          ssao_result, view_position)
 
 FLAVOUR = "volume_hemisphere"  # the ground truth this pass estimates (ssbench.reference.ao_volume)
 #: continuous parameters ``ssbench tune`` may fit: name -> (lo, hi, relative); relative ranges are multiples of the
@@ -108,18 +108,20 @@ class HemisphereSSAOParams:
 
 
 @kernel
-def hemisphere_band(cam: Camera, position: torch.Tensor, tbn: tuple, kernel: torch.Tensor, real_depth: torch.Tensor,
-                    p: "HemisphereSSAOParams") -> torch.Tensor:
+def hemisphere_band(cam: Camera, position: torch.Tensor, tbn: tuple, mask: torch.Tensor, kernel: torch.Tensor,
+                    real_depth: torch.Tensor, p: "HemisphereSSAOParams", debug: bool) -> tuple:
     """The sample loop of SSAO article §2.2 on a band of rows: ``samplePoint = viewPosition + (kernelMatrix ·
     Kernel[i]) · KernelRadius`` for every sample at once, then :func:`range_check_count`.
 
     Args:
         position: :math:`(B, 3, h, W)` ``viewPosition``; ``tbn``: tangent, bitangent, normal :math:`(B, 3, h, W)`;
-        kernel: :math:`(K, 3)` ``Kernel[i]``; real_depth: :math:`(B, 1, H, W)` ``getLinearDepth`` of every texel
-            (:func:`~.ssao_common.real_depth_texture`).
+        mask: :math:`(B, 1, h, W)`; kernel: :math:`(K, 3)` ``Kernel[i]``; real_depth: :math:`(B, 1, H, W)`
+            ``getLinearDepth`` of every texel (:func:`~.ssao_common.real_depth_texture`); debug: also return the
+            count.
 
     Returns:
-        :math:`(B, 1, h, W)` integer count (the pass's compilable kernel, :mod:`ssbench.passes.compiled`; its
+        The band's :math:`(B, 1, h, W)` AO and, with ``debug``, its integer count (else ``None``;
+        :func:`~.ssao_common.band_result`). The pass's compilable kernel (:mod:`ssbench.passes.compiled`; its
         samples lie along :func:`~ssbench.passes.compiled.sample_axis`).
     """
     (t, b, n), axis = tbn, sample_axis()
@@ -129,8 +131,9 @@ def hemisphere_band(cam: Camera, position: torch.Tensor, tbn: tuple, kernel: tor
         sample_vector = (t[:, c:c + 1].unsqueeze(axis) * kx + b[:, c:c + 1].unsqueeze(axis) * ky) + \
             n[:, c:c + 1].unsqueeze(axis) * kz
         return position[:, c:c + 1].unsqueeze(axis) + sample_vector * p.kernel_radius
-    return range_check_count(cam, (component(0), component(1), component(2)), real_depth, p.min_distance,
-                             p.max_distance, axis)
+    count = range_check_count(cam, (component(0), component(1), component(2)), real_depth, p.min_distance,
+                              p.max_distance, axis)
+    return band_result(count, p, mask, position.dtype, debug)
 
 
 @half_in_float32
@@ -173,12 +176,16 @@ def hemisphere_ssao(gbuffer: GBuffer, params: HemisphereSSAOParams = HemisphereS
     cam, p, n = gbuffer.camera, params, fr.normal
 
     # ---- §2.2 sample loop, all K samples of a band of rows at once (the working set stays cache-sized) -
-    count = torch.empty(n.shape[0], 1, cam.height, cam.width, dtype=torch.int64, device=n.device)
+    ao = torch.empty(n.shape[0], 1, cam.height, cam.width, dtype=n.dtype, device=n.device)
+    count = torch.empty(ao.shape, dtype=torch.int64, device=n.device) if debug else None
     for rs in row_bands(cam.height, cam.width, band_samples(p.kernel_size), n.element_size()):
-        count[..., rs, :] = hemisphere_band(cam, fr.position[..., rs, :], (fr.tangent[..., rs, :],
-                                            fr.bitangent[..., rs, :], n[..., rs, :]), fr.kernel, fr.real_depth, p)
-    return ssao_result(count, p, gbuffer.mask, dtype=n.dtype, debug=debug, row=fr.row, col=fr.col, kernel=fr.kernel,
-                       noise=fr.noise)
+        tbn = (fr.tangent[..., rs, :], fr.bitangent[..., rs, :], n[..., rs, :])
+        band_ao, band_count = hemisphere_band(cam, fr.position[..., rs, :], tbn, gbuffer.mask[..., rs, :], fr.kernel,
+                                              fr.real_depth, p, debug)
+        ao[..., rs, :] = band_ao
+        if debug:
+            count[..., rs, :] = band_count
+    return ssao_result(ao, count, p, gbuffer.mask, row=fr.row, col=fr.col, kernel=fr.kernel, noise=fr.noise)
 
 
 @dataclass(frozen=True)

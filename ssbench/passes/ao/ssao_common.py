@@ -10,7 +10,7 @@ from ...camera import Camera
 from ..common import AOResult, check_count, check_radius, fetch_texels, nan_to_zero, texel_of
 
 __all__ = ["check_ssao_params", "view_position", "real_depth_texture", "kernel_components", "range_check_count",
-           "occlusion_to_ao", "ssao_result"]
+           "occlusion_to_ao", "band_result", "ssao_result"]
 
 
 def check_ssao_params(p) -> None:
@@ -104,13 +104,19 @@ def occlusion_to_ao(count: torch.Tensor, kernel_size: int, strength: float, mask
     return torch.where(mask, ao, torch.ones_like(ao))
 
 
-def ssao_result(count: torch.Tensor, p, mask: torch.Tensor, *, dtype: torch.dtype, debug: bool,
-                row: torch.Tensor, col: torch.Tensor, kernel: torch.Tensor, noise: torch.Tensor) -> AOResult:
-    """AO from the range-check ``count`` plus, with ``debug``, the per-pixel sample count, noise index,
-    kernel and noise (shared by both SSAO passes)."""
-    ao = occlusion_to_ao(count, p.kernel_size, p.strength, mask, dtype)
+def band_result(count: torch.Tensor, p, mask: torch.Tensor, dtype: torch.dtype, debug: bool) -> tuple:
+    """What a band kernel of either SSAO pass returns: ``(ao, count)``, the band's AO
+    (:func:`occlusion_to_ao`, inside the kernel, where it fuses with the sample loop) and, with ``debug``, the
+    range-checked sample count (else ``None``)."""
+    return occlusion_to_ao(count, p.kernel_size, p.strength, mask, dtype), (count if debug else None)
+
+
+def ssao_result(ao: torch.Tensor, count: torch.Tensor | None, p, mask: torch.Tensor, *, row: torch.Tensor,
+                col: torch.Tensor, kernel: torch.Tensor, noise: torch.Tensor) -> AOResult:
+    """The pass's result from the bands' ``ao`` and, when ``count`` is given (``debug``), the per-pixel sample count,
+    noise index, kernel and noise (shared by both SSAO passes)."""
     extra = {}
-    if debug:
+    if count is not None:
         extra = {"samples": torch.where(mask, count, torch.zeros_like(count)),
                  "noise_index": (row * p.noise_size + col).expand(mask.shape),
                  "kernel": kernel, "noise": noise}

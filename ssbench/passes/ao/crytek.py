@@ -37,7 +37,7 @@ from torch import nn
 from ...gbuffer import GBuffer
 from ..common import AOResult, make_generator, row_bands
 from ..compiled import band_samples, kernel, sample_axis
-from ..sampling import noise_texel, noise_texture, sphere_kernel
+from ..sampling import noise_lookup, noise_texel, noise_texture, sphere_kernel
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from .ssao_common import (band_result, check_ssao_params, kernel_components, range_check_count, real_depth_texture,
                           ssao_result, view_position)
@@ -113,7 +113,7 @@ def sphere_frame(cam, view_z: torch.Tensor, noise: torch.Tensor, p: "CrytekSSAOP
     uv = cam.uv_grid(view_z.dtype, view_z.device)                                  # (2, H, W) vUv
     position, texture = view_position(cam, view_z, "view_z", uv)                   # (B, 3, H, W)
     col, row = noise_texel(uv, cam.width, cam.height, p.noise_size)
-    random = noise[:, row, col].unsqueeze(0)                                       # (1, 3, H, W)
+    random = noise_lookup(noise, row, col).unsqueeze(0)                            # (1, 3, H, W)
     return position, real_depth_texture(cam, texture, False), random, row, col
 
 

@@ -46,7 +46,7 @@ from ...gbuffer import GBuffer
 from ..common import AOResult, component_dot, cross, make_generator, row_bands
 from ..compiled import band_samples, kernel, sample_axis
 from ..gbuffer_checks import check_gbuffer, half_in_float32
-from ..sampling import hemisphere_kernel, noise_texel, noise_texture
+from ..sampling import hemisphere_kernel, noise_lookup, noise_texel, noise_texture
 from ..registry import Method, SpeedPanel
 from .ssao_common import (band_result, check_ssao_params, kernel_components, range_check_count, real_depth_texture,
                           ssao_result, view_position)
@@ -240,7 +240,7 @@ def frame_tensors(cam: Camera, view_z: torch.Tensor, n: torch.Tensor, noise: tor
     uv = cam.uv_grid(n.dtype, n.device)                                            # (2, H, W) vUv
     position, texture = view_position(cam, view_z, p.position_from, uv)           # (B, 3, H, W) viewPosition
     col, row = noise_texel(uv, cam.width, cam.height, p.noise_size)                # (H, W)
-    texel = noise[:, row, col]                                                     # (3, H, W) random
+    texel = noise_lookup(noise, row, col)                                          # (3, H, W) random
     random = [texel[0]] * 3 if p.noise_channels == "r" else texel.unbind(0)       # three.js: vec3(noise.r)
     normal = n.unbind(1)                                                           # 3 × (B, H, W)
     # Gram–Schmidt on components (the channel sums' bits, in order; compiled, no per-channel loops)

@@ -32,6 +32,7 @@ from ...gbuffer import GBuffer
 from ..common import AOResult, check_positive, row_bands
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..registry import Method, SpeedPanel
+from ..sampling import noise_lookup
 from .three_gtao_band import band_frame, slice_visibility
 
 FLAVOUR = "cosine"  # the ground-truth weighting it estimates (ssbench.reference.ao)
@@ -154,8 +155,7 @@ def three_gtao(gbuffer: GBuffer, params: ThreeGTAOParams = ThreeGTAOParams(), *,
     n_tile = tile.shape[-1]
     nu = torch.floor(torch.frac(uv[:, 0] * W / n_tile) * n_tile).long().clamp(0, n_tile - 1)
     nv = torch.floor(torch.frac(uv[:, 1] * H / n_tile) * n_tile).long().clamp(0, n_tile - 1)
-    texel = (nv * n_tile + nu).reshape(-1)                  # index_select: advanced indexing took 5-10x the time
-    noise = tile.reshape(4, -1).index_select(1, texel).view(4, B, H, W).permute(1, 0, 2, 3)   # (B, 4, H, W)
+    noise = noise_lookup(tile, nv, nu).permute(1, 0, 2, 3)                       # (B, 4, H, W)
     # ---- the image in bands of rows: intermediates stay O(band), not O(image) ----
     directions = p.directions
     rotations = [torch.tensor([math.cos(i / directions * math.pi), math.sin(i / directions * math.pi)], dtype=dt,

@@ -98,3 +98,12 @@ class TestNoise:
         assert col.shape == (1, 360, 640)
         assert torch.equal(col[0, 0], torch.arange(640) % 4)
         assert int(row.min()) == 0 and int(row.max()) == 3
+
+
+def test_noise_lookup_reads_the_texels_advanced_indexing_reads():
+    from ssbench.passes.sampling import noise_lookup
+    g = torch.Generator().manual_seed(5)
+    noise = torch.rand(4, 5, 7, generator=g, dtype=torch.float64)
+    row, col = torch.randint(0, 5, (2, 3, 6), generator=g), torch.randint(0, 7, (2, 3, 6), generator=g)
+    got = noise_lookup(noise, row, col)
+    assert got.shape == (4, 2, 3, 6) and torch.equal(got, noise[:, row, col])

@@ -107,3 +107,5 @@ def test_noise_lookup_reads_the_texels_advanced_indexing_reads():
     row, col = torch.randint(0, 5, (2, 3, 6), generator=g), torch.randint(0, 7, (2, 3, 6), generator=g)
     got = noise_lookup(noise, row, col)
     assert got.shape == (4, 2, 3, 6) and torch.equal(got, noise[:, row, col])
+    rows, cols = torch.arange(6) % 5, torch.arange(9) % 7                     # a row and a column index that broadcast
+    assert torch.equal(noise_lookup(noise, rows[:, None], cols), noise[:, rows][:, :, cols])

@@ -44,6 +44,7 @@ from torch import nn
 from ...gbuffer import GBuffer
 from ..common import AOResult, check_count, check_radius, make_generator, row_bands
 from ..gbuffer_checks import check_gbuffer, half_in_float32
+from ..sampling import noise_lookup
 from .hbao_horizons import hbao_band, texel_view_z
 from ..registry import Method, SpeedPanel
 
@@ -166,7 +167,7 @@ def hbao(gbuffer: GBuffer, params: HBAOParams = HBAOParams(), *, generator: Opti
 
     # ---- the image in bands of rows: intermediates stay O(block), not O(D·H·W) ----
     parts = [hbao_band(cam, uv_grid[:, rs].unsqueeze(0).expand(B, -1, -1, -1), mask[:, :, rs],
-                       noise[:, rows_n[rs]][:, :, cols_n].unsqueeze(0), z_tex, params, debug)
+                       noise_lookup(noise, rows_n[rs, None], cols_n).unsqueeze(0), z_tex, params, debug)
              for rs in row_bands(H, W, D, view_z.element_size(), batch=B)]
     out = torch.cat([o for o, _ in parts], 2)
     dbg = {k: torch.cat([d[k] for _, d in parts], -2) for k in parts[0][1]}

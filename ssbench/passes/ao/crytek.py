@@ -35,12 +35,12 @@ import torch
 from torch import nn
 
 from ...gbuffer import GBuffer
-from ..common import AOResult, make_generator, row_bands
-from ..compiled import band_samples, kernel, sample_axis
+from ..common import AOResult, make_generator
+from ..compiled import kernel, sample_axis
 from ..sampling import noise_lookup, noise_texel, noise_texture, sphere_kernel
 from ..gbuffer_checks import check_gbuffer, half_in_float32
-from .ssao_common import (band_result, check_ssao_params, kernel_components, range_check_count, real_depth_texture,
-                          ssao_result, view_position)
+from .ssao_common import (band_result, banded_ao, check_ssao_params, kernel_components, range_check_count,
+                          real_depth_texture, ssao_result, view_position)
 from ..registry import Method, SpeedPanel
 
 FLAVOUR = "volume_sphere"  # the ground truth this pass estimates (ssbench.reference.ao_volume)
@@ -157,14 +157,9 @@ def crytek_ssao(gbuffer: GBuffer, params: CrytekSSAOParams = CrytekSSAOParams(),
     noise = noise_texture(p.noise_size, g).to(dtype=dtype, device=device)          # (3, S, S) unit, z = 0
 
     position, real_depth, random, row, col = sphere_frame(cam, gbuffer.view_z, noise, p)
-    ao = torch.empty(position.shape[0], 1, cam.height, cam.width, dtype=dtype, device=device)
-    count = torch.empty(ao.shape, dtype=torch.int64, device=device) if debug else None
-    for rs in row_bands(cam.height, cam.width, band_samples(p.kernel_size), position.element_size()):   # cache-sized
-        band_ao, band_count = sphere_band(cam, position[..., rs, :], random[..., rs, :], mask[..., rs, :], kernel,
-                                          real_depth, p, debug)
-        ao[..., rs, :] = band_ao
-        if debug:
-            count[..., rs, :] = band_count
+    ao, count = banded_ao(lambda rs: sphere_band(cam, position[..., rs, :], random[..., rs, :], mask[..., rs, :],
+                                                 kernel, real_depth, p, debug),
+                          mask.shape, dtype, device, p.kernel_size, debug)
     return ssao_result(ao, count, p, mask, row=row, col=col, kernel=kernel, noise=noise)
 
 

@@ -43,13 +43,13 @@ from torch import nn
 
 from ...camera import Camera
 from ...gbuffer import GBuffer
-from ..common import AOResult, component_dot, cross, make_generator, row_bands
-from ..compiled import band_samples, kernel, sample_axis
+from ..common import AOResult, component_dot, cross, make_generator
+from ..compiled import kernel, sample_axis
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..sampling import hemisphere_kernel, noise_lookup, noise_texel, noise_texture
 from ..registry import Method, SpeedPanel
-from .ssao_common import (band_result, check_ssao_params, kernel_components, range_check_count, real_depth_texture,
-                          ssao_result, view_position)
+from .ssao_common import (band_result, banded_ao, check_ssao_params, kernel_components, range_check_count,
+                          real_depth_texture, ssao_result, view_position)
 
 FLAVOUR = "volume_hemisphere"  # the ground truth this pass estimates (ssbench.reference.ao_volume)
 #: continuous parameters ``ssbench tune`` may fit: name -> (lo, hi, relative); relative ranges are multiples of the
@@ -176,15 +176,11 @@ def hemisphere_ssao(gbuffer: GBuffer, params: HemisphereSSAOParams = HemisphereS
     cam, p, n = gbuffer.camera, params, fr.normal
 
     # ---- §2.2 sample loop, all K samples of a band of rows at once (the working set stays cache-sized) -
-    ao = torch.empty(n.shape[0], 1, cam.height, cam.width, dtype=n.dtype, device=n.device)
-    count = torch.empty(ao.shape, dtype=torch.int64, device=n.device) if debug else None
-    for rs in row_bands(cam.height, cam.width, band_samples(p.kernel_size), n.element_size()):
+    def run(rs: slice) -> tuple:
         tbn = (fr.tangent[..., rs, :], fr.bitangent[..., rs, :], n[..., rs, :])
-        band_ao, band_count = hemisphere_band(cam, fr.position[..., rs, :], tbn, gbuffer.mask[..., rs, :], fr.kernel,
-                                              fr.real_depth, p, debug)
-        ao[..., rs, :] = band_ao
-        if debug:
-            count[..., rs, :] = band_count
+        return hemisphere_band(cam, fr.position[..., rs, :], tbn, gbuffer.mask[..., rs, :], fr.kernel, fr.real_depth,
+                               p, debug)
+    ao, count = banded_ao(run, gbuffer.mask.shape, n.dtype, n.device, p.kernel_size, debug)
     return ssao_result(ao, count, p, gbuffer.mask, row=fr.row, col=fr.col, kernel=fr.kernel, noise=fr.noise)
 
 

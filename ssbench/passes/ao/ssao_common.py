@@ -7,10 +7,13 @@ from __future__ import annotations
 import torch
 
 from ...camera import Camera
-from ..common import AOResult, check_count, check_radius, fetch_texels, nan_to_zero, texel_of
+from typing import Callable
+
+from ..common import AOResult, check_count, check_radius, fetch_texels, nan_to_zero, row_bands, texel_of
+from ..compiled import band_samples
 
 __all__ = ["check_ssao_params", "view_position", "real_depth_texture", "kernel_components", "range_check_count",
-           "occlusion_to_ao", "band_result", "ssao_result"]
+           "occlusion_to_ao", "band_result", "banded_ao", "ssao_result"]
 
 
 def check_ssao_params(p) -> None:
@@ -29,11 +32,12 @@ def check_ssao_params(p) -> None:
 
 
 def view_position(camera: Camera, view_z: torch.Tensor, position_from: str,
-                  uv: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+                  uv: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """``(viewPosition, texture)``: :math:`(B, 3, H, W)` positions and the :math:`(B, 1, H, W)` buffer
-    that ``getLinearDepth`` samples (the GL depth buffer for ``"depth"``, ``view_z`` otherwise). ``uv``: the
-    :math:`(2, H, W)` ``camera.uv_grid()``, when the caller has it already (a compiled kernel stores each grid)."""
-    uv = (camera.uv_grid(view_z.dtype, view_z.device) if uv is None else uv).unsqueeze(0)   # (1, 2, H, W) vUv
+    that ``getLinearDepth`` samples (the GL depth buffer for ``"depth"``, ``view_z`` otherwise), at ``uv``, the
+    :math:`(2, H, W)` ``camera.uv_grid()`` the caller also reads the noise at (a compiled kernel stores each grid
+    it builds)."""
+    uv = uv.unsqueeze(0)                                                         # (1, 2, H, W) vUv
     if position_from == "depth":
         depth = camera.view_z_to_depth(view_z)                                   # getDepth(vUv)
         return camera.view_position_from_depth(uv.expand(view_z.shape[0], -1, -1, -1), depth), depth
@@ -71,7 +75,7 @@ def kernel_components(kernel: torch.Tensor, axis: int) -> tuple[torch.Tensor, to
 
 
 def range_check_count(camera: Camera, sample_point: tuple, real_depth: torch.Tensor,
-                      min_distance: float, max_distance: float, axis: int = 2) -> torch.Tensor:
+                      min_distance: float, max_distance: float, axis: int) -> torch.Tensor:
     """The shader's sample loop body for all samples at once: project, fetch, compare, count.
 
     Args:
@@ -109,6 +113,23 @@ def band_result(count: torch.Tensor, p, mask: torch.Tensor, dtype: torch.dtype, 
     (:func:`occlusion_to_ao`, inside the kernel, where it fuses with the sample loop) and, with ``debug``, the
     range-checked sample count (else ``None``)."""
     return occlusion_to_ao(count, p.kernel_size, p.strength, mask, dtype), (count if debug else None)
+
+
+def banded_ao(run: Callable[[slice], tuple], shape: tuple, dtype: torch.dtype, device, samples: int,
+              debug: bool) -> tuple[torch.Tensor, torch.Tensor | None]:
+    """``(ao, count)`` of :math:`(B, 1, H, W)` ``shape``: a pass's band kernel, ``run(rows)`` → the band's
+    :func:`band_result`, called on each band of rows (:func:`~ssbench.passes.common.row_bands` for
+    :func:`~ssbench.passes.compiled.band_samples` of its ``samples`` per pixel), its outputs gathered; ``count`` is
+    ``None`` without ``debug``."""
+    height, width = shape[-2:]
+    ao = torch.empty(shape, dtype=dtype, device=device)
+    count = torch.empty(shape, dtype=torch.int64, device=device) if debug else None
+    for rs in row_bands(height, width, band_samples(samples), dtype.itemsize):   # cache-sized bands
+        band_ao, band_count = run(rs)
+        ao[..., rs, :] = band_ao
+        if count is not None:
+            count[..., rs, :] = band_count
+    return ao, count
 
 
 def ssao_result(ao: torch.Tensor, count: torch.Tensor | None, p, mask: torch.Tensor, *, row: torch.Tensor,

@@ -50,6 +50,7 @@ from typing import Optional
 import torch
 
 from ..implicit.shading import shade_hits
+from ..indices import flat_nonzero
 from .implicit_dense import flat_rays, clip_to_bounds
 from .implicit_drjit import bisect_drjit, drjit_ready, interval_march_drjit
 from .implicit_march import bisect_brackets, interval_march, segment_box  # noqa: F401 (segment_box: API)
@@ -229,7 +230,7 @@ def implicit(surface, camera, *, epsilon: float = 1e-12, max_iterations: int = 2
         bisect = bisect_brackets
     found, n_pt = s["found"], s["n_pt"]
     t, t_exit = tf.clone(), tf.clone()
-    gi = found.nonzero().squeeze(1)
+    gi = flat_nonzero(found)
     normal = torch.zeros_like(o)
     obj = torch.full((o.shape[0],), -1, dtype=torch.int32)
     if gi.numel():

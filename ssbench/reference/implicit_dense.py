@@ -19,6 +19,7 @@ from typing import Optional
 
 import torch
 
+from ..indices import flat_nonzero
 from ..rays import camera_rays
 
 __all__ = ["dense_march", "DenseMarch", "clip_to_bounds"]
@@ -147,7 +148,7 @@ def _march_torch(surface, o, d, t0, t1, steps, chunk):
     active = valid.clone()
     k0 = 0
     while k0 < steps:
-        idx = active.nonzero().squeeze(1)
+        idx = flat_nonzero(active)
         if idx.numel() == 0:
             break
         K = max(1, min(steps - k0, chunk // max(1, idx.numel())))

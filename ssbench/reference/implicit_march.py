@@ -8,6 +8,8 @@ import math
 
 import torch
 
+from ..indices import flat_nonzero
+
 __all__ = ["segment_box"]
 
 _EPS = 2.0 ** -52
@@ -98,7 +100,7 @@ def interval_march(surface, o, d, t0, t1, tol_rel, max_iterations, exits, budget
 
     it = 0
     while it < max_iterations:
-        idx = active.nonzero().squeeze(1)
+        idx = flat_nonzero(active)
         n = idx.numel()
         if n == 0:
             break
@@ -154,7 +156,7 @@ def interval_march(surface, o, d, t0, t1, tol_rel, max_iterations, exits, budget
                 go &= (nk < K) & (e > s)
                 lf = go & (e - s <= tol.gather(1, kc)[:, 0])
                 ladder |= go & ~lf & (nk == 0)
-                r = lf.nonzero().squeeze(1)
+                r = flat_nonzero(lf)
                 if r.numel():
                     fv = points(idx[r], torch.stack([s[r], e[r]], 1))
                     stop[r] = leaf(idx[r], s[r], e[r], fv[:, 0], fv[:, 1])
@@ -162,7 +164,7 @@ def interval_march(surface, o, d, t0, t1, tol_rel, max_iterations, exits, budget
                 kp = nk + 1
                 go = lf & ~stop & (kp < K)
         if J and bool(ladder.any()):                                    # descend: widest excluded prefix
-            L = ladder.nonzero().squeeze(1)
+            L = flat_nonzero(ladder)
             width = lad[L] - A[L, None]
             ok = excl[L, K:] & (width > 0)
             jleaf = torch.where((width <= tol[L, :1]).any(1), (width <= tol[L, :1]).to(torch.int8).argmax(1), J)
@@ -179,7 +181,7 @@ def interval_march(surface, o, d, t0, t1, tol_rel, max_iterations, exits, budget
         elif bool(ladder.any()):
             h[idx[ladder]] = 0.5 * Hh[ladder]
         if bool(dfr.any()):                                             # deferred leaves: their own points
-            r = dfr.nonzero().squeeze(1)
+            r = flat_nonzero(dfr)
             fv = points(idx[r], torch.stack([dlo[r], dhi[r]], 1))
             stop[r] = leaf(idx[r], dlo[r], dhi[r], fv[:, 0], fv[:, 1])
             a[idx[r]], h[idx[r]] = dhi[r], 2.0 * (dhi[r] - dlo[r])
@@ -206,7 +208,7 @@ def bisect_brackets(surface, o, d, lo, hi, epsilon, n_pt, lo_nonneg):
         todo = ((hi - lo) > epsilon * lo.abs().clamp(min=1.0)) & (mid > lo) & (mid < hi)
         if not bool(todo.any()):
             break
-        ti = todo.nonzero().squeeze(1)
+        ti = flat_nonzero(todo)
         fm = _f(surface, o[ti], d[ti], mid[ti])
         n_pt[ti] += 1
         same = (fm >= 0) == lo_nonneg

@@ -25,6 +25,7 @@ import torch
 
 from ...camera import Camera
 from ...implicit.shading import safe_normal, shade_hits  # noqa: F401  (re-exported for the casters)
+from ...indices import flat_nonzero
 from ...rays import CameraRays, camera_rays, length  # noqa: F401  (re-exported for the casters)
 
 # Termination reasons (``ImplicitResult.termination``, int8)
@@ -132,7 +133,7 @@ def finish(shape: tuple[int, int, int], *, origin: torch.Tensor, direction: torc
     normal = origin.new_zeros(n, 3)
     obj = torch.full((n,), -1, dtype=torch.int32, device=origin.device)
     if surface is not None:
-        h = hit.nonzero().squeeze(1)
+        h = flat_nonzero(hit)
         normal[h], obj[h] = shade_hits(surface, origin[h] + t[h].unsqueeze(-1) * direction[h])
         evaluations = evaluations + hit.to(evaluations.dtype)
     t = torch.where(hit, t, t_far)

@@ -23,6 +23,7 @@ from typing import Optional
 import torch
 from torch import nn
 
+from ...indices import flat_nonzero
 from ..common import make_generator
 from .common import (HIT, MISS, ImplicitResult, as_rays, bisect, check_stateless, check_surface, finish, flat)
 from ..registry import Method, SpeedPanel
@@ -101,12 +102,12 @@ def march_lattice(surface, origin: torch.Tensor, direction: torch.Tensor, offset
         t_k = off + (k - 1) * st if k <= count else la
         f_k = surface.f(o + t_k.unsqueeze(-1) * d)
         br = (f_prev >= 0) & (f_k < 0)
-        done = br.nonzero().squeeze(1)                                # integer indices: one nonzero per step
+        done = flat_nonzero(br)                                       # integer indices: one nonzero per step
         if done.numel():
             sel = ids.index_select(0, done)
             found[sel], lo[sel], hi[sel] = True, t_prev.index_select(0, done), t_k.index_select(0, done)
             steps[sel] = k + 1                                        # t_0 and samples 1..k
-            keep = (~br).nonzero().squeeze(1)
+            keep = flat_nonzero(~br)
             ids, o, d, off, st, t_k, f_k = (x.index_select(0, keep) for x in (ids, o, d, off, st, t_k, f_k))
             la = la.index_select(0, keep) if la is not None else None
         t_prev, f_prev = t_k, f_k
@@ -157,7 +158,7 @@ def fixed_step(surface, camera, params: FixedStepParams = FixedStepParams(), *, 
         found, lo, hi, steps = march_lattice(surface, o, d, s * flat(R).squeeze(1), s, N, last=t_far)
     else:
         found, lo, hi, steps = march_lattice(surface, o, d, s, s, N)
-    h = found.nonzero().squeeze(1)
+    h = flat_nonzero(found)
     lo[h], hi[h] = bisect(surface, o[h], d[h], lo[h], hi[h], params.refine_iterations)
     evaluations = steps + found.to(torch.int32) * params.refine_iterations
     term = torch.where(found, HIT, MISS).to(torch.int8)

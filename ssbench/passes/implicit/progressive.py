@@ -39,6 +39,7 @@ from typing import Optional
 import torch
 from torch import nn
 
+from ...indices import flat_nonzero
 from .common import HIT, INVALIDATED, MISS, ImplicitResult, as_rays, bisect, check_surface, finish, flat, unflat
 from .fixed import check_int, march_lattice
 from ..registry import Method, SpeedPanel
@@ -108,7 +109,7 @@ def _core(surface, o, d, t_far, t_prime, found_prev, R, params: ProgressiveParam
     """Steps 2.1–2.3 on flat rays (n, 3); returns per-ray hit, t, evaluations, steps, termination, debug."""
     n, dev, N = o.shape[0], o.device, params.steps
     t_p = torch.minimum(t_prime, t_far)
-    ids = active.nonzero().squeeze(1)
+    ids = flat_nonzero(active)
     found, lo, hi = torch.zeros(n, dtype=torch.bool, device=dev), o.new_zeros(n), o.new_zeros(n)
     steps = torch.zeros(n, dtype=torch.int32, device=dev)
 
@@ -125,9 +126,9 @@ def _core(surface, o, d, t_far, t_prime, found_prev, R, params: ProgressiveParam
     f1 = cast(ids, t_p[ids])
     invalid = torch.zeros(n, dtype=torch.bool, device=dev)
     invalid[ids] = ~f1 & found_prev[ids]                            # 2.2 the estimate failed the probe
-    again = (invalid & (t_p < t_far)).nonzero().squeeze(1)          # t' := d_f and cast again
+    again = flat_nonzero(invalid & (t_p < t_far))                   # t' := d_f and cast again
     cast(again, t_far[again])
-    h = found.nonzero().squeeze(1)
+    h = flat_nonzero(found)
     lo[h], hi[h] = bisect(surface, o[h], d[h], lo[h], hi[h], params.refine_iterations)   # 2.3
     evaluations = steps + found.to(torch.int32) * params.refine_iterations
     term = torch.where(found, HIT, torch.where(invalid, INVALIDATED, MISS)).to(torch.int8)

@@ -25,6 +25,7 @@ from typing import Optional
 import torch
 from torch import nn
 
+from ...indices import flat_nonzero
 from .common import (HIT, MISS, OUT_OF_STEPS, ImplicitResult, as_rays, bisect, check_stateless, check_surface,
                      finish, flat, unflat)
 from .fixed import check_int
@@ -136,12 +137,12 @@ def sphere_trace(surface, camera, params: SphereTraceParams = SphereTraceParams(
 
     def retire(mask, code):                                            # integer indices: one nonzero each
         nonlocal ids, t, fa, omega, armed
-        gone = mask.nonzero().squeeze(1)
+        gone = flat_nonzero(mask)
         if gone.numel() == 0:
             return
         sel = ids.index_select(0, gone)
         term[sel], t_out[sel] = code, t.index_select(0, gone)
-        keep = (~mask).nonzero().squeeze(1)
+        keep = flat_nonzero(~mask)
         ids, t, fa, omega, armed = (x.index_select(0, keep) for x in (ids, t, fa, omega, armed))
 
     retire(torch.isnan(fa), MISS)                                      # NaN at the eye: nothing to trace
@@ -164,12 +165,12 @@ def sphere_trace(surface, camera, params: SphereTraceParams = SphereTraceParams(
         cross = ~fail & (fa >= 0) & (fn < 0)
         if not params.safeguard:                                      # plain Hart: no crossing test
             cross = cross & ~armed
-        ci = cross.nonzero().squeeze(1)
+        ci = flat_nonzero(cross)
         if ci.numel():
             sel = ids.index_select(0, ci)
             crossing[sel], overshoot[sel] = True, armed.index_select(0, ci)
             lo[sel], hi[sel] = t.index_select(0, ci), tn.index_select(0, ci)
-        fi = fail.nonzero().squeeze(1)
+        fi = flat_nonzero(fail)
         if fi.numel():
             fallbacks[ids.index_select(0, fi)] += 1
         omega = torch.where(fail, torch.ones_like(omega), omega)       # step back, continue with ω = 1
@@ -185,7 +186,7 @@ def sphere_trace(surface, camera, params: SphereTraceParams = SphereTraceParams(
     term[ids] = OUT_OF_STEPS
     t_out[ids] = t
 
-    h = crossing.nonzero().squeeze(1)                                  # bisect crossings back to the root
+    h = flat_nonzero(crossing)                                         # bisect crossings back to the root
     lo[h], hi[h] = bisect(surface, o[h], d[h], lo[h], hi[h], params.refine_iterations)
     evaluations = evaluations + crossing.to(torch.int32) * params.refine_iterations
     t_hit = torch.where(crossing, 0.5 * (lo + hi), t_out)

@@ -8,6 +8,7 @@ from typing import Optional
 import torch
 
 from ...gbuffer import GBuffer
+from ...indices import flat_nonzero
 from ..common import channel_rows, flat_texel, index_dtype, length
 from .common import HIT, NO_RAY, SSRResult, split_rays, unflat
 from .dda_state import MarchOutput
@@ -32,7 +33,7 @@ def assemble(gbuffer: GBuffer, params, sel: torch.Tensor, P1: torch.Tensor, o: M
 
     term, steps = image(o.term[:, None], NO_RAY, torch.int8), image(o.steps[:, None], 0, torch.int32)
     hit = term == HIT                                                             # (B, 1, H, W)
-    h = (o.term == HIT).nonzero().squeeze(1)
+    h = flat_nonzero(o.term == HIT)
     at = sel.index_select(0, h)                                                   # (m,) the hit rays' pixels
     P = o.P.index_select(0, h)                                                    # (m, 2) in the march's dtype
     hit_view = (o.Q.index_select(0, h) / o.k.index_select(0, h)[:, None]).to(dt)  # (m, 3)

@@ -13,6 +13,7 @@ import torch
 
 from ...camera import Camera
 from ...gbuffer import GBuffer
+from ...indices import flat_nonzero
 from ..compiled import kernel
 from .common import crosses_near_plane, ray_segments
 from .dda_march import ray_view_z
@@ -34,7 +35,7 @@ def project_to_pixel_matrix(camera: Camera, dtype=torch.float64, device=None) ->
 def ray_pixels(gbuffer: GBuffer) -> torch.Tensor:
     """:math:`(N,)` flat indices ``b·H·W + j·W + i`` of the pixels that start a ray: ``mask`` pixels not nearer
     than the near plane (such geometry cannot be in a depth buffer; its rays would start behind w = 0)."""
-    return (gbuffer.mask & (gbuffer.view_z <= -gbuffer.camera.near))[:, 0].reshape(-1).nonzero().squeeze(1)
+    return flat_nonzero((gbuffer.mask & (gbuffer.view_z <= -gbuffer.camera.near))[:, 0].reshape(-1))
 
 
 @kernel(dynamic=True)

@@ -14,6 +14,7 @@ from typing import NamedTuple, Optional
 
 import torch
 
+from ...indices import flat_nonzero
 from ..compiled import kernel
 from .common import BEHIND_SURFACE, HIT, OFF_SCREEN
 
@@ -194,7 +195,7 @@ def hiz_iteration(s: MarchState, c: torch.Tensor, b: torch.Tensor, ray_dir: torc
                                thickness)
         hit, go = cand & hit, cand & go
     else:                                        # eager: only the candidates, each operation a pass over them
-        i = cand.nonzero().squeeze(1)
+        i = flat_nonzero(cand)
         sub = lambda v: v.index_select(-1, i)    # noqa: E731
         h, gi, th = judge(sub(c[OZ]), sub(c[INVZ]), sub(s.t), sub(g.z), sub(g.side), sub(texel), sub(ray_dir), tex,
                           rules, thickness)                  # (of the constants, only the two rows it reads)

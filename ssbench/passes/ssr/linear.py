@@ -41,6 +41,7 @@ import torch
 from torch import nn
 
 from ...gbuffer import GBuffer
+from ...indices import flat_nonzero
 from ..common import check_positive
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from .common import HIT, NO_RAY, SSRResult, channel_rows, split_rays, unflat
@@ -175,7 +176,7 @@ def ssr_linear(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(), *,
     # ---- the march (§1.2), then the binary search refinement (§1.3) of the hits ----
     out = march(test, log, Q, dS, base, rays.clipped, N_it, params.max_iterations)
     term, steps = out.term, out.steps
-    h = (term == HIT).nonzero().squeeze(1)                                       # the hit rays (index_select below:
+    h = flat_nonzero(term == HIT)                                                # the hit rays (index_select below:
     at_hits = lambda x: x.T.index_select(1, h).T.contiguous()                    # noqa: E731  advanced indexing is
     Oh, base_h = at_hits(O), base.index_select(0, h)                             # ~5x slower; O, dS: views of rows)
     best, n_bs = out.hit_q.index_select(0, h), min(params.binary_search_iterations, MAX_BINARY_SEARCH_ITERATIONS)

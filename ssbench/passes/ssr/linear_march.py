@@ -12,6 +12,7 @@ from typing import Optional
 import torch
 
 from ...camera import Camera
+from ...indices import flat_nonzero
 from ..common import index_dtype, texel_of, uv_to_texel
 from ..compiled import kernel, step_blocks
 from .dda_state import select_rows
@@ -73,7 +74,7 @@ class MarchLog:
     def record(self, ids: torch.Tensor, q: torch.Tensor, hit: torch.Tensor, refine: bool) -> None:
         """Append the traced rays' samples among ``ids`` (``(Q, hit, refine)``)."""
         for b, k in self.trace_ids.items():
-            self.trace[b] += [(q[s], bool(hit[s]), refine) for s in (ids == k).nonzero().squeeze(1).tolist()]
+            self.trace[b] += [(q[s], bool(hit[s]), refine) for s in flat_nonzero(ids == k).tolist()]
 
 
 @dataclass(frozen=True)
@@ -192,16 +193,16 @@ def march(test: DepthTest, log: MarchLog, Q: torch.Tensor, dS: torch.Tensor, bas
         ws = LiveRays(ws.ids, *r[:3], ws.dx, ws.dy, ws.dz, ws.base, *r[3:6])
         if debug:
             t, on, h = r[7:]
-            marched = was.nonzero().squeeze(1)
+            marched = flat_nonzero(was)
             if log.trace_ids:
                 log.record(ws.ids[marched], torch.stack([ws.qx, ws.qy, ws.qz], 1)[marched], h[marched], False)
             log.read(t[was & on].long())
         n_live = int(r[6])
         if compact_now(n_live, m):
-            out.flush(ws, (ws.live == 0).nonzero().squeeze(1))
-            ws = select_rows(ws, ws.live.nonzero().squeeze(1))
-    out.flush(ws, (ws.live == 0).nonzero().squeeze(1))
-    ids = ws.ids.index_select(0, ws.live.nonzero().squeeze(1))
+            out.flush(ws, flat_nonzero(ws.live == 0))
+            ws = select_rows(ws, flat_nonzero(ws.live))
+    out.flush(ws, flat_nonzero(ws.live == 0))
+    ids = ws.ids.index_select(0, flat_nonzero(ws.live))
     out.steps.index_fill_(0, ids, n_run)                                          # live to the loop's end
     end = end_code(clipped.index_select(0, ids))                                 # reached the end point
     out.term.index_copy_(0, ids, (end if n_run == iterations else torch.full_like(end, OUT_OF_STEPS)).to(torch.int8))
@@ -223,7 +224,7 @@ class _Outcome:
         steps = ws.steps.index_select(0, stopped)
         self.steps.index_copy_(0, g, steps)
         self.term.index_copy_(0, g, torch.where(h, HIT, OFF_SCREEN).to(torch.int8))
-        hi = h.nonzero().squeeze(1)
+        hi = flat_nonzero(h)
         gh, at = g.index_select(0, hi), stopped.index_select(0, hi)
         self.hit_step.index_copy_(0, gh, steps.index_select(0, hi).long() - 1)   # the step index of the hit
         self.hit_q.index_copy_(0, gh, torch.stack([c.index_select(0, at) for c in (ws.qx, ws.qy, ws.qz)], 1))

@@ -13,6 +13,7 @@ import torch
 from ...camera import Camera
 from ...checks import finite_vectors
 from ...gbuffer import GBuffer
+from ...indices import flat_nonzero
 from ..common import make_generator
 from ..compiled import kernel
 from .common import channel_rows, clip_ray_length, reflection_rays, split_rays
@@ -117,7 +118,7 @@ def linear_rays(gbuffer: GBuffer, params: "LinearSSRParams", generator: Optional
                                             params.iterations, float(params.jitter))
 
     # ---- flatten the marched rays: per-ray state tensors of length n ----
-    ray = ok.reshape(-1).nonzero().squeeze(1)                                     # (n,) flat pixel ids
+    ray = flat_nonzero(ok.reshape(-1))                                            # (n,) flat pixel ids
     O, dS, Q = (channel_rows(x).index_select(1, ray).T for x in (rayOrg, deltaStep, Q))   # (n, 3) views of (3, n)
     clipped = (rayLength < params.max_ray_distance).reshape(-1).index_select(0, ray)
     base = split_rays(ray, B, HW)[0] * HW                                         # batch offset of each ray

@@ -9,6 +9,7 @@ from typing import NamedTuple, Optional
 
 import torch
 
+from ...indices import flat_nonzero
 from ..common import index_dtype
 from ..compiled import step_blocks
 from .common import OUT_OF_STEPS
@@ -83,6 +84,6 @@ def masked_march(s, state: type, ray: type, run, flush, max_steps: int, visits: 
             add_visits(visits, *r[2:])
         dead += int(r[1])
         if 8 * dead >= s.count and dead:                                            # compact
-            flush(s, (s.alive32 == 0).nonzero().squeeze(1))
-            s, dead = s.select(s.alive32.nonzero().squeeze(1)), 0
+            flush(s, flat_nonzero(s.alive32 == 0))
+            s, dead = s.select(flat_nonzero(s.alive32)), 0
     flush(s, torch.arange(s.count, device=s.k.device))

@@ -38,6 +38,7 @@ import torch
 from torch import nn
 
 from ...gbuffer import GBuffer
+from ...indices import flat_nonzero
 from ..common import check_positive, index_dtype
 from ..compiled import step_blocks
 from ..gbuffer_checks import check_gbuffer, half_in_float32
@@ -131,8 +132,8 @@ def march_rays(ray: torch.Tensor, b: torch.Tensor, r: ThreeRays, shade: Shading,
         i += count
         alive = st.alive32 != 0
         if compact_now(int(alive.sum()), ws.ray.numel()):                 # drop the stopped rays now and then
-            write_back((~alive).nonzero().squeeze(1))
-            keep = alive.nonzero().squeeze(1)
+            write_back(flat_nonzero(~alive))
+            keep = flat_nonzero(alive)
             ws, st = ws.take(keep), st.take(keep)
     write_back(torch.arange(ws.ray.numel(), device=dev))
 
@@ -182,7 +183,7 @@ def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
     term, steps, hit_k, hit_xy, hit_vp = out
 
     # ---- outputs ----
-    h = (term == HIT).nonzero().squeeze(1)
+    h = flat_nonzero(term == HIT)
     raw = colour[b[h], hit_k[h]]
     rh = shade.rays(b[h], k[h])                                     # the hit rays' set-up again (per ray: the same)
     op = torch.full((len(h),), float(p.opacity), dtype=dt, device=dev)

@@ -12,6 +12,7 @@ from typing import NamedTuple, Optional
 
 import torch
 
+from ...indices import flat_nonzero
 from ..common import cross, flat_texel, gl_texel
 from ..compiled import kernel
 from .common import HIT, MAX_DISTANCE, OFF_SCREEN
@@ -140,7 +141,7 @@ def _end_hits(hit: torch.Tensor, term: torch.Tensor, st: "MarchState", sample: t
         pick = lambda new, old: tuple(torch.where(done, a, c) for a, c in zip(new, old))   # noqa: E731
         return (torch.where(hit, torch.where(done, HIT, MAX_DISTANCE), term).to(term.dtype),
                 torch.where(done, t, st.hit_tex), pick(xy, st.hit_xy), pick(vpt, st.hit_vp))
-    h = hit.nonzero().squeeze(1)
+    h = flat_nonzero(hit)
     if h.numel():
         done = _verdict(h, texel, vpt, ws, tex, max_distance)
         term[h] = torch.where(done, HIT, MAX_DISTANCE).to(term.dtype)

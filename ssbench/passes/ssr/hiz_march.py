@@ -34,6 +34,7 @@ import torch
 
 from ...camera import Camera
 from ...gbuffer import GBuffer
+from ...indices import flat_nonzero
 from ..compiled import kernel, step_blocks
 from .common import HIT, OUT_OF_STEPS, compact_now, crosses_near_plane, end_code, ray_segments
 from .dda_state import MarchOutput
@@ -126,20 +127,26 @@ def hiz_rays(gbuffer: GBuffer, max_ray_distance: float, sel: torch.Tensor, direc
     return rays, sel, P0, P1
 
 
-def write_back(out: MarchOutput, r: HiZRays, rows: torch.Tensor, gbuffer: GBuffer) -> None:
-    """Copy the termination and reads of the working set's ``rows`` into ``out``, and the hit points of those that
-    hit (``P`` in pixels, ``Q`` in view space, from their hit ``t``)."""
+def write_back(out: MarchOutput, r: HiZRays, rows: torch.Tensor, hit_t: torch.Tensor) -> None:
+    """Copy the termination, reads and hit ``t`` of the working set's ``rows`` into ``out`` and ``hit_t`` (rows by
+    ``r.i``); the hit points follow once, after the march (:func:`hit_points`)."""
+    out.write_ends(rows, r.i, r.state.term, r.state.steps)
+    hit_t.index_copy_(0, r.i.index_select(0, rows), r.state.hit_t.index_select(0, rows))
+
+
+def hit_points(out: MarchOutput, c: torch.Tensor, hit_t: torch.Tensor, gbuffer: GBuffer) -> None:
+    """Write the hit points of the rays that hit into ``out``: ``P`` in pixels and ``Q`` in view space, from the
+    set-up's constants ``c`` :math:`(13, N)` (rows ``o`` and ``v``; column ``k`` is output row ``k``) at their hit
+    ``t``. Once per march, not per compaction: each ray's arithmetic is the same, so are its bits."""
     cam = gbuffer.camera
     H, W = gbuffer.view_z.shape[-2:]
-    term = out.write_ends(rows, r.i, r.state.term, r.state.steps)
-    h = rows[term == HIT]
+    h = flat_nonzero(out.term == HIT)
     if h.numel():
-        t, c = r.state.hit_t.index_select(0, h), r.c[:VZ + 1].index_select(1, h)     # rows o and v
+        t, c = hit_t.index_select(0, h), c[:VZ + 1].index_select(1, h)          # rows o and v
         px, py, pz = c[OX] + t * c[VX], c[OY] + t * c[VY], c[OZ] + t * c[VZ]
-        i_h = r.i.index_select(0, h)
-        out.P.index_copy_(0, i_h, torch.stack([px, py], 1))
+        out.P.index_copy_(0, h, torch.stack([px, py], 1))
         uv = torch.stack([px / W, 1.0 - py / H], 0)
-        out.Q.index_copy_(0, i_h, cam.uv_to_view(uv, -cam.near / pz, dim=0).T.to(out.Q.dtype))
+        out.Q.index_copy_(0, h, cam.uv_to_view(uv, -cam.near / pz, dim=0).T.to(out.Q.dtype))
 
 
 def index_dtype(layers: PyramidLayers) -> torch.dtype:
@@ -163,14 +170,16 @@ def march_layers(pyr: DepthPyramid, max_mip: int, gbuffer: GBuffer) -> PyramidLa
 
 def hiz_march(r: HiZRays, pyramid: PyramidLayers, tex: HiZTexels, params, gbuffer: GBuffer,
               visits: Optional[torch.Tensor] = None, level_reads: Optional[torch.Tensor] = None) -> MarchOutput:
-    """March ``r`` to termination through ``pyramid`` (:func:`march_layers`); one pyramid read per iteration
+    """March ``r`` (as :func:`hiz_rays` sets it up: output rows ``i`` = 0 … N−1, the columns of its constants) to
+    termination through ``pyramid`` (:func:`march_layers`); one pyramid read per iteration
     (:func:`~.hiz_step.hiz_iterations`), at most ``params.max_traversal_intersections``. Stopped rays ride along
     masked until a quarter of the working set has stopped; then the set is compacted and the stopped rays are
-    written back. ``visits`` :math:`(BHW,)` counts level-0 reads per texel and ``level_reads`` :math:`(L,)` reads
-    per level, when given."""
+    written back (their hit points once, at the end). ``visits`` :math:`(BHW,)` counts level-0 reads per texel
+    and ``level_reads`` :math:`(L,)` reads per level, when given."""
     B, _, H, W = gbuffer.view_z.shape
     dt, dev = r.c.dtype, r.c.device
     out = MarchOutput.empty(r.count, dt, dev, OUT_OF_STEPS)
+    constants, hit_t = r.c, torch.zeros_like(r.state.t)                 # by output row (hiz_rays numbers them)
     top = pyramid.layers - 1
     rules = HiZRules(params.reject_backfaces, params.trace_behind, params.thickness_mode == "relative",
                      float(gbuffer.camera.near))
@@ -179,7 +188,7 @@ def hiz_march(r: HiZRays, pyramid: PyramidLayers, tex: HiZTexels, params, gbuffe
     done = r.state.t >= 1.0                                              # the initial advance left the segment
     if compact_now(int((~done).sum()), r.count):
         out.term[r.i[done]] = r.ended[done].to(out.term.dtype)
-        r = r.select((~done).nonzero().squeeze(1))
+        r = r.select(flat_nonzero(~done))
     else:                             # few: they ride along stopped (no copy of the whole set) until it is compacted
         r.state = r.state._replace(alive32=torch.where(done, 0, r.state.alive32),
                                    term=torch.where(done, r.ended, r.state.term))
@@ -198,7 +207,8 @@ def hiz_march(r: HiZRays, pyramid: PyramidLayers, tex: HiZTexels, params, gbuffe
                 visits.index_add_(0, (r.b * H * W + cy * W + cx)[at0], torch.ones_like(cx[at0], dtype=visits.dtype))
         alive = r.state.alive32 != 0
         if compact_now(int(alive.sum()), r.count):
-            write_back(out, r, (~alive).nonzero().squeeze(1), gbuffer)
-            r = r.select(alive.nonzero().squeeze(1))
-    write_back(out, r, torch.arange(r.count, device=dev), gbuffer)
+            write_back(out, r, flat_nonzero(~alive), hit_t)
+            r = r.select(flat_nonzero(alive))
+    write_back(out, r, torch.arange(r.count, device=dev), hit_t)
+    hit_points(out, constants, hit_t, gbuffer)
     return out

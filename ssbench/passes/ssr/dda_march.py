@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, NamedTuple, Optional
 
 import torch
 
+from ...indices import flat_nonzero
 from ..compiled import kernel
 from .common import HIT, OFF_SCREEN, OUT_OF_STEPS, end_code
 from .dda_state import DDARays, DepthTexels, MarchOutput
@@ -199,13 +200,12 @@ def flush(out: MarchOutput, s: DDARays, rows: torch.Tensor, set_up: DDARays, tex
     into ``out``; refine the hits among them (:func:`refine_hits`) and write their hit points (``set_up``: the
     rays before the march, for the fields :data:`HIT_ONLY`)."""
     term = out.write_ends(rows, s.i, s.term, s.steps)
-    hi = rows[term == HIT]
+    hi = rows.index_select(0, flat_nonzero(term == HIT))
     if hi.numel():
         h = hit_rows(s, hi, set_up)
         refine_hits(h, tex, params, H, W, out, visits)
-        out.P[h.i] = torch.where(h.permute[:, None], torch.stack([h.Py, h.Px], 1), torch.stack([h.Px, h.Py], 1))
-        out.Q[h.i] = torch.stack([h.Q0x + h.dQx * h.n, h.Q0y + h.dQy * h.n, h.Qz], 1)
-        out.k[h.i] = h.k
+        out.write_hits(h.i, torch.where(h.permute[:, None], torch.stack([h.Py, h.Px], 1), torch.stack([h.Px, h.Py], 1)),
+                       torch.stack([h.Q0x + h.dQx * h.n, h.Q0y + h.dQy * h.n, h.Qz], 1), h.k)
 
 
 def dda_march(s: DDARays, tex: DepthTexels, params: "DDASSRParams", H: int, W: int,

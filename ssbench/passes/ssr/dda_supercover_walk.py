@@ -19,6 +19,7 @@ from typing import NamedTuple, Optional
 
 import torch
 
+from ...indices import flat_nonzero
 from ..compiled import kernel
 from .common import HIT, OFF_SCREEN, OUT_OF_STEPS, end_code
 from .dda_march import ray_view_z
@@ -189,7 +190,7 @@ def flush(out: MarchOutput, c: CellWalk, rows: torch.Tensor, set_up: DDARays, vi
     :func:`hit_at` in the hit cell, from the cell's entry ``nA`` and exit ``nB`` (``view_z``: the scene's;
     ``set_up``: the rays before the walk, for the fields :data:`WALK_HIT_ONLY`)."""
     term = out.write_ends(rows, c.i, c.term, c.steps)
-    hi = rows[term == HIT]
+    hi = rows.index_select(0, flat_nonzero(term == HIT))
     if not hi.numel():
         return
     h = hit_rows(c, hi, set_up, WALK_HIT_ONLY)
@@ -198,9 +199,8 @@ def flush(out: MarchOutput, c: CellWalk, rows: torch.Tensor, set_up: DDARays, vi
     n = hit_at(h, nA, nB, ray_view_z(h.Qz + h.dQz * nA, h.k + h.dk * nA, h.zlo, h.zhi), sceneZMax)
     inside = lambda v, cell: torch.minimum(torch.maximum(v, cell), torch.nextafter(cell + 1, cell))  # noqa: E731
     x, y = inside(h.Px + h.stepDir * n, h.cx), inside(h.Py + h.dPy * n, h.cy)
-    out.P[h.i] = torch.where(h.permute[:, None], torch.stack([y, x], 1), torch.stack([x, y], 1))
-    out.Q[h.i] = torch.stack([h.Q0x + h.dQx * n, h.Q0y + h.dQy * n, h.Qz + h.dQz * n], 1)
-    out.k[h.i] = h.k + h.dk * n
+    out.write_hits(h.i, torch.where(h.permute[:, None], torch.stack([y, x], 1), torch.stack([x, y], 1)),
+                   torch.stack([h.Q0x + h.dQx * n, h.Q0y + h.dQy * n, h.Qz + h.dQz * n], 1), h.k + h.dk * n)
 
 
 def supercover_march(s: DDARays, tex: DepthTexels, z_thickness: float, max_steps: int, H: int, W: int,

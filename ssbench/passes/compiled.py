@@ -251,8 +251,9 @@ def band_samples(samples: int) -> int:
     of µs of guards and wrappers. Bands of any size give the same bits. Measured at 640×360, compiled: Crytek 23 →
     15 ms (16 → 1 band), the visibility bitmask 195 → 183 ms, hemisphere SSAO 41 → 28 ms (90 bands of its samples
     on axis 2, three stored blocks each → 3 bands, none stored); HBAO and GTAO, whose kernels store several
-    per-sample blocks, ran 8–45 % slower on larger bands and keep theirs (GTAO with its samples last: 1.9× slower,
-    inductor vectorised over its 6 steps).
+    per-sample blocks, ran 8–45 % slower on larger bands without the heap held and keep theirs (GTAO with the heap
+    held as the benchmark holds it: 0.97–1.00× the time on bands 2× and 4× larger, so nothing to gain either; with
+    its samples last: 1.9× slower, inductor vectorised over its 6 steps).
 
     Example:
         >>> with compiling(False):

@@ -16,7 +16,14 @@ prints the median ns per element and the median per-round ratio to ``a + b`` (wh
 * gathers at random indices into an image of ``N`` texels: ``index_select`` with int32 or int64 indices,
   ``torch.take`` and ``x[index]`` (advanced indexing);
 * conversions float → int32 / int64 and integer products (int64 lanes are half as many per vector, and AVX2 has
-  no 64-bit vector multiply): why the marchers and the AO passes keep texel indices in int32 where they fit.
+  no 64-bit vector multiply): why the marchers and the AO passes keep texel indices in int32 where they fit;
+* the transcendentals the AO passes call per sample: ``cos`` and ``sin`` of small angles (a noise texture's) and of
+  the angles SAO's per-pixel hash makes, ``(3x ^ (y + xy))·10`` radians, up to ~2.6·10⁶ at 640×360. ATen's
+  vectorised ``cos`` and ``sin`` (SLEEF's) reduce an argument beyond ~4·10⁴ the slow way (Payne–Hanek), for the
+  whole vector of lanes when one needs it: ~12 ns against ~1.7 per value, measured. That, not its texel reads,
+  is most of SAO's tap loop (``perf`` on the compiled pass: the two functions took ~2/3 of it). ``log2`` (SAO's mip
+  level), ``acos`` (GTAO's horizons) and ``hypot(a, 1)`` (HBAO's ``TanToSin``, written so that a slope never
+  overflows) complete the list.
 
 A benchmark, not a test: ``.venv/bin/python benchmarks/bench_ops.py [--size 640x360 --rounds 15 --compile]``.
 """
@@ -38,6 +45,9 @@ def operations(n: int, gen: torch.Generator) -> dict:
     idx64 = torch.randint(0, n, (n,), generator=gen)
     idx32 = idx64.int()
     i32, i64 = idx32 // 3 + 1, idx64 // 3 + 1
+    small = (a - 0.5) * 6.28                                                  # angles in [-pi, pi)
+    hashed = ((3 * idx64) ^ (idx64 // 7)).to(torch.float32) * 10.0             # SAO's hash angles: ~10^6
+    one = torch.ones_like(a)
     return {
         "a + b": lambda: a + b,
         "a * b": lambda: a * b,
@@ -58,6 +68,12 @@ def operations(n: int, gen: torch.Generator) -> dict:
         "float -> int64": lambda: b.to(torch.int64),
         "int32 * int32": lambda: i32 * i32,
         "int64 * int64": lambda: i64 * i64,
+        "cos(a), a in [-pi, pi)": lambda: torch.cos(small),
+        "cos(a), a ~ 1e6 (SAO's hash angle)": lambda: torch.cos(hashed),
+        "sin(a), a ~ 1e6 (SAO's hash angle)": lambda: torch.sin(hashed),
+        "log2(a)": lambda: torch.log2(a),
+        "acos(a)": lambda: torch.acos(a),
+        "hypot(a, 1)": lambda: torch.hypot(a, one),
     }
 
 

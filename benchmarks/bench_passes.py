@@ -197,7 +197,8 @@ def main() -> int:
     rows = []
     print(f"torch {torch.__version__}, {a.threads} thread(s), min_run_time {a.min_run_time} s; "
           f"floor× / fused× = pass / torch gather / Dr.Jit fused gather of as many texels per pixel (median of {a.rounds} rounds ± IQR)")
-    head = (f"{'pass':<16}{'size':>10}{'mode':>9}{'ms':>10}{'ns/px':>8}{'ns/read':>8}{'floor×':>13}{'fused×':>8}{'anchor×':>8}"
+    name = 1 + max([16] + [len(m) for e in a.effects.split(",") for m in _methods(e)])   # the pass column's width
+    head = (f"{'pass':<{name}}{'size':>10}{'mode':>9}{'ms':>10}{'ns/px':>8}{'ns/read':>8}{'floor×':>13}{'fused×':>8}{'anchor×':>8}"
             f"{'reads':>6}{'peak MiB':>9}")
     head += f"{'compile s':>10}{'Δ eager':>9}" if a.compile else ""
     print(head)
@@ -215,11 +216,11 @@ def main() -> int:
                                "--min-run-time", str(a.min_run_time), "--rounds", str(a.rounds)] + (["--compiled"] if compiled else [])
                         r = subprocess.run(cmd, capture_output=True, text=True)
                         if r.returncode:
-                            print(f"{method:<16}{w}x{h:>5}  failed: {r.stderr.strip().splitlines()[-1:]}")
+                            print(f"{method:<{name}}{w}x{h:>5}  failed: {r.stderr.strip().splitlines()[-1:]}")
                             continue
                         row = json.loads(r.stdout.strip().splitlines()[-1])
                         rows.append(row)
-                        line = (f"{method:<16}{row['size']:>10}{row['mode']:>9}{row['ms']:>10.1f}{row['ns_px']:>8.0f}"
+                        line = (f"{method:<{name}}{row['size']:>10}{row['mode']:>9}{row['ms']:>10.1f}{row['ns_px']:>8.0f}"
                                 f"{row['ns_read']:>8.1f}"
                                 f"{row['floor_ratio']:>7.1f} ±{row['floor_ratio_iqr']:<4.1f}"
                                 f"{row['fused_floor_ratio']:>8.1f}{row['anchor_ratio']:>8.1f}{row['samples']:>6}"

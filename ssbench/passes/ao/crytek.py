@@ -39,6 +39,7 @@ from ..common import AOResult, make_generator
 from ..compiled import kernel, sample_axis
 from ..sampling import noise_lookup, noise_texel, noise_texture, sphere_kernel
 from ..gbuffer_checks import check_gbuffer, half_in_float32
+from ..inference import autograd_free
 from .ssao_common import (band_result, banded_ao, check_ssao_params, kernel_components, range_check_count,
                           real_depth_texture, ssao_result, view_position)
 from ..registry import Method, SpeedPanel
@@ -117,6 +118,7 @@ def sphere_frame(cam, view_z: torch.Tensor, noise: torch.Tensor, p: "CrytekSSAOP
     return position, real_depth_texture(cam, texture, False), random, row, col
 
 
+@autograd_free
 @half_in_float32
 def crytek_ssao(gbuffer: GBuffer, params: CrytekSSAOParams = CrytekSSAOParams(), *,
                 generator: torch.Generator | None = None, debug: bool = False) -> AOResult:

@@ -35,6 +35,7 @@ from torch import nn
 from ...gbuffer import GBuffer
 from ..common import AOResult, check_count, check_radius, row_bands
 from ..gbuffer_checks import check_gbuffer, half_in_float32
+from ..inference import autograd_free
 from .gtao_parts import NOISE_KINDS, check_noise, hilbert_index, unit3, noise_buffer, slice_visibility  # noqa: F401
 from .gtao_slices import gtao_rows
 from ..registry import Method, SpeedPanel
@@ -138,6 +139,7 @@ def check_inputs(gbuffer: GBuffer, params: GTAOParams) -> None:
     check_gbuffer(gbuffer, REQUIRES)
 
 
+@autograd_free
 @half_in_float32
 def gtao(gbuffer: GBuffer, params: GTAOParams = GTAOParams(), *, generator: Optional[torch.Generator] = None,
          debug: bool = False, bent_normals: bool = False) -> AOResult:

@@ -76,10 +76,11 @@ def hilbert_index(x: torch.Tensor, y: torch.Tensor, width: int = 64) -> torch.Te
 def hilbert_tile(frame: int) -> torch.Tensor:
     """:math:`(2, 64, 64)` float64 XeGTAO noise of one frame (``frame`` in [0, 64)) over one 64×64 tile: the R2
     sequence at the pixel's Hilbert index, ``frac(0.5 + (HilbertIndex + 288·frame)·R2)``."""
-    col = torch.arange(64).view(1, 64).expand(64, 64)
-    idx = hilbert_index(col, col.t()).to(torch.float64) + 288 * frame                 # (64, 64), XeGTAO
-    r2 = torch.tensor(R2, dtype=torch.float64).view(2, 1, 1)
-    return torch.frac(0.5 + idx * r2)
+    with torch.inference_mode(False):                  # kept across calls: a normal tensor whatever the caller's mode
+        col = torch.arange(64).view(1, 64).expand(64, 64)
+        idx = hilbert_index(col, col.t()).to(torch.float64) + 288 * frame             # (64, 64), XeGTAO
+        r2 = torch.tensor(R2, dtype=torch.float64).view(2, 1, 1)
+        return torch.frac(0.5 + idx * r2)
 
 
 def noise_buffer(params: GTAOParams, batch: int, height: int, width: int,

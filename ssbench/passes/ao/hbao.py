@@ -44,6 +44,7 @@ from torch import nn
 from ...gbuffer import GBuffer
 from ..common import AOResult, check_count, check_radius, make_generator, row_bands
 from ..gbuffer_checks import check_gbuffer, half_in_float32
+from ..inference import autograd_free
 from ..sampling import noise_lookup
 from .hbao_horizons import hbao_band, texel_view_z
 from ..registry import Method, SpeedPanel
@@ -121,6 +122,7 @@ def check_inputs(gbuffer: GBuffer, params: HBAOParams) -> None:
     check_gbuffer(gbuffer, REQUIRES)
 
 
+@autograd_free
 @half_in_float32
 def hbao(gbuffer: GBuffer, params: HBAOParams = HBAOParams(), *, generator: Optional[torch.Generator] = None,
          debug: bool = False) -> AOResult:

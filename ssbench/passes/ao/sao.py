@@ -42,6 +42,7 @@ from ...gbuffer import GBuffer
 from ..common import AOResult, check_count, check_positive, check_radius, cross, index_dtype, row_bands, vector_norm
 from ..compiled import kernel
 from ..gbuffer_checks import check_gbuffer, half_in_float32
+from ..inference import autograd_free
 from ..registry import Method, SpeedPanel
 from .sao_parts import (depth_mips, gl_rows, mip_level, pixels_per_meter, quad_filter, spin_angle,
                         tap_location)
@@ -207,6 +208,7 @@ def sao_taps(c: tuple, n: tuple, spin: torch.Tensor, ss_disk: torch.Tensor, xy: 
     return total, (torch.cat(levels, 1) if debug else None)
 
 
+@autograd_free
 @half_in_float32
 def sao(gbuffer: GBuffer, params: SAOParams = SAOParams(), *, generator: Optional[torch.Generator] = None,
         debug: bool = False) -> AOResult:

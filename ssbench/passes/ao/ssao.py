@@ -46,6 +46,7 @@ from ...gbuffer import GBuffer
 from ..common import AOResult, component_dot, cross, make_generator
 from ..compiled import kernel, sample_axis
 from ..gbuffer_checks import check_gbuffer, half_in_float32
+from ..inference import autograd_free
 from ..sampling import hemisphere_kernel, noise_lookup, noise_texel, noise_texture
 from ..registry import Method, SpeedPanel
 from .ssao_common import (band_result, banded_ao, check_ssao_params, kernel_components, range_check_count,
@@ -136,6 +137,7 @@ def hemisphere_band(cam: Camera, position: torch.Tensor, tbn: tuple, mask: torch
     return band_result(count, p, mask, position.dtype, debug)
 
 
+@autograd_free
 @half_in_float32
 def hemisphere_ssao(gbuffer: GBuffer, params: HemisphereSSAOParams = HemisphereSSAOParams(), *,
                     generator: torch.Generator | None = None, debug: bool = False) -> AOResult:

@@ -31,6 +31,7 @@ from torch import nn
 from ...gbuffer import GBuffer
 from ..common import AOResult, check_positive, row_bands
 from ..gbuffer_checks import check_gbuffer, half_in_float32
+from ..inference import autograd_free
 from ..registry import Method, SpeedPanel
 from ..sampling import noise_lookup
 from .three_gtao_band import band_frame, slice_visibility
@@ -126,6 +127,7 @@ def noise_tile(size: int = 5) -> torch.Tensor:
     return out.reshape(4, n, n)
 
 
+@autograd_free
 @half_in_float32
 def three_gtao(gbuffer: GBuffer, params: ThreeGTAOParams = ThreeGTAOParams(), *,
                generator: Optional[torch.Generator] = None, debug: bool = False) -> AOResult:

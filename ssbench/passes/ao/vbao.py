@@ -39,6 +39,7 @@ from ...gbuffer import GBuffer
 from ..common import AOResult, check_count, check_positive, check_radius, row_bands
 from ..compiled import band_samples
 from ..gbuffer_checks import check_gbuffer, half_in_float32
+from ..inference import autograd_free
 from .gtao import NoiseSpec
 from .gtao_parts import check_noise, noise_buffer, unit3
 from .vbao_slices import vbao_rows
@@ -104,6 +105,7 @@ def check_inputs(gbuffer: GBuffer, params: VBAOParams) -> None:
     check_gbuffer(gbuffer, REQUIRES)
 
 
+@autograd_free
 @half_in_float32
 def vbao(gbuffer: GBuffer, params: VBAOParams = VBAOParams(), *, generator: Optional[torch.Generator] = None,
          debug: bool = False, bent_normals: bool = False) -> AOResult:

@@ -62,6 +62,7 @@ from torch import nn
 from ...gbuffer import GBuffer
 from ..common import check_count, make_generator
 from ..gbuffer_checks import check_gbuffer, half_in_float32
+from ..inference import autograd_free
 from .common import SSRResult, nan_off_mask
 from .dda_assemble import assemble
 from .dda_march import dda_march
@@ -174,6 +175,7 @@ def depth_texels(gbuffer: GBuffer, params: DDASSRParams) -> DepthTexels:
     return DepthTexels(z, mask, back, second, marched)
 
 
+@autograd_free
 @half_in_float32
 def ssr_dda(gbuffer: GBuffer, params: DDASSRParams = DDASSRParams(), *, generator: Optional[torch.Generator] = None,
             debug: bool = False) -> SSRResult:

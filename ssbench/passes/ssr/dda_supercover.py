@@ -41,6 +41,7 @@ from ...gbuffer import GBuffer
 from ..common import check_count
 from .common import SSRResult
 from ..gbuffer_checks import half_in_float32
+from ..inference import autograd_free
 from .dda import DEFAULTS_SOURCE, EQUAL_SETTINGS, REQUIRES, DDASSRParams, check_inputs, depth_texels
 from .dda_rays import dda_rays, ray_pixels
 from .dda_assemble import assemble
@@ -83,6 +84,7 @@ class SupercoverDDASSRParams(FadeParams):
                             **{f.name: getattr(self, f.name) for f in fields(FadeParams)})
 
 
+@autograd_free
 @half_in_float32
 def ssr_dda_supercover(gbuffer: GBuffer, params: SupercoverDDASSRParams = SupercoverDDASSRParams(), *,
                        generator: Optional[torch.Generator] = None, debug: bool = False) -> SSRResult:

@@ -20,6 +20,7 @@ from torch import nn
 
 from ...gbuffer import GBuffer
 from ..gbuffer_checks import check_gbuffer
+from ..inference import autograd_free
 from ..registry import Method, SpeedPanel
 from .common import SSRResult
 from .linear import LinearSSRParams, ssr_linear
@@ -58,6 +59,7 @@ def required_channels(params: BlurSSRParams) -> tuple[str, ...]:
     return tuple(linear_channels(params.linear())) + ("roughness",)
 
 
+@autograd_free
 def ssr_glossy_blur(gbuffer: GBuffer, params: BlurSSRParams = BlurSSRParams(), *,
                     generator: Optional[torch.Generator] = None, debug: bool = False) -> SSRResult:
     """The mirror linear march, its colours blurred by roughness (module docstring).

@@ -35,6 +35,7 @@ from torch import nn
 from ...gbuffer import GBuffer
 from ..common import check_count, make_generator, vector_norm
 from ..gbuffer_checks import check_gbuffer, half_in_float32
+from ..inference import autograd_free
 from ..registry import Method, SpeedPanel
 from .common import SSRResult
 from .fade import FadeParams
@@ -110,6 +111,7 @@ def ggx_ray(v_loc: torch.Tensor, alpha: torch.Tensor, basis: tuple, gen: torch.G
     return from_local(l_loc, t, b, n), l_loc[:, 2:] > 0, reflection_pdf(v_loc[:, 2], m[:, 2], alpha)[:, None]
 
 
+@autograd_free
 @half_in_float32
 def ssr_glossy_stochastic(gbuffer: GBuffer, params: StochasticSSRParams = StochasticSSRParams(), *,
                           generator: Optional[torch.Generator] = None, debug: bool = False) -> SSRResult:

@@ -34,6 +34,7 @@ from torch import nn
 from ...gbuffer import GBuffer
 from ..common import check_count, check_positive
 from ..gbuffer_checks import check_gbuffer, half_in_float32
+from ..inference import autograd_free
 from ..registry import Method, SpeedPanel
 from .common import SSRResult
 from .dda_rays import ray_pixels
@@ -123,6 +124,7 @@ def texels(gbuffer: GBuffer, params: HiZSSRParams) -> HiZTexels:
                      back_z=back, second_z=second)
 
 
+@autograd_free
 @half_in_float32
 def ssr_hiz(gbuffer: GBuffer, params: HiZSSRParams = HiZSSRParams(), *, generator: Optional[torch.Generator] = None,
             debug: bool = False) -> SSRResult:

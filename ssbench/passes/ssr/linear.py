@@ -44,6 +44,7 @@ from ...gbuffer import GBuffer
 from ...indices import flat_nonzero
 from ..common import check_positive
 from ..gbuffer_checks import check_gbuffer, half_in_float32
+from ..inference import autograd_free
 from .common import HIT, NO_RAY, SSRResult, channel_rows, split_rays, unflat
 from .fade import FadeParams
 from .linear_march import MarchLog, march, refine
@@ -122,6 +123,7 @@ def check_inputs(gbuffer: GBuffer, params: LinearSSRParams) -> None:
                   meta_ok=False)
 
 
+@autograd_free
 @half_in_float32
 def ssr_linear(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(), *,
                generator: Optional[torch.Generator] = None, debug: bool = False,

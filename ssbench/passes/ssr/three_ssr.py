@@ -42,6 +42,7 @@ from ...indices import flat_nonzero
 from ..common import check_positive, index_dtype
 from ..compiled import step_blocks
 from ..gbuffer_checks import check_gbuffer, half_in_float32
+from ..inference import autograd_free
 from ..registry import Method, SpeedPanel
 from .common import HIT, NO_RAY, OUT_OF_STEPS, SSRResult, compact_now, components, flat, unflat
 from .three_ssr_rays import Shading, ThreeRays
@@ -138,6 +139,7 @@ def march_rays(ray: torch.Tensor, b: torch.Tensor, r: ThreeRays, shade: Shading,
     write_back(torch.arange(ws.ray.numel(), device=dev))
 
 
+@autograd_free
 @half_in_float32
 def ssr_three(gbuffer: GBuffer, params: ThreeSSRParams = ThreeSSRParams(), *,
               generator: Optional[torch.Generator] = None, debug: bool = False) -> SSRResult:

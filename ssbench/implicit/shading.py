@@ -19,16 +19,20 @@ def safe_normal(grad: torch.Tensor) -> torch.Tensor:
 
 def shade_hits(surface, points: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """Unit normals (n, 3) and object indices (n,) int32 at hit points (n, 3): one ``f_and_grad`` (counted as
-    one evaluation by the callers) and ``object_index`` (0 if the surface has none)."""
+    one evaluation by the callers) and ``object_index`` (0 if the surface has none). The gradient is taken outside
+    inference mode (the ray casters run in it, :func:`ssbench.passes.inference.autograd_free`), on a normal copy
+    of inference-tensor points."""
     if points.shape[0] == 0:
         return points.new_zeros(0, 3), torch.zeros(0, dtype=torch.int32, device=points.device)
-    if hasattr(surface, "f_and_grad"):
-        _, g = surface.f_and_grad(points)
-    else:
-        with torch.enable_grad():
-            q = points.detach().requires_grad_(True)
-            (g,) = torch.autograd.grad(surface.f(q).sum(), q, allow_unused=True)
-        g = torch.zeros_like(points) if g is None else g.detach()
+    with torch.inference_mode(False):          # ∇f by autograd, also for a caller in inference mode (a pass is)
+        at = points.clone() if points.is_inference() else points
+        if hasattr(surface, "f_and_grad"):
+            _, g = surface.f_and_grad(at)
+        else:
+            with torch.enable_grad():
+                q = at.detach().requires_grad_(True)
+                (g,) = torch.autograd.grad(surface.f(q).sum(), q, allow_unused=True)
+            g = torch.zeros_like(at) if g is None else g.detach()
     idx = surface.object_index(points) if hasattr(surface, "object_index") else torch.zeros(
         points.shape[:-1], dtype=torch.long, device=points.device)
     return safe_normal(g.to(points.dtype)), idx.to(torch.int32)

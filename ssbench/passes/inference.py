@@ -4,9 +4,11 @@ Every eager torch operation passes through autograd's dispatch even when no inpu
 the inputs, bumps version counters and carries the view and in-place bookkeeping. For a pass of large operations
 that is noise; for the SSR marchers, whose steps run many small operations on a shrinking working set, it is a
 share of the time that measures PyTorch, not the method. Under :class:`torch.inference_mode` that work is skipped.
-Measured side by side at 640×360 (1 thread, heap held, the same bits): eager DDA 0.82× the time, visibility
-bitmask 0.82×, three.js SSR 0.89×, linear march 0.92×, GTAO 0.94×, SSAO 0.98×; ``torch.no_grad`` alone gives
-nothing (0.98–1.03×).
+Measured side by side at 640×360 (1 thread, heap held, the same bits): eager DDA 0.82–0.96× the time, visibility
+bitmask 0.82–0.92×, three.js SSR 0.89–0.99×, linear march 0.92–0.94×, GTAO 0.94×, SSAO 0.98×; sphere tracing
+0.79–0.87× (``thin_shell`` at 320×240, ``gyroid_sheet`` at 160×120); ``torch.no_grad`` alone gives nothing
+(0.98–1.03×). The implicit casters take their normals by autograd: :func:`ssbench.implicit.shading.shade_hits`
+leaves inference mode for that.
 
 Tensors made under inference mode are *inference tensors*: autograd refuses to save them for a backward pass and
 in-place changes to them outside inference mode. So a decorated pass hands back normal tensors: its result's

@@ -8,7 +8,9 @@ import dataclasses
 import pytest
 import torch
 
-from ssbench.passes import AO_METHODS, SSR_METHODS, ao_method, ssr_method
+from ssbench.implicit.scene import load
+from ssbench.implicit.shading import shade_hits
+from ssbench.passes import AO_METHODS, IMPLICIT_METHODS, SSR_METHODS, ao_method, implicit_method, ssr_method
 from ssbench.passes.compiled import compiling
 from ssbench.passes.inference import as_normal, autograd_free, wants_grad
 from tests.passes.ssr_scenes import room
@@ -50,6 +52,31 @@ def test_every_pass_runs_autograd_free_with_the_same_bits_and_normal_tensors(met
                 assert not a[k].is_inference(), (method, k)
                 assert a[k].dtype == b[k].dtype and torch.equal(torch.nan_to_num(a[k].double(), nan=7.0),
                                                                 torch.nan_to_num(b[k].double(), nan=7.0)), (method, k)
+
+
+@pytest.mark.parametrize("method", list(IMPLICIT_METHODS))
+def test_every_implicit_caster_runs_autograd_free_and_still_takes_normals_by_autograd(method):
+    fn, P = implicit_method(method)
+    assert getattr(fn, "autograd_free", False), f"{method}: its pass function is not decorated with autograd_free"
+    sc = load("thin_shell")
+    cam, surf = sc.camera_at(0).with_resolution(16, 12), sc.surface(0)
+    free, plain = fn(surf, cam, P()), fn.__wrapped__(surf, cam, P())
+    a, b = tensors(free), tensors(plain)
+    assert a.keys() == b.keys() and a
+    for k in a:
+        assert not a[k].is_inference(), (method, k)
+        assert torch.equal(torch.nan_to_num(a[k].double(), nan=7.0), torch.nan_to_num(b[k].double(), nan=7.0)), k
+    hit = free.hit[:, 0]
+    assert bool(hit.any()) and bool((free.normal.norm(dim=1)[hit] > 0.99).all())     # ∇f found under the mode
+
+
+def test_shade_hits_takes_the_gradient_inside_inference_mode():
+    surf = load("thin_shell").surface(0)
+    with torch.inference_mode():
+        p = torch.tensor([[0.5, 0.4, 0.7], [0.3, -0.2, 0.9]], dtype=torch.float64)
+        n, _ = shade_hits(surf, p)
+    want, _ = shade_hits(surf, p.clone())
+    assert torch.equal(n, want) and bool((n.norm(dim=1) > 0.99).all())
 
 
 def test_a_result_can_enter_a_backward_pass_and_be_changed_in_place():

@@ -26,6 +26,7 @@ from torch import nn
 from ...indices import flat_nonzero
 from ..common import make_generator
 from .common import (HIT, MISS, ImplicitResult, as_rays, bisect, check_stateless, check_surface, finish, flat)
+from ..inference import autograd_free
 from ..registry import Method, SpeedPanel
 
 __all__ = ["METHOD", "FixedStepParams", "fixed_step", "march_lattice", "FixedStep"]
@@ -114,6 +115,7 @@ def march_lattice(surface, origin: torch.Tensor, direction: torch.Tensor, offset
     return found, lo, hi, steps
 
 
+@autograd_free
 def fixed_step(surface, camera, params: FixedStepParams = FixedStepParams(), *, state: None = None,
                generator: Optional[torch.Generator] = None, jitter: Optional[torch.Tensor] = None,
                dtype: Optional[torch.dtype] = None, device=None) -> ImplicitResult:

@@ -42,6 +42,7 @@ from torch import nn
 from ...indices import flat_nonzero
 from .common import HIT, INVALIDATED, MISS, ImplicitResult, as_rays, bisect, check_surface, finish, flat, unflat
 from .fixed import check_int, march_lattice
+from ..inference import autograd_free
 from ..registry import Method, SpeedPanel
 
 #: the caster carries ``t'`` between frames (``result.state`` → ``state=``): evaluations run its frames in order
@@ -167,6 +168,7 @@ def run_frame(surface, o: torch.Tensor, d: torch.Tensor, t_far: torch.Tensor, sh
     return dataclasses.replace(res, state=ProgressiveState(res.t.clone(), state.frame + 1, res.hit.clone()))  # 2.5
 
 
+@autograd_free
 def progressive(surface, camera, params: ProgressiveParams = ProgressiveParams(), *,
                 state: Optional[ProgressiveState] = None, generator: Optional[torch.Generator] = None,
                 jitter: Optional[torch.Tensor] = None, dtype: Optional[torch.dtype] = None,

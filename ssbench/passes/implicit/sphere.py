@@ -29,6 +29,7 @@ from ...indices import flat_nonzero
 from .common import (HIT, MISS, OUT_OF_STEPS, ImplicitResult, as_rays, bisect, check_stateless, check_surface,
                      finish, flat, unflat)
 from .fixed import check_int
+from ..inference import autograd_free
 from ..registry import Method, SpeedPanel
 
 __all__ = ["METHOD", "SphereTraceParams", "sphere_trace", "SphereTrace"]
@@ -72,6 +73,7 @@ class SphereTraceParams:
         check_int(self.refine_iterations, "refine_iterations", 0)
 
 
+@autograd_free
 def sphere_trace(surface, camera, params: SphereTraceParams = SphereTraceParams(), *, state: None = None,
                  generator: Optional[torch.Generator] = None, jitter: Optional[torch.Tensor] = None,
                  dtype: Optional[torch.dtype] = None, device=None) -> ImplicitResult:

@@ -209,15 +209,19 @@ BLOCK_BYTES = 1 << 20
 
 
 def row_bands(height: int, width: int, samples: int, itemsize: int, budget: Optional[int] = None, *,
-              batch: int = 1) -> list[slice]:
+              batch: int = 1, multiple: int = 1) -> list[slice]:
     """Slices of image rows whose ``(batch, 3, samples, rows, width)`` sample blocks fit in ``budget`` bytes
-    (default :data:`BLOCK_BYTES`, read at each call; one row at least). Every pixel's arithmetic is the same in any band, so a banded pass is bit-identical to
-    the whole-image one.
+    (default :data:`BLOCK_BYTES`, read at each call), in whole ``multiple`` of rows (at least one ``multiple``: a pass
+    whose noise repeats every ``multiple`` rows reuses one period's work in every band, :mod:`.noise_tiles`). Every
+    pixel's arithmetic is the same in any band, so a banded pass is bit-identical to the whole-image one.
 
     Example:
         >>> row_bands(10, 100, 16, 4, budget=4 * 3 * 16 * 100 * 4)
         [slice(0, 4, None), slice(4, 8, None), slice(8, 10, None)]
+        >>> row_bands(10, 100, 16, 4, budget=5 * 3 * 16 * 100 * 4, multiple=4)
+        [slice(0, 4, None), slice(4, 8, None), slice(8, 10, None)]
     """
     budget = BLOCK_BYTES if budget is None else budget
     rows = max(1, budget // max(1, 3 * batch * samples * width * itemsize))
+    rows = max(multiple, rows - rows % multiple)
     return [slice(r0, min(height, r0 + rows)) for r0 in range(0, height, rows)]

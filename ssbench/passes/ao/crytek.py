@@ -10,6 +10,8 @@ Per pixel:
 3. ``samplePoint = viewPosition + reflect(Kernel[i], random) · KernelRadius``; it is projected, the depth
    texel fetched and compared in linear depth exactly like the hemisphere pass
    (:func:`ssbench.passes.ao.ssao.range_check_count`): it occludes if ``MinDistance < delta < MaxDistance``.
+   ``reflect(Kernel[i], random) · KernelRadius`` depends on the noise texel alone, so it is computed for one period
+   of noise rows and repeated down each band of rows (:mod:`ssbench.passes.noise_tiles`): the same bits.
 4. ``AO = 1 − Strength · count / K``.
 
 **Which AO it estimates, and the grey bias.** The count is the fraction of a *ball* around the point that
@@ -39,9 +41,10 @@ from ..common import AOResult, make_generator
 from ..compiled import kernel, sample_axis
 from ..sampling import noise_lookup, noise_texel, noise_texture, sphere_kernel
 from ..gbuffer_checks import check_gbuffer, half_in_float32
+from ..noise_tiles import band_tile_rows, rows_repeat, tiled_add
 from ..inference import autograd_free
-from .ssao_common import (band_result, banded_ao, check_ssao_params, kernel_components, range_check_count,
-                          real_depth_texture, ssao_result, view_position)
+from .ssao_common import (band_result, banded_ao, check_ssao_params, range_check_count, real_depth_texture,
+                          ssao_result, view_position)
 from ..registry import Method, SpeedPanel
 
 FLAVOUR = "volume_sphere"  # the ground truth this pass estimates (ssbench.reference.ao_volume)
@@ -84,23 +87,38 @@ class CrytekSSAOParams:
         check_ssao_params(self)
 
 
-@kernel
-def sphere_band(cam, position: torch.Tensor, rnd: torch.Tensor, mask: torch.Tensor, kernel: torch.Tensor,
-                real_depth: torch.Tensor, p: "CrytekSSAOParams", debug: bool) -> tuple:
-    """Mittring's sample loop on a band of rows: each kernel vector reflected about the pixel's random plane,
-    ``position + reflected · radius``, then the range-checked count (:func:`.ssao.range_check_count`).
+def reflected_offsets(kernel: torch.Tensor, rnd: torch.Tensor, kernel_radius: float) -> tuple:
+    """``reflect(Kernel[i], random) · KernelRadius`` for every kernel vector :math:`(K, 3)` and every noise vector of
+    ``rnd`` :math:`(1, 3, t_h, t_w)`: three :math:`(K, t_h, t_w)` components, the offsets of a tile of pixels from their
+    view positions (:func:`ssbench.passes.noise_tiles.tiled_add`). They depend on the noise texel alone, so a tile of
+    4×4 texels serves every band of a noise-periodic image.
 
-    ``position`` :math:`(B, 3, h, W)`, ``rnd`` :math:`(1, 3, h, W)`, ``mask`` :math:`(B, 1, h, W)`, ``kernel``
-    :math:`(K, 3)`; returns the band's :math:`(B, 1, h, W)` AO and, with ``debug``, its count
-    (:func:`.ssao_common.band_result`; the pass's compilable kernel, :mod:`ssbench.passes.compiled`; its samples lie
-    along :func:`~ssbench.passes.compiled.sample_axis`).
+    Example:
+        >>> plane_normal = torch.tensor([1.0, 0.0, 0.0]).view(1, 3, 1, 1)
+        >>> off = reflected_offsets(torch.tensor([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0]]), plane_normal, 2.0)
+        >>> [c.flatten().tolist() for c in off]       # in the plane: kept; along its normal: flipped
+        [[0.0, -2.0], [0.0, 0.0], [2.0, 0.0]]
+    """
+    kc = [kernel[:, c].view(-1, 1, 1) for c in range(3)]                             # (K, 1, 1)
+    rc = [rnd[0, c] for c in range(3)]                                                # (t_h, t_w)
+    dot = kc[0] * rc[0] + kc[1] * rc[1] + kc[2] * rc[2]                              # (K, t_h, t_w)
+    return tuple((kc[c] - 2.0 * dot * rc[c]) * kernel_radius for c in range(3))
+
+
+@kernel
+def sphere_band(cam, position: torch.Tensor, offset: tuple, mask: torch.Tensor, real_depth: torch.Tensor,
+                p: "CrytekSSAOParams", debug: bool) -> tuple:
+    """Mittring's sample loop on a band of rows: ``samplePoint = position + reflect(Kernel[i], random) · radius``
+    (the reflected offsets of :func:`reflected_offsets` on a tile, repeated over the band by
+    :func:`~ssbench.passes.noise_tiles.tiled_add`), then the range-checked count (:func:`.ssao.range_check_count`).
+
+    ``position`` :math:`(B, 3, h, W)`, ``offset`` three :math:`(K, t_h, t_w)`, ``mask`` :math:`(B, 1, h, W)`; returns
+    the band's :math:`(B, 1, h, W)` AO and, with ``debug``, its count (:func:`.ssao_common.band_result`; the pass's
+    compilable kernel, :mod:`ssbench.passes.compiled`; its samples lie along
+    :func:`~ssbench.passes.compiled.sample_axis`).
     """
     axis = sample_axis()
-    kc, rc = kernel_components(kernel, axis), [rnd[:, c:c + 1].unsqueeze(axis) for c in range(3)]
-    dot = kc[0] * rc[0] + kc[1] * rc[1] + kc[2] * rc[2]                              # (1, 1, K, h, W) eager
-    reflected = [kc[c] - 2.0 * dot * rc[c] for c in range(3)]       # per component: one fused loop compiled
-    sample_point = tuple(position[:, c:c + 1].unsqueeze(axis) + reflected[c] * p.kernel_radius
-                         for c in range(3))                                            # 3 × (B, 1, K, h, W)
+    sample_point = tuple(tiled_add(position[:, c:c + 1], offset[c], axis) for c in range(3))  # 3 × (B, 1, K, h, W)
     count = range_check_count(cam, sample_point, real_depth, p.min_distance, p.max_distance, axis)
     return band_result(count, p, mask, position.dtype, debug)
 
@@ -159,9 +177,17 @@ def crytek_ssao(gbuffer: GBuffer, params: CrytekSSAOParams = CrytekSSAOParams(),
     noise = noise_texture(p.noise_size, g).to(dtype=dtype, device=device)          # (3, S, S) unit, z = 0
 
     position, real_depth, random, row, col = sphere_frame(cam, gbuffer.view_z, noise, p)
-    ao, count = banded_ao(lambda rs: sphere_band(cam, position[..., rs, :], random[..., rs, :], mask[..., rs, :],
-                                                 kernel, real_depth, p, debug),
-                          mask.shape, dtype, device, p.kernel_size, debug)
+    periodic = rows_repeat(random, p.noise_size)
+    tiles: dict = {}                                  # the offsets of each tile of rows, computed once
+
+    def band(rs: slice) -> tuple:
+        tile = band_tile_rows(rs, p.noise_size, periodic)
+        if (tile.start, tile.stop) not in tiles:
+            tiles[tile.start, tile.stop] = reflected_offsets(kernel, random[..., tile, :], p.kernel_radius)
+        return sphere_band(cam, position[..., rs, :], tiles[tile.start, tile.stop], mask[..., rs, :], real_depth,
+                           p, debug)
+
+    ao, count = banded_ao(band, mask.shape, dtype, device, p.kernel_size, debug, p.noise_size if periodic else 1)
     return ssao_result(ao, count, p, mask, row=row, col=col, kernel=kernel, noise=noise)
 
 

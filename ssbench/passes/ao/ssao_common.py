@@ -116,15 +116,15 @@ def band_result(count: torch.Tensor, p, mask: torch.Tensor, dtype: torch.dtype, 
 
 
 def banded_ao(run: Callable[[slice], tuple], shape: tuple, dtype: torch.dtype, device, samples: int,
-              debug: bool) -> tuple[torch.Tensor, torch.Tensor | None]:
+              debug: bool, multiple: int = 1) -> tuple[torch.Tensor, torch.Tensor | None]:
     """``(ao, count)`` of :math:`(B, 1, H, W)` ``shape``: a pass's band kernel, ``run(rows)`` → the band's
     :func:`band_result`, called on each band of rows (:func:`~ssbench.passes.common.row_bands` for
-    :func:`~ssbench.passes.compiled.band_samples` of its ``samples`` per pixel), its outputs gathered; ``count`` is
-    ``None`` without ``debug``."""
+    :func:`~ssbench.passes.compiled.band_samples` of its ``samples`` per pixel, in whole ``multiple`` of rows), its
+    outputs gathered; ``count`` is ``None`` without ``debug``."""
     height, width = shape[-2:]
     ao = torch.empty(shape, dtype=dtype, device=device)
     count = torch.empty(shape, dtype=torch.int64, device=device) if debug else None
-    for rs in row_bands(height, width, band_samples(samples), dtype.itemsize):   # cache-sized bands
+    for rs in row_bands(height, width, band_samples(samples), dtype.itemsize, multiple=multiple):  # cache-sized
         band_ao, band_count = run(rs)
         ao[..., rs, :] = band_ao
         if count is not None:

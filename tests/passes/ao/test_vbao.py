@@ -8,7 +8,7 @@ import torch
 
 from ssbench.passes.ao.gtao_parts import slice_visibility
 from ssbench.passes.ao.vbao import VBAO, VBAOParams, vbao
-from ssbench.passes.ao.vbao_slices import cosine_arc, popcount, sector_bits
+from ssbench.passes.ao.vbao_slices import as_unsigned, cosine_arc, popcount, sector_bits
 
 from .test_gtao import crease, open_plane, quad_with_background
 
@@ -18,7 +18,23 @@ def test_sector_bits_touch_every_sector_an_arc_reaches():
     got = sector_bits(lo, hi, 10).tolist()
     assert got == [0, 0b110, 2 ** 10 - 1, 0, 0b1000000000]       # [0.15, 0.3]: ceil(1.5) = 2 sectors from 1
     assert popcount(torch.tensor(got)).tolist() == [0, 2, 10, 0, 1]
-    assert int(sector_bits(torch.tensor(0.0), torch.tensor(1.0), 32)) == 2 ** 32 - 1
+    every = sector_bits(torch.tensor([0.0, 31.5 / 32]), torch.tensor([1.0, 1.0]), 32)   # one uint, in int32
+    assert every.dtype == torch.int32 and as_unsigned(every).tolist() == [2 ** 32 - 1, 2 ** 31]
+    assert popcount(as_unsigned(every)).tolist() == [32, 1]
+
+
+def test_sector_bits_in_int32_equal_the_int64_formula():
+    """The int32 bits (sector 31 the sign bit, shifts by 32 giving 0) read as unsigned equal the plain int64
+    formula, with its mask, on arcs that end anywhere, at every sector count up to 32."""
+    g = torch.Generator().manual_seed(0)
+    x = torch.rand(2, 4000, generator=g, dtype=torch.float64)
+    x[:, :64] = torch.arange(64, dtype=torch.float64).view(1, -1) / 63        # edges and both ends exactly
+    lo, hi = x.min(0).values, x.max(0).values
+    for n in (1, 7, 31, 32):
+        start = torch.floor(lo * n).long().clamp(0, n)
+        count = torch.ceil((hi - lo) * n).long().clamp(0, n)
+        expected = (((1 << count) - 1) << start) & ((1 << n) - 1)
+        assert torch.equal(as_unsigned(sector_bits(lo, hi, n)), expected), n
 
 
 def test_cosine_sector_shares_add_up_to_gtaos_slice_integral():

@@ -96,7 +96,8 @@ def vbao_rows(cam, z: torch.Tensor, row: torch.Tensor, normal: torch.Tensor, mas
     min_s = params.min_offset_pixels / r_px
     tiny = torch.finfo(dtype).tiny
     j = torch.arange(K, dtype=dtype, device=dev).view(1, K, 1, 1)
-    side = torch.cat([torch.ones(K, dtype=dtype, device=dev), -torch.ones(K, dtype=dtype, device=dev)]).view(1, -1, 1, 1)
+    ones = torch.ones(K, dtype=dtype, device=dev)
+    side = torch.cat([ones, -ones]).view(1, -1, 1, 1)                                # +1 one side, -1 the other
     vis = torch.zeros_like(zc)
     dbg_bits, dbg_vis = [], []
     bent = [torch.zeros_like(zc) for _ in range(3)] if bent_normals else None

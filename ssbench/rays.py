@@ -22,7 +22,7 @@ import torch
 
 from .camera import Camera
 
-__all__ = ["length", "vector_norm", "component_dot", "component_norm", "cross", "CameraRays", "camera_rays"]
+__all__ = ["length", "vector_norm", "component_dot", "component_norm", "cross", "cross_components", "CameraRays", "camera_rays"]
 
 
 def length(x: torch.Tensor, dim: int = 1, keepdim: bool = True) -> torch.Tensor:
@@ -122,10 +122,22 @@ def cross(a: torch.Tensor, b: torch.Tensor, dim: int = 1) -> torch.Tensor:
     if (a.device.type != "cpu" or a.dtype not in (torch.float32, torch.float64) or b.dtype != a.dtype
             or a.shape != b.shape or a.requires_grad or b.requires_grad or torch.compiler.is_compiling()):
         return torch.linalg.cross(a, b, dim=dim)
-    a0, a1, a2 = a.unbind(dim)
-    b0, b1, b2 = b.unbind(dim)
-    return torch.stack([torch.addcmul(-(a2 * b1), a1, b2), torch.addcmul(-(a0 * b2), a2, b0),
-                        torch.addcmul(-(a1 * b0), a0, b1)], dim)
+    return torch.stack(cross_components(a.unbind(dim), b.unbind(dim)), dim)
+
+
+def cross_components(a, b) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """The ``(x, y, z)`` of ``a × b`` for vectors given as their components (tuples of three tensors of one shape), as
+    :func:`cross` computes them on the CPU: each ``fma(a₁, b₂, −(a₂·b₁))`` (cyclically) with ``torch.addcmul``, so
+    ``torch.stack(cross_components(a.unbind(d), b.unbind(d)), d)`` is ``torch.linalg.cross(a, b, dim=d)`` bit for bit
+    there (float32, float64). Components kept apart need no stacked copy of either operand.
+
+    Example:
+        >>> [c.tolist() for c in cross_components(torch.eye(3)[0], torch.eye(3)[1])]
+        [0.0, 0.0, 1.0]
+    """
+    a0, a1, a2 = a
+    b0, b1, b2 = b
+    return (torch.addcmul(-(a2 * b1), a1, b2), torch.addcmul(-(a0 * b2), a2, b0), torch.addcmul(-(a1 * b0), a0, b1))
 
 @dataclass(frozen=True)
 class CameraRays:

@@ -6,6 +6,7 @@ import pytest
 import torch
 
 from ssbench.passes.common import cross, length, vector_norm
+from ssbench.rays import cross_components
 
 
 @pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
@@ -69,6 +70,8 @@ def test_cross_gives_the_bits_of_linalg_cross(dtype, shape, dim):
     # ATen's CPU cross is one FMA per component; a cross written a₁b₂ − a₂b₁ differs in a third of these
     a, b = special_values(shape, dtype, seed=1), special_values(shape, dtype, seed=2).flip(dim)
     ref, got = torch.linalg.cross(a, b, dim=dim), cross(a, b, dim=dim)
+    apart = torch.stack(cross_components(a.unbind(dim), b.unbind(dim)), dim)    # on components kept apart
+    assert torch.equal(apart.nan_to_num(1e5), got.nan_to_num(1e5))
     assert got.shape == ref.shape and got.dtype == ref.dtype
     assert torch.equal(got.isnan(), ref.isnan())
     assert torch.equal(got.nan_to_num(0.0), ref.nan_to_num(0.0))

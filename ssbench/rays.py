@@ -22,7 +22,8 @@ import torch
 
 from .camera import Camera
 
-__all__ = ["length", "vector_norm", "component_dot", "component_norm", "cross", "cross_components", "CameraRays", "camera_rays"]
+__all__ = ["length", "vector_norm", "component_dot", "component_norm", "cross", "cross_components", "CameraRays",
+           "camera_rays"]
 
 
 def length(x: torch.Tensor, dim: int = 1, keepdim: bool = True) -> torch.Tensor:

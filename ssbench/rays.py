@@ -140,6 +140,7 @@ def cross_components(a, b) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     b0, b1, b2 = b
     return (torch.addcmul(-(a2 * b1), a1, b2), torch.addcmul(-(a0 * b2), a2, b0), torch.addcmul(-(a1 * b0), a0, b1))
 
+
 @dataclass(frozen=True)
 class CameraRays:
     """World-space rays through pixel centres (plus optional sub-pixel jitter), all ``(B, H, W)``-shaped.

@@ -1,4 +1,4 @@
-"""Per-pixel quantities that repeat with the noise texture: computed once per noise texel, not once per pixel.
+"""Per-pixel quantities that repeat with the noise texture: computed for one period of noise rows, not every pixel.
 
 A pass that rotates (or reflects) its samples by a small tiled noise texture (``REPEAT``, 4×4 in the SSAO article
 §1–2) and does nothing else per pixel to them — Crytek's sphere SSAO, whose ``reflect(Kernel[i], random)`` depends

@@ -89,9 +89,9 @@ class CrytekSSAOParams:
 
 def reflected_offsets(kernel: torch.Tensor, rnd: torch.Tensor, kernel_radius: float) -> tuple:
     """``reflect(Kernel[i], random) · KernelRadius`` for every kernel vector :math:`(K, 3)` and every noise vector of
-    ``rnd`` :math:`(1, 3, t_h, t_w)`: three :math:`(K, t_h, t_w)` components, the offsets of a tile of pixels from their
-    view positions (:func:`ssbench.passes.noise_tiles.tiled_add`). They depend on the noise texel alone, so a tile of
-    4×4 texels serves every band of a noise-periodic image.
+    ``rnd`` :math:`(1, 3, t, W)`: three :math:`(K, t, W)` components, the offsets of ``t`` rows of pixels from their
+    view positions (:func:`ssbench.passes.noise_tiles.tiled_add`). They depend on the noise texel alone, so one period
+    of noise rows (4 by default) serves every band of the image.
 
     Example:
         >>> plane_normal = torch.tensor([1.0, 0.0, 0.0]).view(1, 3, 1, 1)
@@ -109,10 +109,10 @@ def reflected_offsets(kernel: torch.Tensor, rnd: torch.Tensor, kernel_radius: fl
 def sphere_band(cam, position: torch.Tensor, offset: tuple, mask: torch.Tensor, real_depth: torch.Tensor,
                 p: "CrytekSSAOParams", debug: bool) -> tuple:
     """Mittring's sample loop on a band of rows: ``samplePoint = position + reflect(Kernel[i], random) · radius``
-    (the reflected offsets of :func:`reflected_offsets` on a tile, repeated over the band by
+    (the reflected offsets of :func:`reflected_offsets` on ``t`` rows, repeated down the band by
     :func:`~ssbench.passes.noise_tiles.tiled_add`), then the range-checked count (:func:`.ssao.range_check_count`).
 
-    ``position`` :math:`(B, 3, h, W)`, ``offset`` three :math:`(K, t_h, t_w)`, ``mask`` :math:`(B, 1, h, W)`; returns
+    ``position`` :math:`(B, 3, h, W)`, ``offset`` three :math:`(K, t, W)`, ``mask`` :math:`(B, 1, h, W)`; returns
     the band's :math:`(B, 1, h, W)` AO and, with ``debug``, its count (:func:`.ssao_common.band_result`; the pass's
     compilable kernel, :mod:`ssbench.passes.compiled`; its samples lie along
     :func:`~ssbench.passes.compiled.sample_axis`).
@@ -178,7 +178,7 @@ def crytek_ssao(gbuffer: GBuffer, params: CrytekSSAOParams = CrytekSSAOParams(),
 
     position, real_depth, random, row, col = sphere_frame(cam, gbuffer.view_z, noise, p)
     periodic = rows_repeat(random, p.noise_size)
-    tiles: dict = {}                                  # the offsets of each tile of rows, computed once
+    tiles: dict = {}                                  # the offsets of each set of noise rows, computed once
 
     def band(rs: slice) -> tuple:
         tile = band_tile_rows(rs, p.noise_size, periodic)

@@ -21,7 +21,8 @@ __all__ = ["rows_repeat", "band_tile_rows", "tiled_add"]
 
 def rows_repeat(noise: torch.Tensor, size: int) -> bool:
     """Whether the per-pixel noise :math:`(*, C, H, W)` repeats every ``size`` rows (checked on the values themselves,
-    so any texel mapping that repeats qualifies).
+    so any texel mapping that repeats qualifies). ``False`` for tensors without values (the ``meta`` device, on which
+    a pass checks its shapes): every band then uses its own rows.
 
     Example:
         >>> tile = torch.arange(4.0).reshape(1, 1, 2, 2)
@@ -29,6 +30,8 @@ def rows_repeat(noise: torch.Tensor, size: int) -> bool:
         (True, False)
     """
     height = noise.shape[-2]
+    if noise.device.type == "meta":
+        return False
     return height <= size or torch.equal(noise[..., size:, :], noise[..., :height - size, :])
 
 

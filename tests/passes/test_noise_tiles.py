@@ -37,6 +37,7 @@ def test_rows_repeat_reads_the_values():
     broken = image.clone()
     broken[0, 1, 17, 2] += 1e-7
     assert not rows_repeat(broken, 4)
+    assert not rows_repeat(image.to("meta"), 4)                                  # no values to compare
 
 
 def test_band_tile_rows_takes_the_first_period_only_for_whole_aligned_periods():

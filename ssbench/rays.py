@@ -120,22 +120,36 @@ def cross(a: torch.Tensor, b: torch.Tensor, dim: int = 1) -> torch.Tensor:
         >>> cross(torch.tensor([[1.0, 0.0, 0.0]]), torch.tensor([[0.0, 1.0, 0.0]])).tolist()
         [[0.0, 0.0, 1.0]]
     """
-    if (a.device.type != "cpu" or a.dtype not in (torch.float32, torch.float64) or b.dtype != a.dtype
-            or a.shape != b.shape or a.requires_grad or b.requires_grad or torch.compiler.is_compiling()):
+    if not _fma_is_aten(a, b):
         return torch.linalg.cross(a, b, dim=dim)
-    return torch.stack(cross_components(a.unbind(dim), b.unbind(dim)), dim)
+    return torch.stack(_fma_components(a.unbind(dim), b.unbind(dim)), dim)
 
 
 def cross_components(a, b) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """The ``(x, y, z)`` of ``a × b`` for vectors given as their components (tuples of three tensors of one shape), as
-    :func:`cross` computes them on the CPU: each ``fma(a₁, b₂, −(a₂·b₁))`` (cyclically) with ``torch.addcmul``, so
-    ``torch.stack(cross_components(a.unbind(d), b.unbind(d)), d)`` is ``torch.linalg.cross(a, b, dim=d)`` bit for bit
-    there (float32, float64). Components kept apart need no stacked copy of either operand.
+    """The ``(x, y, z)`` of ``a × b`` for vectors given as their components (tuples of three tensors of one shape),
+    with :func:`cross`'s bits: ``torch.stack(cross_components(a.unbind(d), b.unbind(d)), d)`` is
+    ``cross(a, b, dim=d)``. On the CPU (float32, float64, no gradients) the components are computed apart, with no
+    stacked copy of either operand; elsewhere they are ``torch.linalg.cross``'s.
 
     Example:
         >>> [c.tolist() for c in cross_components(torch.eye(3)[0], torch.eye(3)[1])]
         [0.0, 0.0, 1.0]
     """
+    if not all(_fma_is_aten(x, y) for x, y in zip(a, b)):
+        return torch.linalg.cross(torch.stack(tuple(a), -1), torch.stack(tuple(b), -1), dim=-1).unbind(-1)
+    return _fma_components(a, b)
+
+
+def _fma_is_aten(x: torch.Tensor, y: torch.Tensor) -> bool:
+    """Whether ``torch.addcmul`` gives ``torch.linalg.cross``'s bits for operands ``x``, ``y`` (see :func:`cross`):
+    on the CPU, float32 or float64, the same shape, no gradients, outside ``torch.compile``."""
+    return (x.device.type == "cpu" and x.dtype in (torch.float32, torch.float64) and y.dtype == x.dtype
+            and x.shape == y.shape and not x.requires_grad and not y.requires_grad
+            and not torch.compiler.is_compiling())
+
+
+def _fma_components(a, b) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """ATen's CPU cross on components: each ``fma(a₁, b₂, −(a₂·b₁))`` (cyclically) as ``torch.addcmul``."""
     a0, a1, a2 = a
     b0, b1, b2 = b
     return (torch.addcmul(-(a2 * b1), a1, b2), torch.addcmul(-(a0 * b2), a2, b0), torch.addcmul(-(a1 * b0), a0, b1))

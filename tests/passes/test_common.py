@@ -90,6 +90,11 @@ def test_cross_falls_back_to_torch_for_gradients_and_mixed_dtypes():
     assert torch.equal(a.grad, ref.grad)
     assert torch.equal(cross(b.float(), b.float()), torch.linalg.cross(b.float(), b.float(), dim=1))
     assert cross(b.half(), b.half()).dtype == torch.float16
+    apart = torch.stack(cross_components(a.unbind(1), b.unbind(1)), 1)             # the same fallback on components
+    assert apart.requires_grad and torch.equal(apart, torch.linalg.cross(a, b, dim=1))
+    h = b.half()
+    assert torch.equal(torch.stack(cross_components(h.unbind(1), h.flip(2).unbind(1)), 1),
+                       torch.linalg.cross(h, h.flip(2), dim=1))
 
 
 def test_vector_norm_falls_back_to_torch_for_strided_inputs_and_gradients():

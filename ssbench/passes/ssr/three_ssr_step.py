@@ -14,7 +14,7 @@ import torch
 
 from ...indices import flat_nonzero
 from ...rays import cross_components
-from ..common import cross, flat_texel, gl_texel
+from ..common import flat_texel, gl_texel
 from ..compiled import kernel
 from .common import HIT, MAX_DISTANCE, OFF_SCREEN
 
@@ -105,16 +105,14 @@ def take_rows(components: tuple, at: torch.Tensor) -> torch.Tensor:
 def point_to_line(a: list, b: list) -> torch.Tensor:
     """``length(cross(a, b))`` of vectors given as their x, y, z (``pointToLineDistance``'s numerator). Eager: the
     cross product's components as ATen's CPU cross computes them (:func:`ssbench.rays.cross_components`), stacked
-    once into rows for ``Tensor.norm`` (ATen's bits; stacking ``a`` and ``b`` too, for
-    :func:`~ssbench.passes.common.cross`, made the eager three.js march 1.2× slower); compiled: on the
+    once into rows for ``Tensor.norm`` (ATen's bits; stacking ``a`` and ``b`` too, for :func:`ssbench.rays.cross`,
+    made the eager three.js march 1.2× slower); compiled: on the
     components, ``a₁b₂ − a₂b₁`` …, as inductor computes ``torch.linalg.cross`` (a stack inside the kernel is stored
     and read back a row at a time: the step ran 1.6× slower)."""
     if torch.compiler.is_compiling():
         c = (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
         return torch.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2])
-    if a[0].device.type != "cpu" or a[0].dtype not in (torch.float32, torch.float64):
-        return cross(torch.stack(a, 1), torch.stack(b, 1), dim=1).norm(dim=1)
-    return torch.stack(cross_components(a, b), 1).norm(dim=1)                  # cross's CPU bits, no stacked a, b
+    return torch.stack(cross_components(a, b), 1).norm(dim=1)                  # cross's bits, no stacked a, b
 
 
 def _verdict(hit: torch.Tensor, texel: torch.Tensor, vpt: tuple, ws: MarchRays, tex: StepTextures,

@@ -80,8 +80,8 @@ import torch
 
 from ..camera import Camera
 
-__all__ = ["enabled", "compiling", "kernel", "compile_seconds", "band_samples", "step_blocks", "ENV",
-           "KERNEL_VARIANTS", "WHOLE_FUSION_SIZE", "STEPS_PER_CALL", "kept_mask", "is_set", "sample_axis"]
+__all__ = ["enabled", "compiling", "kernel", "compile_seconds", "step_blocks", "ENV", "KERNEL_VARIANTS",
+           "WHOLE_FUSION_SIZE", "STEPS_PER_CALL", "kept_mask", "is_set"]
 
 #: environment variable of the switch
 ENV = "SSBENCH_COMPILE"
@@ -223,44 +223,6 @@ def kept_mask(mask: torch.Tensor) -> torch.Tensor:
 def is_set(mask: torch.Tensor) -> torch.Tensor:
     """The bool mask a :func:`kept_mask` holds (``mask`` itself when it is bool)."""
     return mask if mask.dtype == torch.bool else mask > 0
-
-
-def sample_axis() -> int:
-    """The axis along which a band kernel lays out its samples: 2 eager, :math:`(B, C, K, h, W)`, last inside
-    ``torch.compile``, :math:`(B, C, h, W, K)`.
-
-    Eager, each operation loops over a whole block, and with the samples outside the rows it runs along contiguous
-    rows of pixels (with them innermost, hemisphere SSAO ran 1.5× slower). Compiled, inductor writes a reduction
-    over a middle axis as two loops and stores every per-sample value the second one reads (hemisphere SSAO: three
-    :math:`(K, h, W)` blocks per band); over the last axis it fuses the whole sample loop and its count into one
-    loop, per pixel, and stores nothing per sample, so the bands can be as large as the image's rows allow. The
-    samples' arithmetic is the same in either layout: the same bits.
-
-    Example:
-        >>> sample_axis()
-        2
-    """
-    return -1 if torch.compiler.is_compiling() else 2
-
-
-def band_samples(samples: int) -> int:
-    """The samples per pixel a pass whose compiled kernel fuses its whole sample loop sizes its row bands for
-    (:func:`ssbench.passes.common.row_bands`): ``samples`` eager, where each operation stores a block of every sample
-    of the band, and 1 compiled, where the kernel stores no such block (Crytek and hemisphere SSAO lay their samples
-    along the last axis, :func:`sample_axis`, and count them in the loop that makes them) and each call costs tens
-    of µs of guards and wrappers. Bands of any size give the same bits. Measured at 640×360, compiled: Crytek 23 →
-    15 ms (16 → 1 band), the visibility bitmask 195 → 183 ms, hemisphere SSAO 41 → 28 ms (90 bands of its samples
-    on axis 2, three stored blocks each → 3 bands, none stored); HBAO and GTAO, whose kernels store several
-    per-sample blocks, ran 8–45 % slower on larger bands without the heap held and keep theirs (GTAO with the heap
-    held as the benchmark holds it: 0.97–1.00× the time on bands 2× and 4× larger, so nothing to gain either; with
-    its samples last: 1.9× slower, inductor vectorised over its 6 steps).
-
-    Example:
-        >>> with compiling(False):
-        ...     band_samples(32)
-        32
-    """
-    return 1 if enabled() else samples
 
 
 #: steps a marcher's ``fuse_whole`` kernel runs per compiled call (the DDA and its supercover walk, Hi-Z, the linear

@@ -55,8 +55,8 @@ def tiled_add(position: torch.Tensor, offset: torch.Tensor, axis: int) -> torch.
     Args:
         position: :math:`(B, 1, h, W)`, one component of the band's positions.
         offset: :math:`(K, t, W)`, that component of each sample's offset on ``t`` rows; ``t`` divides ``h``.
-        axis: where the samples go (:func:`ssbench.passes.compiled.sample_axis`): 2 gives :math:`(B, 1, K, h, W)`,
-            -1 gives :math:`(B, 1, h, W, K)`.
+        axis: where the samples go (:func:`ssbench.passes.compiled_samples.sample_axis`): 2 gives
+            :math:`(B, 1, K, h, W)`, -1 gives :math:`(B, 1, h, W, K)`.
 
     Example:
         >>> pos = torch.arange(4.0).reshape(1, 1, 4, 1)

@@ -147,31 +147,6 @@ def test_a_static_kernel_compiles_every_signature_past_dynamos_default_of_eight(
         assert counters["stats"]["unique_graphs"] - graphs == 12     # each one compiled, none run eager
 
 
-def test_a_band_kernel_lays_its_samples_on_axis_2_eager_and_last_compiled():
-    from ssbench.passes.ao.ssao_common import kernel_components, range_check_count
-    from tests.passes.ssr_scenes import room
-
-    @C.kernel
-    def count(cam, pts, real_depth):             # the same sample points, laid out along sample_axis()
-        axis = C.sample_axis()
-        laid = tuple(t.movedim(2, -1) if axis == -1 else t for t in pts)
-        return axis, range_check_count(cam, laid, real_depth, 0.0005, 0.02, axis)
-
-    g = room(24, 18, torch.float32, slat=True)
-    pts = tuple(torch.randn(1, 1, 5, 18, 24, generator=torch.Generator().manual_seed(c)) - (2.0 if c == 2 else 0.0)
-                for c in range(3))
-    real_depth = g.camera.view_z_to_orthographic_depth(g.view_z)
-    with C.compiling(False):
-        axis_e, n_e = count(g.camera, pts, real_depth)
-    with C.compiling(True):
-        axis_c, n_c = count(g.camera, pts, real_depth)
-    assert (axis_e, axis_c) == (2, -1) and n_e.shape == n_c.shape == (1, 1, 18, 24)
-    assert torch.equal(n_e, n_c) and 0 < int(n_e.sum()) < 5 * 18 * 24          # the same counts, some counted
-    k = torch.arange(12.0).reshape(4, 3)
-    assert [c.shape for c in kernel_components(k, -1)] == [(1, 1, 1, 1, 4)] * 3
-    assert torch.equal(kernel_components(k, 2)[1].flatten(), k[:, 1])
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize("method, settings", [("crytek", {}), ("ssao", {}), ("gtao", {"quality": "low"}), ("vbao", {}),
                                               ("sao", {"radius": 4.0}), ("hbao", {}), ("three_gtao", {"radius": 0.5}),

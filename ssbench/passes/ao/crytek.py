@@ -38,7 +38,8 @@ from torch import nn
 
 from ...gbuffer import GBuffer
 from ..common import AOResult, make_generator
-from ..compiled import kernel, sample_axis
+from ..compiled import kernel
+from ..compiled_samples import sample_axis
 from ..sampling import noise_lookup, noise_texel, noise_texture, sphere_kernel
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..noise_tiles import band_tile_rows, rows_repeat, tiled_add
@@ -115,7 +116,7 @@ def sphere_band(cam, position: torch.Tensor, offset: tuple, mask: torch.Tensor, 
     ``position`` :math:`(B, 3, h, W)`, ``offset`` three :math:`(K, t, W)`, ``mask`` :math:`(B, 1, h, W)`; returns
     the band's :math:`(B, 1, h, W)` AO and, with ``debug``, its count (:func:`.ssao_common.band_result`; the pass's
     compilable kernel, :mod:`ssbench.passes.compiled`; its samples lie along
-    :func:`~ssbench.passes.compiled.sample_axis`).
+    :func:`~ssbench.passes.compiled_samples.sample_axis`).
     """
     axis = sample_axis()
     sample_point = tuple(tiled_add(position[:, c:c + 1], offset[c], axis) for c in range(3))  # 3 × (B, 1, K, h, W)

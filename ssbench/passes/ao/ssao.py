@@ -37,6 +37,7 @@ and real occlusion is rejected too. Distances are in normalised linear depth, so
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Optional
 
 import torch
 from torch import nn
@@ -44,7 +45,8 @@ from torch import nn
 from ...camera import Camera
 from ...gbuffer import GBuffer
 from ..common import AOResult, component_dot, cross, make_generator
-from ..compiled import kernel, sample_axis
+from ..compiled import enabled, kernel
+from ..compiled_samples import sample_blocks, sample_groups
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..inference import autograd_free
 from ..sampling import hemisphere_kernel, noise_lookup, noise_texel, noise_texture
@@ -109,32 +111,38 @@ class HemisphereSSAOParams:
 
 
 @kernel
-def hemisphere_band(cam: Camera, position: torch.Tensor, tbn: tuple, mask: torch.Tensor, kernel: torch.Tensor,
-                    real_depth: torch.Tensor, p: "HemisphereSSAOParams", debug: bool) -> tuple:
+def hemisphere_count(cam: Camera, position: torch.Tensor, tbn: tuple, kernel: torch.Tensor, real_depth: torch.Tensor,
+                     p: "HemisphereSSAOParams", count: Optional[torch.Tensor]) -> torch.Tensor:
     """The sample loop of SSAO article §2.2 on a band of rows: ``samplePoint = viewPosition + (kernelMatrix ·
-    Kernel[i]) · KernelRadius`` for every sample at once, then :func:`range_check_count`.
+    Kernel[i]) · KernelRadius`` for a group of the samples, then :func:`range_check_count`.
 
     Args:
         position: :math:`(B, 3, h, W)` ``viewPosition``; ``tbn``: tangent, bitangent, normal :math:`(B, 3, h, W)`;
-        mask: :math:`(B, 1, h, W)`; kernel: :math:`(K, 3)` ``Kernel[i]``; real_depth: :math:`(B, 1, H, W)`
-            ``getLinearDepth`` of every texel (:func:`~.ssao_common.real_depth_texture`); debug: also return the
-            count.
+        kernel: :math:`(k, 3)` the group's ``Kernel[i]`` (:func:`~ssbench.passes.compiled_samples.sample_groups`);
+        real_depth: :math:`(B, 1, H, W)` ``getLinearDepth`` of every texel (:func:`~.ssao_common.real_depth_texture`);
+        count: :math:`(B, 1, h, W)` the count so far (``None``: none).
 
     Returns:
-        The band's :math:`(B, 1, h, W)` AO and, with ``debug``, its integer count (else ``None``;
-        :func:`~.ssao_common.band_result`). The pass's compilable kernel (:mod:`ssbench.passes.compiled`; its
-        samples lie along :func:`~ssbench.passes.compiled.sample_axis`).
+        ``count`` plus the group's count of samples that pass the range check. The pass's compilable kernel
+        (:mod:`ssbench.passes.compiled`; in :func:`~ssbench.passes.compiled_samples.sample_blocks`).
     """
-    (t, b, n), axis = tbn, sample_axis()
-    kx, ky, kz = kernel_components(kernel, axis)                                   # Kernel[i] along the axis
+    t, b, n = tbn
+    for ks in sample_blocks(kernel.shape[0]):
+        kx, ky, kz = kernel_components(kernel[ks], 2)                             # Kernel[i]: (1, 1, k, 1, 1)
 
-    def component(c: int) -> torch.Tensor:                                           # (B, 1, K, h, W) eager
-        sample_vector = (t[:, c:c + 1].unsqueeze(axis) * kx + b[:, c:c + 1].unsqueeze(axis) * ky) + \
-            n[:, c:c + 1].unsqueeze(axis) * kz
-        return position[:, c:c + 1].unsqueeze(axis) + sample_vector * p.kernel_radius
-    count = range_check_count(cam, (component(0), component(1), component(2)), real_depth, p.min_distance,
-                              p.max_distance, axis)
-    return band_result(count, p, mask, position.dtype, debug)
+        def component(c: int) -> torch.Tensor:                                       # (B, 1, k, h, W)
+            sample_vector = (t[:, c:c + 1].unsqueeze(2) * kx + b[:, c:c + 1].unsqueeze(2) * ky) + \
+                n[:, c:c + 1].unsqueeze(2) * kz
+            return position[:, c:c + 1].unsqueeze(2) + sample_vector * p.kernel_radius
+        block = range_check_count(cam, (component(0), component(1), component(2)), real_depth, p.min_distance,
+                                  p.max_distance, 2)
+        count = block if count is None else count + block
+    return count
+
+
+#: the count → AO step of a band (:func:`~.ssao_common.band_result`), a compilable kernel of its own: the counting
+#: kernel runs once per group of samples
+count_to_ao = kernel(band_result)
 
 
 @autograd_free
@@ -177,12 +185,18 @@ def hemisphere_ssao(gbuffer: GBuffer, params: HemisphereSSAOParams = HemisphereS
     fr = hemisphere_frame(gbuffer, params, generator)
     cam, p, n = gbuffer.camera, params, fr.normal
 
-    # ---- §2.2 sample loop, all K samples of a band of rows at once (the working set stays cache-sized) -
+    # ---- §2.2 sample loop on bands of rows, in groups of samples (the working set stays cache-sized) ----
+    groups = sample_groups(fr.kernel)                               # eager: one group of every sample
+
     def run(rs: slice) -> tuple:
         tbn = (fr.tangent[..., rs, :], fr.bitangent[..., rs, :], n[..., rs, :])
-        return hemisphere_band(cam, fr.position[..., rs, :], tbn, gbuffer.mask[..., rs, :], fr.kernel, fr.real_depth,
-                               p, debug)
-    ao, count = banded_ao(run, gbuffer.mask.shape, n.dtype, n.device, p.kernel_size, debug)
+        count = None if len(groups) == 1 else torch.zeros(gbuffer.mask[..., rs, :].shape, dtype=torch.int64,
+                                                          device=n.device)   # one graph for every group compiled
+        for kernel_group in groups:
+            count = hemisphere_count(cam, fr.position[..., rs, :], tbn, kernel_group, fr.real_depth, p, count)
+        return count_to_ao(count, p, gbuffer.mask[..., rs, :], n.dtype, debug)
+    stored = 0 if enabled() else p.kernel_size                      # compiled, no block per sample: one band
+    ao, count = banded_ao(run, gbuffer.mask.shape, n.dtype, n.device, stored, debug)
     return ssao_result(ao, count, p, gbuffer.mask, row=fr.row, col=fr.col, kernel=fr.kernel, noise=fr.noise)
 
 

@@ -10,7 +10,7 @@ from ...camera import Camera
 from typing import Callable
 
 from ..common import AOResult, check_count, check_radius, fetch_texels, nan_to_zero, row_bands, texel_of
-from ..compiled import band_samples
+from ..compiled_samples import band_samples
 
 __all__ = ["check_ssao_params", "view_position", "real_depth_texture", "kernel_components", "range_check_count",
            "occlusion_to_ao", "band_result", "banded_ao", "ssao_result"]
@@ -62,8 +62,8 @@ def real_depth_texture(camera: Camera, texture: torch.Tensor, from_depth: bool) 
 
 def kernel_components(kernel: torch.Tensor, axis: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """``Kernel[i]`` :math:`(K, 3)` as its x, y, z components laid along the sample ``axis`` of a band's blocks
-    (:func:`ssbench.passes.compiled.sample_axis`): :math:`(1, 1, K, 1, 1)` for axis 2, :math:`(1, 1, 1, 1, K)` for
-    the last.
+    (:func:`ssbench.passes.compiled_samples.sample_axis`): :math:`(1, 1, K, 1, 1)` for axis 2, :math:`(1, 1, 1, 1, K)`
+    for the last.
 
     Example:
         >>> [c.shape[2] for c in kernel_components(torch.zeros(8, 3), 2)]
@@ -83,7 +83,7 @@ def range_check_count(camera: Camera, sample_point: tuple, real_depth: torch.Ten
             :math:`(B, 1, h, W, K)` with ``axis=-1`` (kept apart, never stacked, so that a compiled kernel fuses
             the whole loop body into one pass).
         real_depth: :math:`(B, 1, H, W)` the ``realDepth`` of every texel (:func:`real_depth_texture`).
-        axis: the samples' axis (:func:`ssbench.passes.compiled.sample_axis`).
+        axis: the samples' axis (:func:`ssbench.passes.compiled_samples.sample_axis`).
 
     Returns:
         :math:`(B, 1, h, W)` integer count of samples with ``min_distance < delta < max_distance``.
@@ -119,12 +119,16 @@ def banded_ao(run: Callable[[slice], tuple], shape: tuple, dtype: torch.dtype, d
               debug: bool, multiple: int = 1) -> tuple[torch.Tensor, torch.Tensor | None]:
     """``(ao, count)`` of :math:`(B, 1, H, W)` ``shape``: a pass's band kernel, ``run(rows)`` → the band's
     :func:`band_result`, called on each band of rows (:func:`~ssbench.passes.common.row_bands` for
-    :func:`~ssbench.passes.compiled.band_samples` of its ``samples`` per pixel, in whole ``multiple`` of rows), its
-    outputs gathered; ``count`` is ``None`` without ``debug``."""
+    :func:`~ssbench.passes.compiled_samples.band_samples` of its ``samples`` per pixel, in whole ``multiple`` of
+    rows), its outputs gathered; ``count`` is ``None`` without ``debug``. ``samples=0``: the kernel stores no block of
+    its samples (compiled hemisphere SSAO, :func:`~ssbench.passes.compiled_samples.sample_blocks`), and the whole
+    image is one band (each call costs tens of µs of guards and wrappers). Bands of any size give the same bits."""
     height, width = shape[-2:]
     ao = torch.empty(shape, dtype=dtype, device=device)
     count = torch.empty(shape, dtype=torch.int64, device=device) if debug else None
-    for rs in row_bands(height, width, band_samples(samples), dtype.itemsize, multiple=multiple):  # cache-sized
+    bands = row_bands(height, width, band_samples(samples), dtype.itemsize, multiple=multiple) if samples else \
+        [slice(0, height)]                                                       # cache-sized
+    for rs in bands:
         band_ao, band_count = run(rs)
         ao[..., rs, :] = band_ao
         if count is not None:

@@ -37,7 +37,7 @@ from torch import nn
 
 from ...gbuffer import GBuffer
 from ..common import AOResult, check_count, check_positive, check_radius, row_bands
-from ..compiled import band_samples
+from ..compiled_samples import band_samples
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..inference import autograd_free
 from .gtao import NoiseSpec

@@ -142,8 +142,10 @@ def fetch_texels(tex: torch.Tensor, col: torch.Tensor, row: torch.Tensor) -> tor
 
     ``gather`` needs int64 indices, which are slow on the CPU: this reads with ``index_select`` (of
     :func:`channel_rows` for several channels) at :func:`flat_texel` indices in :func:`index_dtype`, plus each
-    image's offset ``b·H·W``. Inside ``torch.compile``, where the index arithmetic fuses anyway, it is :func:`fetch`
-    of int64 indices.
+    image's offset ``b·H·W``. Inside ``torch.compile``, where the index arithmetic fuses anyway, it gathers at the
+    :func:`flat_texel` indices in int64: formed in floating point and converted once, not ``col`` and ``row``
+    converted apart and multiplied in int64 as :func:`fetch` does (the same texels; compiled at 640×360, 0.91× the
+    time of Crytek, 0.96× of hemisphere SSAO, 0.97–0.99× of the GTAOs and the visibility bitmask).
 
     Example:
         >>> tex = torch.arange(12.0).reshape(1, 1, 3, 4)
@@ -152,7 +154,8 @@ def fetch_texels(tex: torch.Tensor, col: torch.Tensor, row: torch.Tensor) -> tor
     """
     B, C, H, W = tex.shape
     if torch.compiler.is_compiling():
-        return fetch(tex, col.long(), row.long())
+        flat = flat_texel(col, row, (H, W), torch.int64).reshape(B, 1, -1).expand(B, C, -1)    # (B, C, N)
+        return tex.reshape(B, C, H * W).gather(2, flat).reshape(B, C, *col.shape[1:])
     index = flat_texel(col, row, (H, W), index_dtype(B * H * W))
     if B > 1:
         index = index + (torch.arange(B, dtype=index.dtype, device=index.device) * (H * W)).view(

@@ -133,6 +133,25 @@ def test_banded_ao_passes_equal_the_whole_image_bit_for_bit(method, dtype, monke
         assert torch.equal(whole.bent_normal, banded.bent_normal)
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("B, C", [(1, 1), (3, 2)])
+def test_fetch_texels_compiled_reads_the_texels_of_fetch(B, C):
+    """Inside ``torch.compile`` the read gathers at float-formed flat indices: the same texels as :func:`fetch`,
+    batched, multi-channel and at the image's corners."""
+    from ssbench.passes import compiled
+    from ssbench.passes.common import fetch, fetch_texels
+    g = torch.Generator().manual_seed(4)
+    H, W = 7, 11
+    tex = torch.randn(B, C, H, W, generator=g)
+    col = torch.randint(0, W, (B, 2, 5, 4), generator=g)
+    row = torch.randint(0, H, (B, 2, 5, 4), generator=g)
+    col[..., 0, 0], row[..., 0, 0], col[..., 1, 1], row[..., 1, 1] = 0, 0, W - 1, H - 1
+    read = compiled.kernel(lambda t, c, r: fetch_texels(t, c * 1.0, r * 1.0))
+    with compiled.compiling(True):
+        got = read(tex, col.float(), row.float())
+    assert got.shape == (B, C, 2, 5, 4) and torch.equal(got, fetch(tex, col, row))
+
+
 @pytest.mark.parametrize("dtype", [torch.float32, torch.float64, torch.bfloat16])
 @pytest.mark.parametrize("B, C", [(1, 1), (2, 1), (1, 3), (3, 2)])
 def test_fetch_texels_reads_the_texels_of_fetch(dtype, B, C):

@@ -97,6 +97,20 @@ def test_cross_falls_back_to_torch_for_gradients_and_mixed_dtypes():
                        torch.linalg.cross(h, h.flip(2), dim=1))
 
 
+@pytest.mark.slow
+def test_cross_components_compiled_give_the_bits_of_compiled_linalg_cross():
+    """Inside ``torch.compile`` the components are ``a₁b₂ − a₂b₁`` …, what inductor makes of ``torch.linalg.cross``,
+    with no stacked operands."""
+    g = torch.Generator().manual_seed(5)
+    a = [torch.randn(4096, generator=g) * 10.0 for _ in range(3)]
+    b = [torch.randn(4096, generator=g) for _ in range(3)]
+    apart = torch.compile(lambda a, b: torch.stack(cross_components(a, b), 1))(a, b)
+    stacked = torch.compile(lambda a, b: torch.linalg.cross(torch.stack(a, 1), torch.stack(b, 1), dim=1))(a, b)
+    assert torch.equal(apart, stacked)
+    eager = torch.stack(cross_components(a, b), 1)                                  # ATen's FMA bits eager
+    assert not torch.equal(apart, eager) and torch.allclose(apart, eager, rtol=1e-5, atol=1e-5)
+
+
 def test_vector_norm_falls_back_to_torch_for_strided_inputs_and_gradients():
     x = special_values((1, 3, 16, 20), torch.float32)[..., ::2].nan_to_num(0.0, 0.0, 0.0)   # not contiguous
     assert torch.equal(vector_norm(x), torch.linalg.vector_norm(x, dim=1, keepdim=True))

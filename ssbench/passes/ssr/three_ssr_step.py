@@ -13,7 +13,7 @@ from typing import NamedTuple, Optional
 import torch
 
 from ...indices import flat_nonzero
-from ...rays import cross_components
+from ...rays import component_norm, cross_components
 from ..common import flat_texel, gl_texel
 from ..compiled import kernel
 from .common import HIT, MAX_DISTANCE, OFF_SCREEN
@@ -103,16 +103,15 @@ def take_rows(components: tuple, at: torch.Tensor) -> torch.Tensor:
 
 
 def point_to_line(a: list, b: list) -> torch.Tensor:
-    """``length(cross(a, b))`` of vectors given as their x, y, z (``pointToLineDistance``'s numerator). Eager: the
-    cross product's components as ATen's CPU cross computes them (:func:`ssbench.rays.cross_components`), stacked
-    once into rows for ``Tensor.norm`` (ATen's bits; stacking ``a`` and ``b`` too, for :func:`ssbench.rays.cross`,
-    made the eager three.js march 1.2× slower); compiled: on the
-    components, ``a₁b₂ − a₂b₁`` …, as inductor computes ``torch.linalg.cross`` (a stack inside the kernel is stored
-    and read back a row at a time: the step ran 1.6× slower)."""
+    """``length(cross(a, b))`` of vectors given as their x, y, z (``pointToLineDistance``'s numerator), the cross
+    product on components (:func:`ssbench.rays.cross_components`). Eager: its components stacked once into rows for
+    ``Tensor.norm`` (ATen's bits; stacking ``a`` and ``b`` too, for :func:`ssbench.rays.cross`, made the eager
+    three.js march 1.2× slower); compiled: :func:`ssbench.rays.component_norm` of them (a stack inside the kernel is
+    stored and read back a row at a time)."""
+    c = cross_components(a, b)
     if torch.compiler.is_compiling():
-        c = (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
-        return torch.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2])
-    return torch.stack(cross_components(a, b), 1).norm(dim=1)                  # cross's bits, no stacked a, b
+        return component_norm(*c)
+    return torch.stack(c, 1).norm(dim=1)                                      # cross's bits, no stacked a, b
 
 
 def _verdict(hit: torch.Tensor, texel: torch.Tensor, vpt: tuple, ws: MarchRays, tex: StepTextures,

@@ -116,9 +116,15 @@ def fetch(tex: torch.Tensor, col: torch.Tensor, row: torch.Tensor) -> torch.Tens
 
     Returns :math:`(B, C, *S)`.
     """
+    return _gather_flat(tex, row * tex.shape[-1] + col)
+
+
+def _gather_flat(tex: torch.Tensor, flat: torch.Tensor) -> torch.Tensor:
+    """The texels of ``tex`` :math:`(B, C, H, W)` at int64 flat indices ``row·W + col`` :math:`(B, *S)`:
+    :math:`(B, C, *S)`."""
     B, C, H, W = tex.shape
-    flat = (row * W + col).reshape(B, 1, -1).expand(B, C, -1)               # (B, C, N)
-    return tex.reshape(B, C, H * W).gather(2, flat).reshape(B, C, *col.shape[1:])
+    index = flat.reshape(B, 1, -1).expand(B, C, -1)                               # (B, C, N)
+    return tex.reshape(B, C, H * W).gather(2, index).reshape(B, C, *flat.shape[1:])
 
 
 def channel_rows(t: torch.Tensor) -> torch.Tensor:
@@ -154,8 +160,7 @@ def fetch_texels(tex: torch.Tensor, col: torch.Tensor, row: torch.Tensor) -> tor
     """
     B, C, H, W = tex.shape
     if torch.compiler.is_compiling():
-        flat = flat_texel(col, row, (H, W), torch.int64).reshape(B, 1, -1).expand(B, C, -1)    # (B, C, N)
-        return tex.reshape(B, C, H * W).gather(2, flat).reshape(B, C, *col.shape[1:])
+        return _gather_flat(tex, flat_texel(col, row, (H, W), torch.int64))
     index = flat_texel(col, row, (H, W), index_dtype(B * H * W))
     if B > 1:
         index = index + (torch.arange(B, dtype=index.dtype, device=index.device) * (H * W)).view(

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import torch
 
-from .compiled import compiling, enabled  # noqa: F401  (compiling: used by the doctests)
+from .compiled import enabled
 
 __all__ = ["sample_axis", "SAMPLES_PER_CALL", "sample_groups", "sample_blocks", "band_samples"]
 
@@ -46,6 +46,7 @@ def sample_groups(samples: torch.Tensor) -> tuple:
     own (a view at an offset into ``samples`` would compile again for every offset).
 
     Example:
+        >>> from ssbench.passes.compiled import compiling
         >>> with compiling(True):
         ...     [g.shape[0] for g in sample_groups(torch.zeros(20, 3))]
         [8, 8, 4]
@@ -84,6 +85,7 @@ def band_samples(samples: int) -> int:
     slower, inductor vectorised over its 6 steps).
 
     Example:
+        >>> from ssbench.passes.compiled import compiling
         >>> with compiling(False):
         ...     band_samples(32)
         32

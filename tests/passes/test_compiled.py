@@ -47,6 +47,33 @@ def test_a_kernel_runs_eager_when_off_and_compiled_once_per_signature_when_on():
     assert double.eager(x).tolist() == [0.0, 2.0, 4.0, 6.0]
 
 
+def _variant_settings() -> tuple:
+    return (torch._dynamo.config.recompile_limit, torch._dynamo.config.accumulated_recompile_limit,
+            torch._dynamo.config.fail_on_recompile_limit_hit, torch.fx.experimental._config.use_duck_shape)
+
+
+def test_a_compiled_call_runs_with_room_for_its_variants_and_restores_the_settings_after_it():
+    seen = []
+    record = torch._dynamo.disable(lambda: seen.append(_variant_settings()))    # runs when the compiled call runs
+
+    @C.kernel
+    def probe(x, fail):
+        record()
+        if fail:
+            raise ValueError("fail: as asked")
+        return x + 1
+
+    before = _variant_settings()
+    assert before[0] < C.KERNEL_VARIANTS                                  # dynamo's default (8) would run eager past it
+    with C.compiling(True):
+        assert probe(torch.zeros(3), False).tolist() == [1.0, 1.0, 1.0]
+        assert probe(torch.zeros(3), False).tolist() == [1.0, 1.0, 1.0]     # a later call, already compiled
+        with pytest.raises(ValueError, match="^fail: as asked"):
+            probe(torch.zeros(3), True)
+    assert seen[:2] == [(C.KERNEL_VARIANTS, 16 * C.KERNEL_VARIANTS, True, False)] * 2
+    assert _variant_settings() == before                                 # restored, after the error too
+
+
 def test_a_kept_mask_is_bool_eager_and_float_inside_a_compiled_kernel():
     @C.kernel
     def hold(x):                                 # what the kernel stores: the kept mask itself, and a selection by it

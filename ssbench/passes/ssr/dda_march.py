@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, NamedTuple, Optional
 import torch
 
 from ...indices import flat_nonzero
+from ...layout import stack_columns
 from ..compiled import kernel
 from .common import HIT, OFF_SCREEN, OUT_OF_STEPS, end_code
 from .dda_state import DDARays, DepthTexels, MarchOutput
@@ -204,8 +205,8 @@ def flush(out: MarchOutput, s: DDARays, rows: torch.Tensor, set_up: DDARays, tex
     if hi.numel():
         h = hit_rows(s, hi, set_up)
         refine_hits(h, tex, params, H, W, out, visits)
-        out.write_hits(h.i, torch.where(h.permute[:, None], torch.stack([h.Py, h.Px], 1), torch.stack([h.Px, h.Py], 1)),
-                       torch.stack([h.Q0x + h.dQx * h.n, h.Q0y + h.dQy * h.n, h.Qz], 1), h.k)
+        out.write_hits(h.i, torch.where(h.permute[:, None], stack_columns([h.Py, h.Px]), stack_columns([h.Px, h.Py])),
+                       stack_columns([h.Q0x + h.dQx * h.n, h.Q0y + h.dQy * h.n, h.Qz]), h.k)
 
 
 def dda_march(s: DDARays, tex: DepthTexels, params: "DDASSRParams", H: int, W: int,

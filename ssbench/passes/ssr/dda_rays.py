@@ -14,6 +14,7 @@ import torch
 from ...camera import Camera
 from ...gbuffer import GBuffer
 from ...indices import flat_nonzero
+from ...layout import contiguous, stack_columns
 from ..compiled import kernel
 from .common import crosses_near_plane, ray_segments
 from .dda_march import ray_view_z
@@ -87,7 +88,7 @@ def ray_constants(cam: Camera, M: torch.Tensor, o: torch.Tensor, dz: torch.Tenso
                   stepDir=stepDir, permute=permute, zlo=zlo, zhi=zhi,
                   prevZ=ray_view_z(Q0[2] + 0.5 * dQ[2], k0 + 0.5 * dk, zlo, zhi),  # footprint edge of sample 1
                   clipped=crosses_near_plane(o[2], dz, max_ray_distance, cam.near))
-    return fields, torch.stack(P0, 1), torch.stack(P1, 1)
+    return fields, stack_columns(P0), stack_columns(P1)
 
 
 def dda_rays(gbuffer: GBuffer, params: "DDASSRParams", jitter: torch.Tensor, sel: Optional[torch.Tensor] = None):
@@ -102,7 +103,7 @@ def dda_rays(gbuffer: GBuffer, params: "DDASSRParams", jitter: torch.Tensor, sel
     dt, dev = vz.dtype, vz.device
     sel = ray_pixels(gbuffer) if sel is None else sel
     b, _, o, d, end = ray_segments(gbuffer, sel, params.max_ray_distance)          # rayOrg, rayDir, rayEnd
-    rows = lambda x: x.T.contiguous()                   # noqa: E731  (a row per component: (N, 3)'s are strided)
+    rows = lambda x: contiguous(x.T)                    # noqa: E731  (a row per component: (N, 3)'s are strided)
     j = jitter.to(device=dev).reshape(-1).index_select(0, sel).to(dt)           # (this chunk's rays only)
     fields, P0, P1 = ray_constants(
         cam, project_to_pixel_matrix(cam, dt, dev), rows(o), d[:, 2], rows(end), j,

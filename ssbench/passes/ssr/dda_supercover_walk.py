@@ -20,6 +20,7 @@ from typing import NamedTuple, Optional
 import torch
 
 from ...indices import flat_nonzero
+from ...layout import stack_columns
 from ..compiled import kernel
 from .common import HIT, OFF_SCREEN, OUT_OF_STEPS, end_code
 from .dda_march import ray_view_z
@@ -199,8 +200,8 @@ def flush(out: MarchOutput, c: CellWalk, rows: torch.Tensor, set_up: DDARays, vi
     n = hit_at(h, nA, nB, ray_view_z(h.Qz + h.dQz * nA, h.k + h.dk * nA, h.zlo, h.zhi), sceneZMax)
     inside = lambda v, cell: torch.minimum(torch.maximum(v, cell), torch.nextafter(cell + 1, cell))  # noqa: E731
     x, y = inside(h.Px + h.stepDir * n, h.cx), inside(h.Py + h.dPy * n, h.cy)
-    out.write_hits(h.i, torch.where(h.permute[:, None], torch.stack([y, x], 1), torch.stack([x, y], 1)),
-                   torch.stack([h.Q0x + h.dQx * n, h.Q0y + h.dQy * n, h.Qz + h.dQz * n], 1), h.k + h.dk * n)
+    out.write_hits(h.i, torch.where(h.permute[:, None], stack_columns([y, x]), stack_columns([x, y])),
+                   stack_columns([h.Q0x + h.dQx * n, h.Q0y + h.dQy * n, h.Qz + h.dQz * n]), h.k + h.dk * n)
 
 
 def supercover_march(s: DDARays, tex: DepthTexels, z_thickness: float, max_steps: int, H: int, W: int,

@@ -35,6 +35,7 @@ import torch
 from ...camera import Camera
 from ...gbuffer import GBuffer
 from ...indices import flat_nonzero
+from ...layout import contiguous, stack_columns
 from ..compiled import kernel, step_blocks
 from .common import HIT, OUT_OF_STEPS, compact_now, crosses_near_plane, end_code, ray_segments
 from .dda_state import MarchOutput
@@ -122,7 +123,7 @@ def hiz_rays(gbuffer: GBuffer, max_ray_distance: float, sel: torch.Tensor, direc
     state = MarchState(t=t, mip=torch.zeros_like(b), alive32=torch.ones(n, dtype=torch.int32, device=dev),
                        term=torch.full((n,), OUT_OF_STEPS, dtype=torch.int32, device=dev),
                        steps=torch.zeros(n, dtype=torch.int32, device=dev), hit_t=torch.zeros_like(t))
-    rays = HiZRays(i=torch.arange(n, device=dev), b=b, c=c, ray_dir=d.T.contiguous(),
+    rays = HiZRays(i=torch.arange(n, device=dev), b=b, c=c, ray_dir=contiguous(d.T),
                    ended=end_code(clipped), state=state)
     return rays, sel, P0, P1
 
@@ -144,7 +145,7 @@ def hit_points(out: MarchOutput, c: torch.Tensor, hit_t: torch.Tensor, gbuffer: 
     if h.numel():
         t, c = hit_t.index_select(0, h), c[:VZ + 1].index_select(1, h)          # rows o and v
         px, py, pz = c[OX] + t * c[VX], c[OY] + t * c[VY], c[OZ] + t * c[VZ]
-        out.P.index_copy_(0, h, torch.stack([px, py], 1))
+        out.P.index_copy_(0, h, stack_columns([px, py]))
         uv = torch.stack([px / W, 1.0 - py / H], 0)
         out.Q.index_copy_(0, h, cam.uv_to_view(uv, -cam.near / pz, dim=0).T.to(out.Q.dtype))
 

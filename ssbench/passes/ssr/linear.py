@@ -42,6 +42,7 @@ from torch import nn
 
 from ...gbuffer import GBuffer
 from ...indices import flat_nonzero
+from ...layout import contiguous
 from ..common import check_positive
 from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..inference import autograd_free
@@ -179,7 +180,7 @@ def ssr_linear(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(), *,
     out = march(test, log, Q, dS, base, rays.clipped, N_it, params.max_iterations)
     term, steps = out.term, out.steps
     h = flat_nonzero(term == HIT)                                                # the hit rays (index_select below:
-    at_hits = lambda x: x.T.index_select(1, h).T.contiguous()                    # noqa: E731  advanced indexing is
+    at_hits = lambda x: contiguous(x.T.index_select(1, h).T)                     # noqa: E731  advanced indexing is
     Oh, base_h = at_hits(O), base.index_select(0, h)                             # ~5x slower; O, dS: views of rows)
     best, n_bs = out.hit_q.index_select(0, h), min(params.binary_search_iterations, MAX_BINARY_SEARCH_ITERATIONS)
     if n_bs > 0 and h.numel() > 0:
@@ -189,9 +190,9 @@ def ssr_linear(gbuffer: GBuffer, params: LinearSSRParams = LinearSSRParams(), *,
     # ---- colour at the hit texel and fades (§1.4, §1.5) ----
     uv, t = test.project(best, base_h)
     hit_pixel = cam.uv_to_pixel(uv, dim=-1)                                       # (m, 2)
-    raw = channel_rows(gbuffer.color).index_select(1, t).T.contiguous()          # (m, 3)
+    raw = contiguous(channel_rows(gbuffer.color).index_select(1, t).T)          # (m, 3)
     rh = ray.index_select(0, h)
-    centre = cam.pixel_centers_at(split_rays(rh, B, HW)[1], dtype).T.contiguous()  # vUv of each ray's pixel
+    centre = contiguous(cam.pixel_centers_at(split_rays(rh, B, HW)[1], dtype).T)  # vUv of each ray's pixel
     fade = params.fade(hit_pixel, centre, W, H, (Oh - best).norm(dim=1, keepdim=True))
 
     def scatter(values, rows, fill, C, dt):       # per-ray values -> (B, C, H, W)

@@ -13,6 +13,7 @@ import torch
 
 from ...camera import Camera
 from ...indices import flat_nonzero
+from ...layout import stack_columns
 from ..common import index_dtype, texel_of, uv_to_texel
 from ..compiled import kernel, step_blocks
 from .dda_state import select_rows
@@ -195,7 +196,7 @@ def march(test: DepthTest, log: MarchLog, Q: torch.Tensor, dS: torch.Tensor, bas
             t, on, h = r[7:]
             marched = flat_nonzero(was)
             if log.trace_ids:
-                log.record(ws.ids[marched], torch.stack([ws.qx, ws.qy, ws.qz], 1)[marched], h[marched], False)
+                log.record(ws.ids[marched], stack_columns([ws.qx, ws.qy, ws.qz])[marched], h[marched], False)
             log.read(t[was & on].long())
         n_live = int(r[6])
         if compact_now(n_live, m):
@@ -227,7 +228,7 @@ class _Outcome:
         hi = flat_nonzero(h)
         gh, at = g.index_select(0, hi), stopped.index_select(0, hi)
         self.hit_step.index_copy_(0, gh, steps.index_select(0, hi).long() - 1)   # the step index of the hit
-        self.hit_q.index_copy_(0, gh, torch.stack([c.index_select(0, at) for c in (ws.qx, ws.qy, ws.qz)], 1))
+        self.hit_q.index_copy_(0, gh, stack_columns([c.index_select(0, at) for c in (ws.qx, ws.qy, ws.qz)]))
 
 
 def refine_step(scale: tuple, size: tuple, thickness: float, front: torch.Tensor, back: Optional[torch.Tensor],
@@ -288,6 +289,6 @@ def refine(test: DepthTest, log: MarchLog, h: torch.Tensor, O: torch.Tensor, dS:
         q, stride, best_c = r[0:3], r[3], r[4:7]
         if debug:
             if log.trace_ids:
-                log.record(h, torch.stack(q, 1), r[8], True)
+                log.record(h, stack_columns(q), r[8], True)
             log.read(r[7].long())
-    return torch.stack(best_c, 1)
+    return stack_columns(best_c)

@@ -13,6 +13,7 @@ from typing import NamedTuple, Optional
 import torch
 
 from ...indices import flat_nonzero
+from ...layout import stack_columns
 from ...rays import component_norm, cross_components
 from ..common import flat_texel, gl_texel
 from ..compiled import kernel
@@ -99,7 +100,7 @@ def _take(v, keep: torch.Tensor):
 
 def take_rows(components: tuple, at: torch.Tensor) -> torch.Tensor:
     """The vectors of ``components`` (a tuple of :math:`(N,)`) at positions ``at``, as :math:`(m, C)` rows."""
-    return torch.stack([c.index_select(0, at) for c in components], 1)
+    return stack_columns([c.index_select(0, at) for c in components])
 
 
 def point_to_line(a: list, b: list) -> torch.Tensor:

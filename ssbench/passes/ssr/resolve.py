@@ -66,17 +66,19 @@ def roughness_blur(reflection: torch.Tensor, roughness: torch.Tensor, max_sigma:
     weight = torch.bincount(lo.reshape(-1), minlength=levels) + \
         torch.bincount((lo + 1).reshape(-1), weights=frac.reshape(-1), minlength=levels)   # (not a sort: unique's)
     weighed = set(weight.nonzero().reshape(-1).tolist())
-    stack = []
+    blurred = {}                                                       # level -> image, for the blurred levels
     for i, s in enumerate(torch.linspace(0.0, max_sigma, levels).tolist()):   # a handful of levels, not pixels
-        if s < 1e-3 or i not in weighed:
-            stack.append(reflection)
-            continue
-        k = 2 * int(3 * s) + 1
-        stack.append(kornia.filters.gaussian_blur2d(reflection, (k, k), (s, s), border_type="replicate"))
-    stack_t = torch.stack(stack, 0)                                    # (L, B, C, H, W)
-    idx = lo.unsqueeze(0).expand(1, -1, reflection.shape[1], -1, -1)
-    a = stack_t.gather(0, idx)[0]
-    b = stack_t.gather(0, idx + 1)[0]
+        if s >= 1e-3 and i in weighed:
+            k = 2 * int(3 * s) + 1
+            blurred[i] = kornia.filters.gaussian_blur2d(reflection, (k, k), (s, s), border_type="replicate")
+
+    def level(index: torch.Tensor) -> torch.Tensor:                    # each pixel's level ``index`` (B, 1, H, W)
+        out = reflection                                               # σ = 0 and the levels no pixel weighs
+        for i, image in blurred.items():
+            out = torch.where(index == i, image, out)
+        return out
+
+    a, b = level(lo), level(lo + 1)
     return a + (b - a) * frac
 
 

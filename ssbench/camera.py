@@ -18,6 +18,7 @@ from typing import Sequence
 
 import torch
 
+from .layout import stack
 from .vec3 import Vec3, cross, norm, normalize, split_components, sub, vec3
 
 
@@ -165,7 +166,7 @@ class Camera:
         for i in range(3):
             v = m[i, 0] * c[0] + m[i, 1] * c[1] + m[i, 2] * c[2]
             out.append(v + m[i, 3] if translate else v)
-        return torch.stack(out, dim)
+        return stack(out, dim)
 
     def world_to_view(self, p: torch.Tensor, dim: int = -3) -> torch.Tensor:
         """World points → view points."""
@@ -188,7 +189,7 @@ class Camera:
         """View points → NDC ``(x, y, z)`` in [−1, 1]³ inside the frustum (divide by ``w = −z``)."""
         x, y, z = split_components(p, dim, 3, "p")
         n, f = self.near, self.far
-        return torch.stack([*self.view_to_ndc_xy(x, y, z), (f + n) / (f - n) + 2.0 * f * n / ((f - n) * z)], dim)
+        return stack([*self.view_to_ndc_xy(x, y, z), (f + n) / (f - n) + 2.0 * f * n / ((f - n) * z)], dim)
 
     def view_to_ndc_xy(self, x: torch.Tensor, y: torch.Tensor, z: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """NDC ``x, y`` of view points given as separate components (what :meth:`view_to_ndc` computes, op for
@@ -212,7 +213,7 @@ class Camera:
         """NDC ``(x, y, z)`` → view points (inverse of :meth:`view_to_ndc`)."""
         x, y, zn = split_components(ndc, dim, 3, "ndc")
         z = self.depth_to_view_z(zn * 0.5 + 0.5)
-        return torch.stack([x * -z * self.aspect / self.focal, y * -z / self.focal, z], dim)
+        return stack([x * -z * self.aspect / self.focal, y * -z / self.focal, z], dim)
 
     @staticmethod
     def ndc_to_uv(ndc_xy: torch.Tensor) -> torch.Tensor:
@@ -227,7 +228,7 @@ class Camera:
     def uv_to_pixel(self, uv: torch.Tensor, dim: int = -3) -> torch.Tensor:
         """UV (v up) → continuous pixel coordinates ``(px, py)`` (py down, row 0 at the top)."""
         u, v = split_components(uv, dim, 2, "uv")
-        return torch.stack(self.uv_to_pixel_xy(u, v), dim)
+        return stack(self.uv_to_pixel_xy(u, v), dim)
 
     def uv_to_pixel_xy(self, u, v):
         """:meth:`uv_to_pixel` on separate components, plain arithmetic (torch tensors, Dr.Jit arrays, floats):
@@ -238,7 +239,7 @@ class Camera:
     def pixel_to_uv(self, px: torch.Tensor, dim: int = -3) -> torch.Tensor:
         """Continuous pixel coordinates → UV (inverse of :meth:`uv_to_pixel`)."""
         x, y = split_components(px, dim, 2, "px")
-        return torch.stack([x / self.width, 1.0 - y / self.height], dim)
+        return stack([x / self.width, 1.0 - y / self.height], dim)
 
     def view_to_pixel(self, p: torch.Tensor, dim: int = -3) -> torch.Tensor:
         """View points → continuous pixel coordinates ``(px, py)``."""
@@ -314,7 +315,7 @@ class Camera:
         u, v = split_components(uv, dim, 2, "uv")
         z = view_z.squeeze(dim) if view_z.dim() == uv.dim() else view_z
         u, v, z = torch.broadcast_tensors(u, v, z)             # e.g. a (1, 2, H, W) grid with (B, 1, H, W) z
-        return torch.stack([(a0 * u + b0) * z, (a1 * v + b1) * z, z], dim)
+        return stack([(a0 * u + b0) * z, (a1 * v + b1) * z, z], dim)
 
     def view_position_from_depth(self, uv: torch.Tensor, depth: torch.Tensor, dim: int = -3) -> torch.Tensor:
         """SSAO ``getViewPosition`` (SSAO article §2.2): un-project ``(uv, depth)`` with the inverse projection.
@@ -328,7 +329,7 @@ class Camera:
         clip = [(u * 2 - 1) * clip_w, (v * 2 - 1) * clip_w, (d * 2 - 1) * clip_w, clip_w]
         m = self.inverse_projection_matrix(dtype=uv.dtype, device=uv.device)
         out = [sum(m[i, k] * clip[k] for k in range(4)) for i in range(3)]
-        return torch.stack(out, dim)
+        return stack(out, dim)
 
     # ------------------------------------------------------------------ Mitsuba (the one place)
     def mitsuba_sensor(self) -> dict:

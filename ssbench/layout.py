@@ -1,6 +1,7 @@
 """Copies that change a tensor's layout: a transposed view made contiguous (:func:`contiguous`) and 1-D columns
-stacked side by side (:func:`stack_columns`), the two re-layouts every marcher makes between its per-ray rows
-:math:`(N, C)` and its per-component arrays :math:`(N,)` or :math:`(C, N)`.
+stacked side by side (:func:`stack_columns`; :func:`stack` takes it wherever ``torch.stack`` would do the same),
+the two re-layouts every marcher makes between its per-ray rows :math:`(N, C)` and its per-component arrays
+:math:`(N,)` or :math:`(C, N)`, and the camera's conversions of point lists.
 
 On the CPU, ATen copies a 2-D transposed view into a contiguous tensor (``x.T.contiguous()``, and ``reshape`` of a
 permuted image) through a blocked transpose made for square matrices; for the project's thin ones, :math:`N × 3`,
@@ -17,7 +18,7 @@ from typing import Sequence
 
 import torch
 
-__all__ = ["contiguous", "stack_columns"]
+__all__ = ["contiguous", "stack", "stack_columns"]
 
 
 def _plain() -> bool:
@@ -66,3 +67,21 @@ def stack_columns(columns: Sequence[torch.Tensor]) -> torch.Tensor:
     for k, c in enumerate(columns):
         out[:, k].copy_(c)
     return out
+
+
+def stack(parts: Sequence[torch.Tensor], dim: int) -> torch.Tensor:
+    """``torch.stack(parts, dim)``, through :func:`stack_columns` where that is the same call (1-D ``parts`` of one
+    length, dtype and device stacked on ``dim`` 1 or −1: a point list's :math:`(N, C)` rows).
+
+    Example:
+        >>> stack([torch.tensor([1.0, 2.0]), torch.tensor([3.0, 4.0])], -1).tolist()
+        [[1.0, 3.0], [2.0, 4.0]]
+        >>> stack([torch.zeros(2, 2), torch.ones(2, 2)], 0).shape
+        torch.Size([2, 2, 2])
+    """
+    first = parts[0] if len(parts) else None
+    columns = dim in (1, -1) and isinstance(first, torch.Tensor) and first.dim() == 1
+    if columns and all(isinstance(p, torch.Tensor) and (p.shape, p.dtype, p.device) == (first.shape, first.dtype,
+                                                                                        first.device) for p in parts):
+        return stack_columns(parts)
+    return torch.stack(list(parts), dim)

@@ -3,7 +3,7 @@
 import pytest
 import torch
 
-from ssbench.layout import contiguous, stack_columns
+from ssbench.layout import contiguous, stack, stack_columns
 
 
 def _views() -> dict:
@@ -79,3 +79,16 @@ def test_stack_columns_keeps_the_gradient_path():
 def test_stack_columns_names_the_bad_column(cols, match):
     with pytest.raises(ValueError, match=match):
         stack_columns(cols)
+
+
+@pytest.mark.parametrize("shape, dim", [((7,), -1), ((7,), 1), ((7,), 0), ((2, 5, 4), -3), ((2, 5, 4), -1), ((0,), 1)])
+def test_stack_gives_torch_stack_on_every_axis(shape, dim):
+    g = torch.Generator().manual_seed(7)
+    parts = [torch.randn(shape, generator=g, dtype=torch.float64) for _ in range(3)]
+    y = stack(parts, dim)
+    assert y.is_contiguous() and torch.equal(y, torch.stack(parts, dim))
+
+
+def test_stack_leaves_torch_to_refuse_mismatched_parts():
+    with pytest.raises(RuntimeError):                                    # torch.stack's own error
+        stack([torch.zeros(3), torch.zeros(4)], -1)

@@ -112,7 +112,7 @@ def point_to_line(a: list, b: list) -> torch.Tensor:
     c = cross_components(a, b)
     if torch.compiler.is_compiling():
         return component_norm(*c)
-    return torch.stack(c, 1).norm(dim=1)                                      # cross's bits, no stacked a, b
+    return stack_columns(c).norm(dim=1)                                       # cross's bits, no stacked a, b
 
 
 def _verdict(hit: torch.Tensor, texel: torch.Tensor, vpt: tuple, ws: MarchRays, tex: StepTextures,

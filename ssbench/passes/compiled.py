@@ -10,9 +10,10 @@ equal to eager, tested) and GTAO (the one exception to
 "equal": its AO differs from eager by up to 4.5e-6 in float32, measured at 1920×1080, because inductor's
 vectorised cos/acos differ from ATen's by an ulp and ``acos`` near ±1 magnifies that; float64 agrees to 1e-14) and
 the visibility-bitmask AO (the same ulp now and then moves a sample across a sector edge: one bit of one slice,
-1/(sectors·slices) = 1/128 at the defaults, in 0.03 % of the pixels of stairs at 640×360; 4.3× faster than eager
-there, 9.2× with cosine weighting) and SAO's tap loop and the norm of its face normals (bit-equal at the defaults on
-stairs at 640×360; with G-buffer normals and radius 2, 2 of 230 400 pixels differ by ≤ 4.5e-5: inductor contracts
+1/(sectors·slices) = 1/128 at the defaults, in 0.03 % of the pixels of stairs at 640×360, 4.3× faster than eager
+there, 9.2× with cosine weighting; two such bits, 2/128, in a pixel of ``sphere_on_plane`` at 1920×1080) and SAO's
+tap loop and the norm of its face normals (bit-equal at the defaults on stairs at 640×360; with G-buffer normals and
+radius 2, 2 of 230 400 pixels differ by ≤ 4.5e-5: inductor contracts
 ``ssR·cos`` to an FMA, and a tap within an ulp of a pixel edge truncates to the neighbour; the normals' cross
 product stays eager, because ATen computes each component with one FMA and inductor's C++ does not) and GTAO's
 denoise (its edges, tap weights and one pass, each a kernel on pre-padded planes: exact operations and divisions

@@ -3,7 +3,16 @@
 import pytest
 import torch
 
+from ssbench import layout
 from ssbench.layout import contiguous, stack, stack_columns
+
+
+@pytest.fixture(autouse=True, params=["copies", "plain calls"])
+def path(request, monkeypatch):
+    """Every test runs the copies (no size threshold) and the plain calls they stand in for below it."""
+    if request.param == "copies":
+        monkeypatch.setattr(layout, "MIN_NUMEL", 0)
+    return request.param
 
 
 def _views() -> dict:
@@ -31,6 +40,14 @@ def test_contiguous_copies_every_layout_to_the_values_of_tensor_contiguous(name)
     assert y.is_contiguous() and y.shape == x.shape and y.dtype == x.dtype
     assert torch.equal(y, x.contiguous())
     assert y.data_ptr() != x.data_ptr() or x.numel() == 0              # a copy: writing it leaves x alone
+
+
+def test_the_threshold_picks_the_plain_call_for_small_tensors_and_the_copy_for_large_ones(path, monkeypatch):
+    calls = []
+    monkeypatch.setattr(torch, "stack", lambda *a, **k: calls.append(1) or torch.cat([c[:, None] for c in a[0]], 1))
+    small, large = [torch.zeros(3)] * 2, [torch.zeros(layout.MIN_NUMEL)] * 2
+    stack_columns(small), stack_columns(large)
+    assert len(calls) == (0 if path == "copies" else 1)                 # only the small one, below the threshold
 
 
 def test_contiguous_hands_back_a_contiguous_tensor_itself():

@@ -29,8 +29,10 @@ MIN_NUMEL = 4096
 
 
 def _plain(t: torch.Tensor, numel: int) -> bool:
-    """Whether the plain ATen call is the one to make: off the CPU, for small tensors, with gradients or compiling."""
-    return t.device.type != "cpu" or numel < MIN_NUMEL or t.requires_grad or torch.compiler.is_compiling()
+    """Whether the plain ATen call is the one to make: compiling, off the CPU, with gradients, or for small tensors.
+    Compiling is asked first: a size-dynamic kernel would otherwise guard on ``numel < MIN_NUMEL`` and compile again
+    on either side of it."""
+    return torch.compiler.is_compiling() or t.device.type != "cpu" or t.requires_grad or numel < MIN_NUMEL
 
 
 def contiguous(x: torch.Tensor) -> torch.Tensor:

@@ -109,3 +109,14 @@ def test_stack_gives_torch_stack_on_every_axis(shape, dim):
 def test_stack_leaves_torch_to_refuse_mismatched_parts():
     with pytest.raises(RuntimeError):                                    # torch.stack's own error
         stack([torch.zeros(3), torch.zeros(4)], -1)
+
+
+def test_a_size_dynamic_kernel_compiles_once_on_both_sides_of_the_threshold():
+    from torch._dynamo.utils import counters
+
+    f = torch.compile(lambda a, b: stack_columns([a, b * 2]), dynamic=True)
+    small, large = torch.arange(5.0), torch.arange(float(layout.MIN_NUMEL + 3))
+    assert torch.equal(f(small, small), torch.stack([small, small * 2], 1))
+    graphs = counters["stats"]["unique_graphs"]
+    assert torch.equal(f(large, large), torch.stack([large, large * 2], 1))
+    assert counters["stats"]["unique_graphs"] == graphs                  # no guard on the size: no new graph

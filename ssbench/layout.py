@@ -66,12 +66,24 @@ def stack_columns(columns: Sequence[torch.Tensor]) -> torch.Tensor:
     """
     if not columns:
         raise ValueError("columns: expected at least one tensor, got none")
+    k = _first_unlike(columns)
+    if k is not None:
+        first, c = columns[0], columns[k]
+        got = f"{tuple(c.shape)}, {c.dtype}, {c.device}" if isinstance(c, torch.Tensor) else type(c).__name__
+        raise ValueError(f"columns[{k}]: expected a 1-D tensor like columns[0] ({tuple(first.shape)}, "
+                         f"{first.dtype}, {first.device}), got {got}")
+    return _columns(columns)
+
+
+def _first_unlike(columns: Sequence[torch.Tensor]) -> int | None:
+    """The position of the first of ``columns`` (not empty) that is not a 1-D tensor of ``columns[0]``'s length,
+    dtype and device (``0`` when ``columns[0]`` is not 1-D), or ``None`` when they all are."""
     first = columns[0]
     for k, c in enumerate(columns):
-        if c.dim() != 1 or c.shape != first.shape or c.dtype != first.dtype or c.device != first.device:
-            raise ValueError(f"columns[{k}]: expected a 1-D tensor like columns[0] ({tuple(first.shape)}, "
-                             f"{first.dtype}, {first.device}), got {tuple(c.shape)}, {c.dtype}, {c.device}")
-    return _columns(columns)
+        if not isinstance(c, torch.Tensor) or c.dim() != 1 or (c.shape, c.dtype, c.device) != (
+                first.shape, first.dtype, first.device):
+            return k
+    return None
 
 
 def _columns(columns: Sequence[torch.Tensor]) -> torch.Tensor:
@@ -95,9 +107,6 @@ def stack(parts: Sequence[torch.Tensor], dim: int) -> torch.Tensor:
         >>> stack([torch.zeros(2, 2), torch.ones(2, 2)], 0).shape
         torch.Size([2, 2, 2])
     """
-    first = parts[0] if len(parts) else None
-    columns = dim in (1, -1) and isinstance(first, torch.Tensor) and first.dim() == 1
-    if columns and all(isinstance(p, torch.Tensor) and (p.shape, p.dtype, p.device) == (first.shape, first.dtype,
-                                                                                        first.device) for p in parts):
+    if dim in (1, -1) and len(parts) and _first_unlike(parts) is None:
         return _columns(parts)
     return torch.stack(list(parts), dim)

@@ -1,14 +1,25 @@
-"""Test-wide settings: a private reference cache, headless matplotlib, doctest names."""
+"""Test-wide settings: a private reference cache, headless matplotlib, one torch thread per xdist worker, doctest
+names."""
 import os
 import tempfile
 
 os.environ.setdefault("MPLBACKEND", "Agg")
+_WORKER = os.environ.get("PYTEST_XDIST_WORKER")
 if "SSBENCH_TEST_KEEP_CACHE" not in os.environ:
-    # every test session renders afresh (and subprocesses inherit this directory)
-    os.environ["SSBENCH_CACHE_DIR"] = tempfile.mkdtemp(prefix="ssbench-test-cache-")
+    # every test run renders afresh into a folder of its own, which its xdist workers (spawned with the controller's
+    # environment) and their subprocesses share: cache files are written whole (a temporary file renamed into place)
+    run_cache = os.environ.get("SSBENCH_TEST_RUN_CACHE") if _WORKER else None
+    if not run_cache:
+        run_cache = os.environ["SSBENCH_TEST_RUN_CACHE"] = tempfile.mkdtemp(prefix="ssbench-test-cache-")
+    os.environ["SSBENCH_CACHE_DIR"] = run_cache
 
 import pytest  # noqa: E402
 import torch  # noqa: E402
+
+if _WORKER:
+    # `make test` runs one worker per core: a second torch (OpenMP) thread in each would contend for the cores
+    # (two threads per process measured 7-11x slower on a loaded 2-core VM)
+    torch.set_num_threads(1)
 
 
 @pytest.fixture(autouse=True)

@@ -106,25 +106,49 @@ def available() -> Optional[str]:
     return None
 
 
-def ensure_three() -> Path:
-    """The folder holding ``node_modules/three`` at the pinned version, installed with ``npm ci`` when missing."""
-    folder = _install_dir()
+def _installed(folder: Path) -> bool:
     done = folder / "node_modules" / "three" / "package.json"
-    if done.exists() and json.loads(done.read_text())["version"] == THREE_VERSION:
+    try:
+        return json.loads(done.read_text())["version"] == THREE_VERSION
+    except (OSError, ValueError, KeyError):
+        return False
+
+
+def ensure_three() -> Path:
+    """The folder holding ``node_modules/three`` at the pinned version, installed with ``npm ci`` when missing.
+
+    The install runs in a fresh sibling folder that is renamed into place once complete, so two processes (the test
+    suite's workers, two reports) never share a half-written install: the first to finish keeps its copy, and a
+    folder left incomplete by an interrupted install is replaced."""
+    folder = _install_dir()
+    if _installed(folder):
         return folder
     npm = shutil.which("npm")
     if npm is None:
         raise PeerUnavailable("no npm on PATH to install the pinned three.js")
     try:
-        folder.mkdir(parents=True, exist_ok=True)
+        folder.parent.mkdir(parents=True, exist_ok=True)
+        part = Path(tempfile.mkdtemp(prefix=folder.name + ".part-", dir=folder.parent))
+    except OSError as e:
+        raise PeerUnavailable(f"cannot install three@{THREE_VERSION} into {folder}: {e}") from None
+    try:
         for name in ("package.json", "package-lock.json"):
-            shutil.copyfile(_JS / name, folder / name)
-        r = subprocess.run([npm, "ci", "--no-audit", "--no-fund", "--ignore-scripts"], cwd=folder,
+            shutil.copyfile(_JS / name, part / name)
+        r = subprocess.run([npm, "ci", "--no-audit", "--no-fund", "--ignore-scripts"], cwd=part,
                            capture_output=True, text=True, timeout=600)
+        if r.returncode != 0 or not _installed(part):
+            raise PeerUnavailable(f"npm ci of three@{THREE_VERSION} failed: {' '.join(r.stderr.split())[-300:]}")
+        if folder.exists() and not _installed(folder):
+            shutil.rmtree(folder, ignore_errors=True)             # an incomplete install of an older run
+        try:
+            os.rename(part, folder)
+        except OSError:
+            if not _installed(folder):                            # not another process's finished install
+                raise
     except (OSError, subprocess.SubprocessError) as e:
         raise PeerUnavailable(f"cannot install three@{THREE_VERSION} into {folder}: {e}") from None
-    if r.returncode != 0 or not done.exists():
-        raise PeerUnavailable(f"npm ci of three@{THREE_VERSION} failed: {' '.join(r.stderr.split())[-300:]}")
+    finally:
+        shutil.rmtree(part, ignore_errors=True)                   # gone already when it was renamed
     return folder
 
 

@@ -9,7 +9,8 @@ from ssbench.peer import available
 from ssbench.reference import gbuffer
 from ssbench.scenes import catalog
 
-pytestmark = [pytest.mark.slow, pytest.mark.skipif(available() is not None, reason=str(available()))]
+pytestmark = [pytest.mark.slow, pytest.mark.skipif(available() is not None, reason=str(available())),
+              pytest.mark.usefixtures("three_installed")]
 SCENES = ("crease", "cornell_box", "stairs", "furnished_room")
 SETTINGS = [ThreeGTAOParams(radius=0.5), ThreeGTAOParams(radius=0.5, samples=32, distance_fall_off=0.0),
             ThreeGTAOParams(radius=1.0, thickness=0.3, distance_exponent=2.0, scale=1.5)]

@@ -11,7 +11,8 @@ from ssbench.peer import available
 from ssbench.reference import gbuffer
 from ssbench.scenes import catalog
 
-pytestmark = [pytest.mark.slow, pytest.mark.skipif(available() is not None, reason=str(available()))]
+pytestmark = [pytest.mark.slow, pytest.mark.skipif(available() is not None, reason=str(available())),
+              pytest.mark.usefixtures("three_installed")]
 SCENES = ("crease", "cornell_box", "stairs", "furnished_room")
 
 

@@ -9,7 +9,8 @@ from ssbench.peer import available
 from ssbench.reference import gbuffer
 from ssbench.scenes import catalog
 
-pytestmark = [pytest.mark.slow, pytest.mark.skipif(available() is not None, reason=str(available()))]
+pytestmark = [pytest.mark.slow, pytest.mark.skipif(available() is not None, reason=str(available())),
+              pytest.mark.usefixtures("three_installed")]
 SCENES = ("reflective_floor", "fence", "grazing_floor")
 SETTINGS = [ThreeSSRParams(), ThreeSSRParams(thickness=0.2, max_distance=3.0),
             ThreeSSRParams(infinite_thick=True, distance_attenuation=False, fresnel=False, opacity=1.0)]

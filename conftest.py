@@ -20,6 +20,7 @@ if _WORKER:
     # `make test` runs one worker per core: a second torch (OpenMP) thread in each would contend for the cores
     # (two threads per process measured 7-11x slower on a loaded 2-core VM)
     torch.set_num_threads(1)
+    os.environ.setdefault("OMP_NUM_THREADS", "1")        # and in the processes the tests start (CLI, notebook kernels)
 
 
 @pytest.fixture(autouse=True)

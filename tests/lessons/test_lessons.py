@@ -6,6 +6,7 @@ Regenerate the notebooks after editing a lesson with ``make lessons-sync``.
 from __future__ import annotations
 
 import difflib
+import resource
 import time
 from pathlib import Path
 
@@ -16,7 +17,8 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 LESSONS_DIR = ROOT / "lessons"
 LESSONS = sorted(LESSONS_DIR.glob("[0-9][0-9]_*.py"))
-BUDGET_S = 120                       # per lesson, kernel start included
+BUDGET_S = 120                       # CPU seconds per lesson, kernel start included
+WALL_S = 2 * BUDGET_S                # the wall-clock limit: two test workers may share the cores
 SYNC_HINT = "run `make lessons-sync` (python lessons/_sync.py) and commit the .py and the .ipynb together"
 IDS = [p.stem for p in LESSONS]
 
@@ -67,20 +69,23 @@ def test_markdown_is_not_swallowing_code():
 
 
 @pytest.mark.slow
-@pytest.mark.timeout(BUDGET_S + 60)
+@pytest.mark.timeout(WALL_S + 60)
 @pytest.mark.parametrize("py", LESSONS, ids=IDS)
 def test_lesson_runs_headless(py, monkeypatch):
-    """Execute the committed notebook with nbclient at SSBENCH_LESSON_SIZE=small; every cell must pass."""
+    """Execute the committed notebook with nbclient at SSBENCH_LESSON_SIZE=small; every cell must pass, within
+    the budget of CPU seconds of its kernel (CPU time, not wall time: `make test` runs a second test worker beside
+    it, which slows the wall clock but not the lesson's own work; the kernel runs one torch thread there)."""
     from nbclient import NotebookClient
 
     monkeypatch.setenv("SSBENCH_LESSON_SIZE", "small")
     monkeypatch.setenv("MPLBACKEND", "Agg")
     notebook = nbformat.read(py.with_suffix(".ipynb"), as_version=4)
-    client = NotebookClient(notebook, timeout=BUDGET_S, kernel_name="python3",
+    client = NotebookClient(notebook, timeout=WALL_S, kernel_name="python3",
                             resources={"metadata": {"path": str(LESSONS_DIR)}})
-    t0 = time.perf_counter()
+    before, t0 = resource.getrusage(resource.RUSAGE_CHILDREN), time.perf_counter()
     client.execute()                                   # raises CellExecutionError with the cell's traceback
-    elapsed = time.perf_counter() - t0
-    assert elapsed < BUDGET_S, f"{py.stem} took {elapsed:.0f} s, over its {BUDGET_S} s budget"
+    wall, after = time.perf_counter() - t0, resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)    # the kernel's, once reaped
+    assert 0 < cpu < BUDGET_S, f"{py.stem} took {cpu:.0f} s of CPU ({wall:.0f} s wall), over its {BUDGET_S} s budget"
     last_code = [c for c in notebook.cells if c.cell_type == "code"][-1]
     assert "assert" in last_code.source, f"{py.stem}: the last code cell must be the lesson's asserts"

@@ -209,4 +209,4 @@ def run_pass(p: ShaderPass, *, flip_rows: bool = True, timeout: float = 180.0) -
     if gl_error != "0":
         raise RuntimeError(f"peer: {p.export}: WebGL error {gl_error}")
     out = np.frombuffer(base64.b64decode(payload), np.float32).reshape(p.height, p.width, 4)
-    return np.ascontiguousarray(out[::-1] if flip_rows else out)
+    return np.array(out[::-1] if flip_rows else out, order="C")     # a writable copy (frombuffer is read-only)

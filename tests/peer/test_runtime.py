@@ -1,5 +1,6 @@
-"""``ensure_three``'s install, with a stand-in ``npm`` on ``PATH`` (no network, no Chromium): it lands whole or not
-at all, also when another process finishes first or an older install was left incomplete."""
+"""The peer runtime without a browser or network: ``ensure_three``'s install with a stand-in ``npm`` on ``PATH``
+(it lands whole or not at all, also when another process finishes first or an older install was left incomplete),
+and ``run_pass``'s reading of the page Chromium prints."""
 import json
 import os
 import stat
@@ -78,3 +79,30 @@ def test_no_npm_says_so(fake_npm, monkeypatch):
     monkeypatch.setattr(runtime.shutil, "which", lambda name: None)
     with pytest.raises(PeerUnavailable, match="no npm on PATH"):
         ensure_three()
+
+
+def test_run_pass_returns_a_writable_image_in_ssbench_rows(monkeypatch, tmp_path):
+    """The page's result, parsed without a browser (a stand-in for Chromium's ``--dump-dom`` output): rows flipped
+    back to ssbench order by default, GL order with ``flip_rows=False``, writable either way (``torch.from_numpy``
+    warned of a read-only array), and a page that failed is an error naming the shader."""
+    import base64
+    import subprocess
+
+    import numpy as np
+
+    gl = np.arange(2 * 3 * 4, dtype=np.float32).reshape(2, 3, 4)                 # rows bottom-up, as GL reads back
+    page = {"text": "OK r170 0 " + base64.b64encode(gl.tobytes()).decode("ascii")}
+
+    def chromium(cmd, **kw):
+        return subprocess.CompletedProcess(cmd, 0, stdout=f'<pre id="out">{page["text"]}</pre>', stderr="")
+    monkeypatch.setattr(runtime, "find_chromium", lambda: "/stand-in/chromium")
+    monkeypatch.setattr(runtime, "ensure_three", lambda: tmp_path)
+    monkeypatch.setattr(runtime.subprocess, "run", chromium)
+    p = runtime.ShaderPass("three/addons/shaders/SSAOShader.js", "SSAOShader", width=3, height=2)
+    out = runtime.run_pass(p)
+    assert out.flags.writeable and out.flags.c_contiguous and np.array_equal(out, gl[::-1])
+    raw = runtime.run_pass(p, flip_rows=False)
+    assert raw.flags.writeable and np.array_equal(raw, gl)
+    page["text"] = "ERROR shader did not compile"
+    with pytest.raises(RuntimeError, match="SSAOShader: ERROR shader did not compile"):
+        runtime.run_pass(p)

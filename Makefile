@@ -9,7 +9,7 @@ DEV_STAMP   := $(VENV)/.ssbench-dev-installed
 LESSONS_STAMP := $(VENV)/.ssbench-lessons-installed
 REPORT_ARGS ?=
 PYTEST_ARGS ?=
-# test workers (pytest-xdist, one test file per worker at a time; 0: all in this process)
+# test workers (pytest-xdist; an idle worker takes tests queued for the other; 0: all in this process)
 TEST_WORKERS ?= 2
 JUPYTER_ARGS ?=
 
@@ -41,11 +41,11 @@ browser:
 
 ## test: the whole suite (slow tests included, as in CI)
 test: setup-dev browser
-	MPLBACKEND=Agg $(PYTHON) -m pytest -n $(TEST_WORKERS) --dist loadfile $(PYTEST_ARGS)
+	MPLBACKEND=Agg $(PYTHON) -m pytest -n $(TEST_WORKERS) --dist worksteal $(PYTEST_ARGS)
 
 ## test-fast: skip the slow (rendering / subprocess) tests
 test-fast: setup-dev
-	MPLBACKEND=Agg $(PYTHON) -m pytest -n $(TEST_WORKERS) --dist loadfile -m "not slow" $(PYTEST_ARGS)
+	MPLBACKEND=Agg $(PYTHON) -m pytest -n $(TEST_WORKERS) --dist worksteal -m "not slow" $(PYTEST_ARGS)
 
 ## report: the main job — reference renders of the built-in scenes into reports/latest/index.html
 report: setup

@@ -11,6 +11,7 @@ REPORT_ARGS ?=
 PYTEST_ARGS ?=
 # test workers (pytest-xdist; an idle worker takes tests queued for the other; 0: all in this process)
 TEST_WORKERS ?= 2
+XDIST       := -n $(TEST_WORKERS) --dist worksteal
 JUPYTER_ARGS ?=
 
 .PHONY: setup setup-dev llvm browser test test-fast report info bench gpu-check lessons lessons-sync clean
@@ -41,11 +42,11 @@ browser:
 
 ## test: the whole suite (slow tests included, as in CI)
 test: setup-dev browser
-	MPLBACKEND=Agg $(PYTHON) -m pytest -n $(TEST_WORKERS) --dist worksteal $(PYTEST_ARGS)
+	MPLBACKEND=Agg $(PYTHON) -m pytest $(XDIST) $(PYTEST_ARGS)
 
 ## test-fast: skip the slow (rendering / subprocess) tests
 test-fast: setup-dev
-	MPLBACKEND=Agg $(PYTHON) -m pytest -n $(TEST_WORKERS) --dist worksteal -m "not slow" $(PYTEST_ARGS)
+	MPLBACKEND=Agg $(PYTHON) -m pytest $(XDIST) -m "not slow" $(PYTEST_ARGS)
 
 ## report: the main job — reference renders of the built-in scenes into reports/latest/index.html
 report: setup

@@ -27,6 +27,8 @@ from typing import Optional
 import numpy as np
 import torch
 
+from ..reference.cache import cache_dir
+
 __all__ = ["PeerUnavailable", "Uniform", "ShaderPass", "available", "ensure_three", "run_pass", "to_gl",
            "THREE_VERSION", "find_chromium", "camera_uniforms", "gbuffer_textures"]
 
@@ -93,15 +95,14 @@ def find_chromium() -> Optional[str]:
 
 
 def _install_dir() -> Path:
-    root = os.environ.get("SSBENCH_CACHE_DIR") or os.path.join(os.path.expanduser("~"), ".cache", "ssbench")
-    return Path(root) / "peer" / f"three-{THREE_VERSION}"
+    return Path(cache_dir()) / "peer" / f"three-{THREE_VERSION}"
 
 
 def available() -> Optional[str]:
     """``None`` when the parity checks can run here, else why not."""
     if find_chromium() is None:
         return f"no Chromium on PATH ({', '.join(CHROMIUM_NAMES)}); `make browser` installs Debian's"
-    if not (_install_dir() / "node_modules" / "three" / "package.json").exists() and shutil.which("npm") is None:
+    if not _installed(_install_dir()) and shutil.which("npm") is None:
         return "no npm on PATH to install the pinned three.js"
     return None
 

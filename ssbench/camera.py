@@ -209,6 +209,23 @@ class Camera:
         w = -z
         return scale[0] * x / w, scale[1] * y / w
 
+    @staticmethod
+    def scaled_uv_xy(x: torch.Tensor, y: torch.Tensor, z: torch.Tensor,
+                     scale: tuple[float, float]) -> tuple[torch.Tensor, torch.Tensor]:
+        r""":meth:`ndc_to_uv` of :meth:`scaled_ndc_xy`, :math:`u = 0.5 + 0.5\,s_x x / (-z)`, in two passes over the
+        points instead of five (a marcher's or an AO sample loop's projection): :math:`(-s_x) x`, then one
+        ``addcdiv``, :math:`0.5 + (0.5\,(-s_x x)) / z`. Negating and halving are exact, so this is the two-step
+        :math:`u` bit for bit, except where :math:`|s_x x|` is subnormal or :math:`s_x x / z` overflows; the texel it
+        reads is the same there too (tested at the extremes).
+
+        Example:
+            >>> [c.item() for c in Camera.scaled_uv_xy(torch.tensor(1.0), torch.tensor(-1.0), torch.tensor(-2.0),
+            ...                                         (1.0, 1.0))]
+            [0.75, 0.25]
+        """
+        half = torch.full((), 0.5, dtype=x.dtype, device=x.device)
+        return torch.addcdiv(half, x * -scale[0], z, value=0.5), torch.addcdiv(half, y * -scale[1], z, value=0.5)
+
     def ndc_to_view(self, ndc: torch.Tensor, dim: int = -3) -> torch.Tensor:
         """NDC ``(x, y, z)`` → view points (inverse of :meth:`view_to_ndc`)."""
         x, y, zn = split_components(ndc, dim, 3, "ndc")

@@ -531,3 +531,27 @@ def test_sampling_an_image_at_shader_uv():
     col = uv[0] * cam.width - 0.5
     torch.testing.assert_close(row, torch.arange(cam.height, dtype=F64)[:, None].expand_as(row), rtol=0, atol=1e-12)
     torch.testing.assert_close(col, torch.arange(cam.width, dtype=F64)[None, :].expand_as(col), rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_scaled_uv_xy_gives_the_two_step_uv_bit_for_bit_and_its_texels_at_the_extremes(dtype):
+    """``scaled_uv_xy`` (one ``addcdiv`` per axis) against ``ndc_to_uv(scaled_ndc_xy(…))``: the same bits on
+    ordinary points in front of and behind the camera; the same texel (``texel_of``, NaN read as 0) on every
+    combination of zeros, subnormals, huge values, infinities and NaN, z = 0 and the smallest normal z included."""
+    from ssbench.passes.common import nan_to_zero, texel_of
+    cam = Camera.from_look_at((0, 0, 0), (0, 0, -1), (0, 1, 0), 70.0, 97, 61, 0.1, 100.0)
+    scale = cam.ndc_scale()
+    two_step = lambda x, y, z: tuple(cam.ndc_to_uv(c) for c in cam.scaled_ndc_xy(x, y, z, scale))
+    g = torch.Generator().manual_seed(2)
+    x, y = (torch.randn(8, 61, 97, generator=g, dtype=torch.float64).to(dtype) * 3 for _ in range(2))
+    z = (-torch.rand(8, 61, 97, generator=g, dtype=torch.float64) * 20 + 1.0).to(dtype)     # some behind
+    z = torch.where(z == 0, -0.5, z)
+    got, want = cam.scaled_uv_xy(x, y, z, scale), two_step(x, y, z)
+    assert all(torch.equal(a, b) for a, b in zip(got, want))
+    tiny, big = torch.finfo(dtype).tiny, torch.finfo(dtype).max
+    vals = torch.tensor([0.0, -0.0, tiny, -tiny / 8, 1e-30, 3.0, -7.5, big, -big, math.inf, -math.inf, math.nan],
+                        dtype=dtype)
+    xe, ye, ze = torch.meshgrid(vals, vals, torch.cat([vals, torch.tensor([-tiny], dtype=dtype)]), indexing="ij")
+    texels = [texel_of(*(nan_to_zero(c) for c in uv), 61, 97, nan_free=True)
+              for uv in (cam.scaled_uv_xy(xe, ye, ze, scale), two_step(xe, ye, ze))]
+    assert all(torch.equal(a, b) for a, b in zip(*texels))

@@ -213,3 +213,24 @@ def test_nan_to_zero_keeps_everything_but_nan_bit_for_bit(dtype):
     xg = x.clone().requires_grad_(True)
     nan_to_zero(xg).sum().backward()
     assert xg.grad.tolist() == [0.0, 0.0] + [1.0] * 9
+
+
+@pytest.mark.parametrize("nan_free", [True, False])
+def test_texel_of_leaves_its_inputs_and_reads_the_texels_of_floor_and_clamp(nan_free):
+    """``texel_of`` works in place on its own temporaries only: ``u`` and ``v`` keep their values (and a gradient
+    still reaches them); the texels are ``clamp(floor(u·W))``, ``clamp(floor((1 − v)·H))``."""
+    from ssbench.passes.common import texel_of
+    g = torch.Generator().manual_seed(4)
+    u, v = (torch.rand(500, generator=g, dtype=torch.float64) * 1.4 - 0.2 for _ in range(2))
+    if not nan_free:
+        u[::7], v[::11] = math.nan, math.inf
+    u0, v0 = u.clone(), v.clone()
+    col, row = texel_of(u, v, 30, 40, nan_free=nan_free)
+    assert torch.equal(u, u0) if nan_free else torch.equal(u.nan_to_num(9.0), u0.nan_to_num(9.0))
+    assert torch.equal(v, v0)
+    want_col = torch.floor(u0 * 40).nan_to_num(0.0).clamp(0, 39).long()
+    want_row = torch.floor((1.0 - v0) * 30).nan_to_num(0.0).clamp(0, 29).long()
+    assert torch.equal(col, want_col) and torch.equal(row, want_row)
+    ug = u0.nan_to_num(0.5).requires_grad_(True)
+    texel_of(ug * 2.0, v0.nan_to_num(0.5), 30, 40, dtype=ug.dtype)[0].sum().backward()
+    assert ug.grad is not None and torch.equal(ug.grad, torch.zeros_like(ug))

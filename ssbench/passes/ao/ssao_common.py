@@ -11,6 +11,7 @@ from typing import Callable
 
 from ..common import AOResult, check_count, check_radius, fetch_texels, nan_to_zero, row_bands, texel_of
 from ..compiled_samples import band_samples
+from ..float_masks import count_between, replace_zeros
 
 __all__ = ["check_ssao_params", "view_position", "real_depth_texture", "kernel_components", "range_check_count",
            "occlusion_to_ao", "band_result", "banded_ao", "ssao_result"]
@@ -90,14 +91,14 @@ def range_check_count(camera: Camera, sample_point: tuple, real_depth: torch.Ten
     """
     x, y, z = sample_point
     # NOTE: w = -z = 0 would divide by zero; the GPU result is undefined, ours reads as "just in front"
-    z_proj = torch.where(z == 0, -torch.finfo(z.dtype).tiny, z)
+    z_proj = replace_zeros(z, -torch.finfo(z.dtype).tiny)
     # NaN reads as 0 (texel_of clamps infinities as nan_to_num would clamp ±max)
-    u, v = (nan_to_zero(camera.ndc_to_uv(c)) for c in camera.view_to_ndc_xy(x, y, z_proj))  # samplePointUv
+    u, v = (nan_to_zero(c, own=True) for c in camera.scaled_uv_xy(x, y, z_proj, camera.ndc_scale()))  # samplePointUv
     col, row = texel_of(u, v, real_depth.shape[-2], real_depth.shape[-1], nan_free=True, dtype=u.dtype)
     real = fetch_texels(real_depth, col.squeeze(1), row.squeeze(1)).reshape(z.shape)  # realDepth: NEAREST, clamp
     sample_depth = camera.view_z_to_orthographic_depth(z)                        # sampleDepth
     delta = sample_depth - real
-    return ((delta > min_distance) & (delta < max_distance)).sum(axis)           # (B, 1, h, W)
+    return count_between(delta, min_distance, max_distance, axis)                # (B, 1, h, W)
 
 
 def occlusion_to_ao(count: torch.Tensor, kernel_size: int, strength: float, mask: torch.Tensor,

@@ -111,12 +111,13 @@ class LiveRays:
 
 def _probe(scale: tuple, size: tuple, thickness: float, front: torch.Tensor, back: Optional[torch.Tensor],
            q: tuple, base: torch.Tensor) -> tuple:
-    """``(u, v, t, hit)`` of view samples ``q`` (x, y, z apart): :meth:`DepthTest.project` op for op, then
+    """``(u, v, t, hit)`` of view samples ``q`` (x, y, z apart): :meth:`DepthTest.project`'s texel (its uv in two
+    passes, :meth:`~ssbench.camera.Camera.scaled_uv_xy`), then
     ``rayIntersectsDepth`` against ``front`` (the scene z, NaN off the mask, so a cleared texel is never hit)."""
     x, y, z = q
-    u, v = (Camera.ndc_to_uv(c) for c in Camera.scaled_ndc_xy(x, y, z, scale))    # hitPixel (uv, v up)
+    u, v = Camera.scaled_uv_xy(x, y, z, scale)                                    # hitPixel (uv, v up)
     col, row = texel_of(u, v, size[0], size[1], dtype=base.dtype)
-    t = base + row * size[1] + col
+    t = base + torch.add(col, row, alpha=size[1])                                 # base + row·W + col (integers)
     dist = z - front.index_select(0, t)                                           # dist = Q.z − sceneZMax
     if back is None:
         return u, v, t, (dist < 0) & (dist > -thickness)

@@ -1,0 +1,62 @@
+"""Masks as 0/1 floating-point numbers in eager code: the same results as boolean masks, without boolean tensors.
+
+On the CPU, torch's elementwise kernels that read or write ``bool`` tensors are not vectorised, and
+``torch.where`` is the slowest of them. Measured on this project's 2-core AVX2 machine (torch 2.13, 1 thread, one
+band of 16 × 8 × 640 float32 samples, the block an eager AO pass works on, ``ssbench/passes/common.py``):
+
+=============================================  =======
+operation                                       µs
+=============================================  =======
+``a * b`` (float32)                              22
+``a > 0.5`` (→ bool)                             78
+``torch.gt(a, 0.5, out=float32 buffer)``         18
+``mask.sum(0)`` (bool → int64)                   50
+``f.sum(0)`` (float32)                           22
+``torch.where(mask, -1e-38, a)``                302
+``torch.addcmul(a, f, f, value=-1e-38)``         27
+=============================================  =======
+
+A comparison written into a floating-point buffer gives 1.0 or 0.0 in a vectorised loop; products and sums of
+those are exact (integers below :math:`2^{24}`), and adding ``value · m · m`` to ``x`` replaces ``x`` exactly where
+``m`` is 1 and adds a signed zero elsewhere, which leaves every nonzero ``x`` (infinities and NaN too) as it was.
+So each helper here returns the bits of its boolean twin. Inside ``torch.compile`` (inductor fuses the boolean
+form into the loop around it) and with gradients (``where`` routes them differently) the boolean form runs.
+"""
+from __future__ import annotations
+
+import torch
+
+__all__ = ["float_masks", "replace_zeros", "count_between"]
+
+
+def float_masks(x: torch.Tensor) -> bool:
+    """Whether the helpers of this module take their floating-point form for ``x``: eager, without gradients."""
+    return not (torch.compiler.is_compiling() or x.requires_grad)
+
+
+def replace_zeros(x: torch.Tensor, value: float) -> torch.Tensor:
+    """``torch.where(x == 0, value, x)``: ``x`` with its zeros (±0) replaced by ``value``, the same bits.
+
+    Example:
+        >>> replace_zeros(torch.tensor([0.0, -0.0, 2.0, float("inf")]), -1.0)
+        tensor([-1., -1.,  2., inf])
+    """
+    if not float_masks(x):
+        return torch.where(x == 0, value, x)
+    zero = torch.eq(x, 0, out=torch.empty_like(x))                       # 1.0 where x == ±0, else 0.0
+    return torch.addcmul(x, zero, zero, value=value)                     # x + value·1 = value, or x + (±0) = x
+
+
+def count_between(x: torch.Tensor, lo: float, hi: float, dim: int) -> torch.Tensor:
+    """``((x > lo) & (x < hi)).sum(dim)``: how many entries along ``dim`` lie strictly between ``lo`` and ``hi``
+    (NaN never), as int64.
+
+    Example:
+        >>> count_between(torch.tensor([[0.5, 1.0, float("nan"), 0.2]]), 0.0, 1.0, 1)
+        tensor([2])
+    """
+    if not float_masks(x):
+        return ((x > lo) & (x < hi)).sum(dim, dtype=torch.int32).to(torch.int64)
+    above = torch.gt(x, lo, out=torch.empty_like(x))                     # 1.0 / 0.0
+    above.mul_(torch.lt(x, hi, out=torch.empty_like(x)))
+    return above.sum(dim).to(torch.int64)                                # exact: at most 2^24 ones per sum in float32

@@ -1,0 +1,62 @@
+"""ssbench.passes.float_masks: the floating-point forms give the bits of their boolean twins."""
+from __future__ import annotations
+
+import math
+
+import pytest
+import torch
+
+from ssbench.passes import compiled as C
+from ssbench.passes.float_masks import count_between, float_masks, replace_zeros
+
+
+def _bits(x: torch.Tensor) -> torch.Tensor:
+    return x.view(torch.int64 if x.dtype == torch.float64 else torch.int32)
+
+
+def _hard(dtype: torch.dtype, n: int = 4096) -> torch.Tensor:
+    """Random values around 0, mixed with ±0, ±inf, NaN, subnormals and the extremes of ``dtype``."""
+    g = torch.Generator().manual_seed(5)
+    x = (torch.randn(n, generator=g, dtype=torch.float64) * 0.02).to(dtype)
+    tiny, big = torch.finfo(dtype).tiny, torch.finfo(dtype).max
+    special = torch.tensor([0.0, -0.0, math.inf, -math.inf, math.nan, tiny / 4, -tiny / 4, tiny, big, -big, 0.01,
+                            0.02, -0.0005, 0.0005], dtype=dtype)
+    x[torch.randperm(n, generator=g)[:len(special) * 20]] = special.repeat(20)
+    return x
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_replace_zeros_gives_the_bits_of_where(dtype):
+    x = _hard(dtype)
+    tiny = torch.finfo(dtype).tiny
+    for value in (-tiny, tiny, 2.5):
+        got, want = replace_zeros(x, value), torch.where(x == 0, value, x)
+        assert float_masks(x) and got.dtype == want.dtype and torch.equal(_bits(got), _bits(want))
+    assert int((x == 0).sum()) >= 40                              # zeros of both signs were replaced
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+@pytest.mark.parametrize("lo, hi", [(0.0, 0.02), (0.0005, 0.02), (-0.02, -0.0), (-math.inf, 0.01)])
+def test_count_between_counts_what_the_boolean_test_counts(dtype, lo, hi):
+    x = _hard(dtype).view(8, 16, 32)
+    for dim in (0, 1, -1):
+        got, want = count_between(x, lo, hi, dim), ((x > lo) & (x < hi)).sum(dim)
+        assert got.dtype == want.dtype == torch.int64 and torch.equal(got, want)
+    assert 0 < int(count_between(x, lo, hi, 0).sum()) < x.numel()    # some counted, some not
+
+
+def test_the_boolean_forms_run_with_gradients_and_inside_compile():
+    x = _hard(torch.float32)[:64].nan_to_num(0.0, 1.0, -1.0).requires_grad_(True)
+    assert not float_masks(x)
+    replace_zeros(x, 3.0).sum().backward()                        # where's gradient: 0 at the replaced zeros
+    assert torch.equal(x.grad, (x != 0).float())
+
+    @C.kernel
+    def both(v):
+        return float_masks(v), replace_zeros(v, -1.0), count_between(v, 0.0, 0.02, 0)
+
+    v = _hard(torch.float32)
+    with C.compiling(True):
+        fast, replaced, count = both(v)
+    assert not fast and torch.equal(_bits(replaced), _bits(torch.where(v == 0, -1.0, v)))
+    assert torch.equal(count, ((v > 0) & (v < 0.02)).sum(0))

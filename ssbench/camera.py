@@ -212,11 +212,11 @@ class Camera:
     @staticmethod
     def scaled_uv_xy(x: torch.Tensor, y: torch.Tensor, z: torch.Tensor,
                      scale: tuple[float, float]) -> tuple[torch.Tensor, torch.Tensor]:
-        r""":meth:`ndc_to_uv` of :meth:`scaled_ndc_xy`, :math:`u = 0.5 + 0.5\,s_x x / (-z)`, in two passes over the
-        points instead of five (a marcher's or an AO sample loop's projection): :math:`(-s_x) x`, then one
-        ``addcdiv``, :math:`0.5 + (0.5\,(-s_x x)) / z`. Negating and halving are exact, so this is the two-step
-        :math:`u` bit for bit, except where :math:`|s_x x|` is subnormal or :math:`s_x x / z` overflows; the texel it
-        reads is the same there too (tested at the extremes).
+        r""":meth:`ndc_to_uv` of :meth:`scaled_ndc_xy`, :math:`u = 0.5 + 0.5\,s_x x / (-z)`, in two passes per axis
+        over the points instead of four and a shared negation (a marcher's or an AO sample loop's projection):
+        :math:`(-s_x) x`, then one ``addcdiv``, :math:`0.5 + (0.5\,(-s_x x)) / z`. Negating and halving are exact, so
+        this is the two-step :math:`u` bit for bit, except where :math:`|s_x x|` is subnormal or :math:`s_x x / z`
+        overflows; the texel it reads is the same there too (tested at the extremes).
 
         Example:
             >>> [c.item() for c in Camera.scaled_uv_xy(torch.tensor(1.0), torch.tensor(-1.0), torch.tensor(-2.0),

@@ -1,8 +1,9 @@
 """Masks as 0/1 floating-point numbers in eager code: the same results as boolean masks, without boolean tensors.
 
-On the CPU, torch's elementwise kernels that read or write ``bool`` tensors are not vectorised, and
-``torch.where`` is the slowest of them. Measured on this project's 2-core AVX2 machine (torch 2.13, 1 thread, one
-band of 16 × 8 × 640 float32 samples, the block an eager AO pass works on, ``ssbench/passes/common.py``):
+On the CPU, torch's elementwise kernels that write or read ``bool`` tensors run several times slower than their
+floating-point twins, and ``torch.where`` is the slowest of them (``benchmarks/bench_ops.py`` times the family on whole
+images). Measured on this project's 2-core AVX2 machine (torch 2.13, 1 thread, one band of 16 × 8 × 640 float32
+samples, the block an eager AO pass works on, ``ssbench/passes/common.py``; the masks flip at random):
 
 =============================================  =======
 operation                                       µs

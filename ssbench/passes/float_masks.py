@@ -31,8 +31,9 @@ __all__ = ["float_masks", "replace_zeros", "count_between"]
 
 
 def float_masks(x: torch.Tensor) -> bool:
-    """Whether the helpers of this module take their floating-point form for ``x``: eager, without gradients."""
-    return not (torch.compiler.is_compiling() or x.requires_grad)
+    """Whether the helpers of this module take their floating-point form for ``x``: eager, without gradients, in
+    float32 or float64 (whose sums of ones are exact up to :math:`2^{24}`; float16 stops at 2048, bfloat16 at 256)."""
+    return not (torch.compiler.is_compiling() or x.requires_grad) and x.dtype in (torch.float32, torch.float64)
 
 
 def replace_zeros(x: torch.Tensor, value: float) -> torch.Tensor:

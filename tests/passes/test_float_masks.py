@@ -60,3 +60,12 @@ def test_the_boolean_forms_run_with_gradients_and_inside_compile():
         fast, replaced, count = both(v)
     assert not fast and torch.equal(_bits(replaced), _bits(torch.where(v == 0, -1.0, v)))
     assert torch.equal(count, ((v > 0) & (v < 0.02)).sum(0))
+
+
+@pytest.mark.parametrize("dtype", [torch.bfloat16, torch.float16])
+def test_half_precision_takes_the_boolean_forms_whose_counts_stay_exact(dtype):
+    """bfloat16 sums of ones stop being exact at 256, float16 at 2048: such inputs count with the boolean form."""
+    x = torch.full((3000, 2), 0.5, dtype=dtype)
+    assert not float_masks(x)
+    assert count_between(x, 0.0, 1.0, 0).tolist() == [3000, 3000]
+    assert torch.equal(replace_zeros(torch.tensor([0.0, 2.0], dtype=dtype), 1.0), torch.tensor([1.0, 2.0], dtype=dtype))

@@ -187,13 +187,14 @@ plt.show()
 # each row atomically as `rows/<config_id>.json` the moment it is done, so a killed sweep resumes where it
 # stopped; at the end it writes the whole table as `rows.jsonl` and `rows.parquet`.
 #
-# The `timing` block turns on careful timing (Step 4). `flip: false` skips ꟻLIP, the slowest metric.
+# The `timing` block turns on careful timing (Step 4), here in this process only (`processes: 1`, an overview).
+# `flip: false` skips ꟻLIP, the slowest metric.
 
 # %%
 SWEEP = {
     "name": "lesson09_stairs", "effect": "ao", "scenes": [SCENE], "resolution": [W, H],
     "rays": RAYS, "oracle": False, "flip": False,
-    "timing": {"min_run_time": 0.01, "warmup": 0},
+    "timing": {"min_run_time": 0.01, "warmup": 0, "processes": 1},
     "methods": {
         "hbao": {"radius": RADIUS, "num_directions": [2, 4, 8], "num_steps": [2, 4]},
         "gtao": {"radius": RADIUS, "quality": ["low", "medium", "high", "ultra"]},
@@ -313,8 +314,8 @@ plt.show()
 # after the other, and pools the rounds of all three (`timing: {processes: 3}`, the default;
 # `ssbench/bench/processes.py`: repeated invocations, as benchmarking practice does for virtual machines and JITs).
 # It costs three times the timing plus an evaluation per extra process; `benchmarks/bench_sweep_repeats.py` runs a
-# sweep again and again, with 1 and 3 processes, and prints how often the runs agree. The report's sweeps and the
-# demonstration below time in this process only (`processes: 1`): they are overviews.
+# sweep again and again, with 1 and 3 processes, and prints how often the runs agree. The report's sweeps, this
+# lesson's and the demonstration below time in this process only (`processes: 1`): they are overviews.
 #
 # To see it, the same configuration is timed twice: once as it is, and once while busy-looping processes, one
 # per core, compete for the CPU (they are stopped right after).

@@ -93,7 +93,7 @@ def range_check_count(camera: Camera, sample_point: tuple, real_depth: torch.Ten
     # NOTE: w = -z = 0 would divide by zero; the GPU result is undefined, ours reads as "just in front"
     z_proj = replace_zeros(z, -torch.finfo(z.dtype).tiny)
     # NaN reads as 0 (texel_of clamps infinities as nan_to_num would clamp ±max)
-    u, v = (nan_to_zero(c, own=True) for c in camera.scaled_uv_xy(x, y, z_proj, camera.ndc_scale()))  # samplePointUv
+    u, v = (nan_to_zero(c) for c in camera.scaled_uv_xy(x, y, z_proj, camera.ndc_scale()))    # samplePointUv
     col, row = texel_of(u, v, real_depth.shape[-2], real_depth.shape[-1], nan_free=True, dtype=u.dtype)
     real = fetch_texels(real_depth, col.squeeze(1), row.squeeze(1)).reshape(z.shape)  # realDepth: NEAREST, clamp
     sample_depth = camera.view_z_to_orthographic_depth(z)                        # sampleDepth

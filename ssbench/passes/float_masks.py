@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import torch
 
-__all__ = ["float_masks", "replace_zeros", "count_between"]
+__all__ = ["float_masks", "replace_zeros", "count_between", "inside_image", "select"]
 
 
 def float_masks(x: torch.Tensor) -> bool:
@@ -62,3 +62,38 @@ def count_between(x: torch.Tensor, lo: float, hi: float, dim: int) -> torch.Tens
     above = torch.gt(x, lo, out=torch.empty_like(x))                     # 1.0 / 0.0
     above.mul_(torch.lt(x, hi, out=torch.empty_like(x)))
     return above.sum(dim).to(torch.int64)                                # exact: at most 2^24 ones per sum in float32
+
+
+def inside_image(x: torch.Tensor, y: torch.Tensor, width: int, height: int) -> torch.Tensor:
+    """``(x >= 0) & (x < width) & (y >= 0) & (y < height)`` of texel coordinates ``x``, ``y`` of one shape (NaN is
+    outside): bool, or in the floating-point form (:func:`float_masks`) the same test as 1.0 / 0.0 in ``x``'s dtype.
+
+    Example:
+        >>> inside_image(torch.tensor([0.0, 3.0, 1.0, float("nan")]), torch.tensor([1.0, 0.0, 2.0, 0.0]), 3, 2)
+        tensor([1., 0., 0., 0.])
+    """
+    if not float_masks(x):
+        return (x >= 0) & (x < width) & (y >= 0) & (y < height)
+    on = torch.ge(x, 0, out=torch.empty_like(x))
+    test = torch.lt(x, width, out=torch.empty_like(x))
+    on.mul_(test)
+    on.mul_(torch.ge(y, 0, out=test))
+    return on.mul_(torch.lt(y, height, out=test))
+
+
+_BITS = {torch.float32: torch.int32, torch.float64: torch.int64}
+
+
+def select(mask: torch.Tensor, a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """``torch.where(mask == 1, a, b)`` of a 0/1 floating-point ``mask`` (this module's form) and float32/float64 ``a``,
+    ``b`` of one shape and dtype: picked bit by bit, ``b ^ ((a ^ b) & −mask)`` on the integers of their bits, so the
+    same bits (NaN payloads and signed zeros too), in integer operations that vectorise.
+
+    Example:
+        >>> select(torch.tensor([1.0, 0.0]), torch.tensor([-0.0, 1.0]), torch.tensor([2.0, float("nan")]))
+        tensor([-0., nan])
+    """
+    bits = _BITS[a.dtype]
+    ones = mask.to(bits).neg_()                                          # 0, or every bit set
+    b_bits = b.view(bits)
+    return torch.bitwise_xor(a.view(bits), b_bits).bitwise_and_(ones).bitwise_xor_(b_bits).view(a.dtype)

@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from ssbench.passes import compiled as C
-from ssbench.passes.float_masks import count_between, float_masks, replace_zeros
+from ssbench.passes.float_masks import count_between, float_masks, inside_image, replace_zeros, select
 
 
 def _bits(x: torch.Tensor) -> torch.Tensor:
@@ -69,3 +69,28 @@ def test_half_precision_takes_the_boolean_forms_whose_counts_stay_exact(dtype):
     assert not float_masks(x)
     assert count_between(x, 0.0, 1.0, 0).tolist() == [3000, 3000]
     assert torch.equal(replace_zeros(torch.tensor([0.0, 2.0], dtype=dtype), 1.0), torch.tensor([1.0, 2.0], dtype=dtype))
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_inside_image_is_the_boolean_bounds_test(dtype):
+    g = torch.Generator().manual_seed(7)
+    x = torch.randint(-5, 14, (4096,), generator=g).to(dtype)
+    y = torch.randint(-5, 11, (4096,), generator=g).to(dtype)
+    special = torch.tensor([math.nan, math.inf, -math.inf, -0.0, 0.5, -0.5, 9.5, 8.9999, 1e30, -1e30], dtype=dtype)
+    x[:100], y[100:200] = special.repeat(10), special.repeat(10)
+    got, want = inside_image(x, y, 9, 6), (x >= 0) & (x < 9) & (y >= 0) & (y < 6)
+    assert float_masks(x) and got.dtype == dtype and torch.equal(got, want.to(dtype))
+    assert 0 < int(want.sum()) < x.numel()
+    with C.compiling(True):
+        assert torch.equal(C.kernel(inside_image)(x, y, 9, 6), want)        # compiled: the boolean form
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_select_gives_the_bits_of_where(dtype):
+    a, b = _hard(dtype), _hard(dtype).flip(0)
+    mask = (torch.rand(a.shape, generator=torch.Generator().manual_seed(9)) < 0.5).to(dtype)
+    got, want = select(mask, a, b), torch.where(mask == 1, a, b)
+    assert got.dtype == dtype and torch.equal(_bits(got), _bits(want))
+    assert torch.equal(_bits(a), _bits(_hard(dtype))) and 0 < int(mask.sum()) < mask.numel()   # inputs untouched
+    row = select(mask.view(64, 64)[:1], a.view(64, 64), b.view(64, 64))                  # a mask broadcast on rows
+    assert torch.equal(_bits(row), _bits(torch.where(mask.view(64, 64)[:1] == 1, a.view(64, 64), b.view(64, 64))))

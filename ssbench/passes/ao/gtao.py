@@ -38,6 +38,7 @@ from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..inference import autograd_free
 from .gtao_parts import NOISE_KINDS, check_noise, hilbert_index, unit3, noise_buffer, slice_visibility  # noqa: F401
 from .gtao_slices import gtao_rows
+from .slice_samples import sample_texture
 from ..registry import Method, SpeedPanel
 
 FLAVOUR = "cosine"  # the ground-truth weighting this pass estimates (ssbench.reference.ao)
@@ -185,7 +186,8 @@ def gtao(gbuffer: GBuffer, params: GTAOParams = GTAOParams(), *, generator: Opti
 
     z = torch.where(mask, gbuffer.view_z, torch.full_like(gbuffer.view_z, -cam.far))  # sanitised depth texture
     rows = torch.arange(H, dtype=dtype, device=dev)
-    parts = [gtao_rows(cam, z, rows[rs], gbuffer.normal[:, :, rs], mask[:, :, rs], noise[:, :, rs], params, debug,
+    tex = sample_texture(cam, z)            # eager (B, 3, H, W): each texel's view position; compiled: z
+    parts = [gtao_rows(cam, tex, rows[rs], gbuffer.normal[:, :, rs], mask[:, :, rs], noise[:, :, rs], params, debug,
                        bent_normals) for rs in row_bands(H, W, 2 * K, z.element_size(), batch=B)]   # bounded set
     vis = torch.cat([p[0] for p in parts], 2)
     bent = None if not bent_normals else [torch.cat([p[1][i] for p in parts], 2) for i in range(3)]

@@ -10,9 +10,9 @@ from typing import TYPE_CHECKING
 
 import torch
 
-from ..common import fetch_texels
 from ..compiled import kernel
 from .gtao_parts import dot3, slice_frame, slice_visibility, unit3
+from .slice_samples import pixel_rays, slice_offsets
 
 if TYPE_CHECKING:
     from .gtao import GTAOParams
@@ -25,24 +25,24 @@ R1 = 0.6180339887498948482     #: golden-ratio step noise
 
 
 @kernel
-def gtao_rows(cam, z: torch.Tensor, row: torch.Tensor, normal: torch.Tensor, mask: torch.Tensor,
+def gtao_rows(cam, tex: torch.Tensor, row: torch.Tensor, normal: torch.Tensor, mask: torch.Tensor,
               noise: torch.Tensor, params: "GTAOParams", debug: bool, bent_normals: bool) -> tuple:
     """XeGTAO's main pass on a band of rows (Jimenez et al. 2016, Algorithm 1; XeGTAO ``XeGTAO_MainPass``):
     ``(vis, bent, debug)`` before the final power, with every block (B, 2K, h, W); the pass's compilable
     kernel (:mod:`ssbench.passes.compiled`).
 
-    ``z`` :math:`(B, 1, H, W)` is the sanitised depth texture of the whole image (the horizon search reads any
-    row); ``row`` :math:`(h,)` the band's row indices; ``normal``, ``mask``, ``noise`` the band's
+    ``tex`` :math:`(B, C, H, W)` is what the samples read of the sanitised depth texture of the whole image, its
+    last channel the view z (:func:`~ssbench.passes.ao.slice_samples.sample_texture`; the horizon search reads any row);
+    ``row`` :math:`(h,)` the band's row indices; ``normal``, ``mask``, ``noise`` the band's
     :math:`(B, ·, h, W)` slices."""
     # ---- Centre pixel: position, view vector, screen radius (vectors are (x, y, z) tuples of (B, 1, h, W)) ----
-    B, _, H, W = z.shape
-    dtype, dev, S, K = z.dtype, z.device, params.slices, params.steps
+    B, _, H, W = tex.shape
+    dtype, dev, S, K = tex.dtype, tex.device, params.slices, params.steps
     row = row.view(1, 1, -1, 1)
-    zc = torch.index_select(z, 2, row.view(-1).long()) * CENTER_Z_BIAS
+    zc = torch.index_select(tex[:, -1:], 2, row.view(-1).long()) * CENTER_Z_BIAS
     col = torch.arange(W, dtype=dtype, device=dev).view(1, 1, 1, W)
-    ray_x = lambda c: (2.0 * (c + 0.5) / W - 1.0) * cam.aspect / cam.focal          # view x at z = -1
-    ray_y = lambda r: (1.0 - 2.0 * (r + 0.5) / H) / cam.focal                       # (uv_to_view, v up)
-    P = (ray_x(col) * -zc, ray_y(row) * -zc, zc)
+    ray_x, ray_y = pixel_rays(cam, col, row, H, W)                                   # view x, y at z = -1
+    P = (ray_x * -zc, ray_y * -zc, zc)
     v = unit3(tuple(-c for c in P))                                                  # toward the camera
     N = tuple(torch.where(mask, normal[:, i:i + 1], v[i]) for i in range(3))
     R = params.radius * params.radius_multiplier                                     # effect radius
@@ -64,12 +64,7 @@ def gtao_rows(cam, z: torch.Tensor, row: torch.Tensor, normal: torch.Tensor, mas
         step_noise = torch.frac(noise[:, 1:] + (k + j * K) * R1)                   # (B, K, h, W)
         s = ((j + step_noise) / K) ** params.sample_distribution_power + min_s
         off_x, off_y = torch.round(s * cos_phi * r_px), torch.round(-s * sin_phi * r_px)  # screen y down
-        cx = col + torch.cat([off_x, -off_x], 1)                                     # (B, 2K, h, W)
-        cy = row + torch.cat([off_y, -off_y], 1)
-        on = (cx >= 0) & (cx < W) & (cy >= 0) & (cy < H)                             # off screen: ignored
-        cx, cy = torch.where(on, cx, col), torch.where(on, cy, row)      # (weight 0; huge r_px overflowed delta)
-        zs = fetch_texels(z, cx.clamp(0, W - 1), cy.clamp(0, H - 1))[:, 0]     # (B, 2K, h, W)
-        delta = (ray_x(cx) * -zs - P[0], ray_y(cy) * -zs - P[1], zs - P[2])
+        delta, on = slice_offsets(cam, tex, col, row, off_x, off_y, P)   # (B, 2K, h, W); off screen: weight 0
         dist = dot3(delta, delta).sqrt().clamp_min(tiny)
         shc = dot3(delta, v) / dist                                                  # sample horizon cos
         if toc:

@@ -9,8 +9,9 @@ from typing import TYPE_CHECKING
 
 import torch
 
-from ..common import component_dot, fetch_uv
+from ..common import fetch_uv
 from ..compiled import is_set, kept_mask, kernel
+from ..float_masks import float_masks, select
 
 if TYPE_CHECKING:
     from .hbao import HBAOParams
@@ -97,12 +98,14 @@ def hbao_band(cam, uv0: torch.Tensor, mask: torch.Tensor, rand: torch.Tensor, z_
     def offset_to(uv: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """``tangent(S − P)`` and ``|S − P|²`` of the sample ``S`` at ``uv`` :math:`(B, 2, D, h, W)`, on
         components: ``viewPos(uv) − P``'s bits, and with no sum over a channel dimension, which compiled to a
-        stored buffer per step."""
+        stored buffer per step; ``|S − P|²`` is :func:`~ssbench.rays.component_dot`'s sum in its order, sharing
+        ``dx² + dy²`` with the tangent."""
         z = fetch_uv(z_tex, uv)[:, 0]
         dx = (a0 * uv[:, 0] + b0) * z - P[:, 0:1]
         dy = (a1 * uv[:, 1] + b1) * z - P[:, 1:2]
         dz = z - P[:, 2:3]
-        return dz * rsqrt(dx ** 2 + dy ** 2), component_dot((dx, dy, dz), (dx, dy, dz))
+        xy2 = dx * dx + dy * dy                    # dx² + dy² once: pow(x, 2) is x·x, and the dot sums in this order
+        return dz * rsqrt(xy2), xy2 + dz * dz
 
     # ---- projected radius (diskRadiusInUV, radiusInPixels) ----
     radiusInPixels = 0.5 * R * FocalLength / -P[:, 2:3] * W                  # (B, 1, h, W)
@@ -147,15 +150,26 @@ def hbao_band(cam, uv0: torch.Tensor, mask: torch.Tensor, rand: torch.Tensor, z_
     numStepsLeft = numSteps - 1.0                                            # --numSteps
     sinH = tan_to_sin(tanH)
     samples = torch.ones_like(numSteps)
+    # eager without gradients (a bitwise select has none; a radius or bias may want them): float masks
+    masks_as_floats = float_masks(tanH) and not torch.is_grad_enabled()
     for j in range(1, params.num_steps):                                     # the march: j < numSteps
         live = active & (j < numStepsLeft)                                   # (B, 1, h, W)
         if not torch.compiler.is_compiling() and live.device.type != "meta" and not bool(live.any()):  # meta: shapes
             break
-        samples = samples + live.to(dtype)
+        live_f = live.to(dtype)
+        samples = samples + live_f
         uv = uv + deltaUV
         tanS, d2 = offset_to(uv)                                             # (B, D, h, W)
-        hit = kept_mask(live & (d2 < R2) & (tanS > tanH))
         sinS = tan_to_sin(tanS)
+        if masks_as_floats:                     # eager: the same steps with 0/1 float masks, the same bits
+            hit = torch.lt(d2, R2, out=torch.empty_like(d2)).mul_(live_f)
+            hit.mul_(torch.gt(tanS, tanH, out=torch.empty_like(d2)))
+            # a hit's gain is finite (d2 < R2, so |dz| < R and tanS is); elsewhere 0·gain must be 0, not NaN
+            gain = ((1.0 - d2 / R2) * (sinS - sinH).clamp(0.0, 1.0)).nan_to_num_(0.0, 0.0, 0.0)
+            ao = torch.addcmul(ao, hit, gain)                                # ao + 1·gain, or ao + (±0) = ao
+            tanH, sinH = select(hit, tanS, tanH), select(hit, sinS, sinH)
+            continue
+        hit = kept_mask(live & (d2 < R2) & (tanS > tanH))
         ao = ao + torch.where(is_set(hit), (1.0 - d2 / R2) * (sinS - sinH).clamp(0.0, 1.0), 0.0)
         tanH, sinH = torch.where(is_set(hit), tanS, tanH), torch.where(is_set(hit), sinS, sinH)
 

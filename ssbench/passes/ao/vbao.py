@@ -42,6 +42,7 @@ from ..gbuffer_checks import check_gbuffer, half_in_float32
 from ..inference import autograd_free
 from .gtao import NoiseSpec
 from .gtao_parts import check_noise, noise_buffer, unit3
+from .slice_samples import sample_texture
 from .vbao_slices import vbao_rows
 from ..registry import Method, SpeedPanel
 
@@ -143,7 +144,8 @@ def vbao(gbuffer: GBuffer, params: VBAOParams = VBAOParams(), *, generator: Opti
     noise = noise_buffer(params, B, H, W, generator).to(dtype=dtype, device=dev)   # (B, 2, H, W)
     z = torch.where(mask, gbuffer.view_z, torch.full_like(gbuffer.view_z, -cam.far))  # the depth texture
     rows = torch.arange(H, dtype=dtype, device=dev)
-    parts = [vbao_rows(cam, z, rows[rs], gbuffer.normal[:, :, rs], mask[:, :, rs], noise[:, :, rs], params, debug,
+    tex = sample_texture(cam, z)            # eager (B, 3, H, W): each texel's view position; compiled: z
+    parts = [vbao_rows(cam, tex, rows[rs], gbuffer.normal[:, :, rs], mask[:, :, rs], noise[:, :, rs], params, debug,
                        bent_normals) for rs in row_bands(H, W, band_samples(4 * params.steps), z.element_size(), batch=B)]
     vis = torch.cat([p[0] for p in parts], 2).clamp(0.0, 1.0)
     ao = torch.where(mask, vis, torch.ones_like(vis))

@@ -11,9 +11,9 @@ from typing import TYPE_CHECKING
 
 import torch
 
-from ..common import fetch_texels
 from ..compiled import kernel
 from .gtao_parts import dot3, slice_frame, unit3
+from .slice_samples import pixel_rays, slice_offsets
 
 if TYPE_CHECKING:
     from .vbao import VBAOParams
@@ -72,24 +72,24 @@ def cosine_arc(theta: torch.Tensor, n: torch.Tensor) -> torch.Tensor:
 
 
 @kernel
-def vbao_rows(cam, z: torch.Tensor, row: torch.Tensor, normal: torch.Tensor, mask: torch.Tensor,
+def vbao_rows(cam, tex: torch.Tensor, row: torch.Tensor, normal: torch.Tensor, mask: torch.Tensor,
               noise: torch.Tensor, params: "VBAOParams", debug: bool, bent_normals: bool = False) -> tuple:
     """``(vis, debug, bent)`` of a band of rows: ``vis`` :math:`(B, 1, h, W)` the slice mean of the visibility;
     with ``debug`` the per-slice ``(bits, slice visibility)`` :math:`(B, S, h, W)`; with ``bent_normals`` the
     unnormalised bent normal ``(x, y, z)``: every clear sector's centre direction in its slice, weighted by its
     cosine share and ``|proj n|`` (as GTAO's Algorithm 2 weights its visible arc), summed over slices.
 
-    ``z`` :math:`(B, 1, H, W)` is the sanitised depth texture of the whole image; ``row`` :math:`(h,)` the
+    ``tex`` :math:`(B, C, H, W)` is what the samples read of the sanitised depth texture of the whole image, its
+    last channel the view z (:func:`~ssbench.passes.ao.slice_samples.sample_texture`); ``row`` :math:`(h,)` the
     band's rows; ``normal``, ``mask``, ``noise`` the band's :math:`(B, ·, h, W)` slices."""
     # ---- the pixel: position, view vector V, screen radius (3-vectors are (x, y, z) tuples of (B, 1, h, W)) ----
-    B, _, H, W = z.shape
-    dtype, dev, S, K, NS = z.dtype, z.device, params.slices, params.steps, params.sector_count
+    B, _, H, W = tex.shape
+    dtype, dev, S, K, NS = tex.dtype, tex.device, params.slices, params.steps, params.sector_count
     row = row.view(1, 1, -1, 1)
-    zc = torch.index_select(z, 2, row.view(-1).long())
+    zc = torch.index_select(tex[:, -1:], 2, row.view(-1).long())
     col = torch.arange(W, dtype=dtype, device=dev).view(1, 1, 1, W)
-    ray_x = lambda c: (2.0 * (c + 0.5) / W - 1.0) * cam.aspect / cam.focal          # view x at z = -1
-    ray_y = lambda r: (1.0 - 2.0 * (r + 0.5) / H) / cam.focal
-    P = (ray_x(col) * -zc, ray_y(row) * -zc, zc)
+    ray_x, ray_y = pixel_rays(cam, col, row, H, W)                                   # view x, y at z = -1
+    P = (ray_x * -zc, ray_y * -zc, zc)
     v = unit3(tuple(-c for c in P))                                                  # V: toward the camera
     N = tuple(torch.where(mask, normal[:, i:i + 1], v[i]) for i in range(3))
     r_px = params.radius * cam.focal * H / (2.0 * -zc)                               # radius in pixels
@@ -111,11 +111,7 @@ def vbao_rows(cam, z: torch.Tensor, row: torch.Tensor, normal: torch.Tensor, mas
         step_noise = torch.frac(noise[:, 1:] + (k + j * K) * R1)
         s = ((j + step_noise) / K) ** params.sample_distribution_power + min_s
         off_x, off_y = torch.round(s * cos_phi * r_px), torch.round(-s * sin_phi * r_px)  # screen y down
-        cx, cy = col + torch.cat([off_x, -off_x], 1), row + torch.cat([off_y, -off_y], 1)  # (B, 2K, h, W)
-        on = (cx >= 0) & (cx < W) & (cy >= 0) & (cy < H)
-        cx, cy = torch.where(on, cx, col), torch.where(on, cy, row)
-        zs = fetch_texels(z, cx.clamp(0, W - 1), cy.clamp(0, H - 1))[:, 0]
-        front = (ray_x(cx) * -zs - P[0], ray_y(cy) * -zs - P[1], zs - P[2])           # frontDir
+        front, on = slice_offsets(cam, tex, col, row, off_x, off_y, P)              # frontDir (B, 2K, h, W)
         back = tuple(front[i] - v[i] * params.thickness for i in range(3))          # backDir: `thickness` behind
         dist = dot3(front, front).sqrt()
         t_front = side * torch.acos((dot3(front, v) / dist.clamp_min(tiny)).clamp(-1.0, 1.0))
@@ -124,7 +120,7 @@ def vbao_rows(cam, z: torch.Tensor, row: torch.Tensor, normal: torch.Tensor, mas
         x_front = ((t_front - n + math.pi / 2) / math.pi).clamp(0.0, 1.0)
         x_back = ((t_back - n + math.pi / 2) / math.pi).clamp(0.0, 1.0)
         bits = sector_bits(torch.minimum(x_front, x_back), torch.maximum(x_front, x_back), NS)
-        bits = torch.where(on & (dist > tiny), bits, torch.zeros_like(bits))
+        bits = torch.where((on != 0) & (dist > tiny), bits, torch.zeros_like(bits))       # on: bool or 0/1
         occluded = bits                                         # OR over the samples, halving: log2(2K) ops
         while occluded.shape[1] > 1:
             half = occluded.shape[1] // 2

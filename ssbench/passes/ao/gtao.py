@@ -186,7 +186,7 @@ def gtao(gbuffer: GBuffer, params: GTAOParams = GTAOParams(), *, generator: Opti
 
     z = torch.where(mask, gbuffer.view_z, torch.full_like(gbuffer.view_z, -cam.far))  # sanitised depth texture
     rows = torch.arange(H, dtype=dtype, device=dev)
-    tex = sample_texture(cam, z)            # eager (B, 3, H, W): each texel's view position; compiled: z
+    tex = sample_texture(cam, z)      # (B, 3, H, W) texel view positions; z if compiled or with gradients
     parts = [gtao_rows(cam, tex, rows[rs], gbuffer.normal[:, :, rs], mask[:, :, rs], noise[:, :, rs], params, debug,
                        bent_normals) for rs in row_bands(H, W, 2 * K, z.element_size(), batch=B)]   # bounded set
     vis = torch.cat([p[0] for p in parts], 2)

@@ -144,7 +144,7 @@ def vbao(gbuffer: GBuffer, params: VBAOParams = VBAOParams(), *, generator: Opti
     noise = noise_buffer(params, B, H, W, generator).to(dtype=dtype, device=dev)   # (B, 2, H, W)
     z = torch.where(mask, gbuffer.view_z, torch.full_like(gbuffer.view_z, -cam.far))  # the depth texture
     rows = torch.arange(H, dtype=dtype, device=dev)
-    tex = sample_texture(cam, z)            # eager (B, 3, H, W): each texel's view position; compiled: z
+    tex = sample_texture(cam, z)      # (B, 3, H, W) texel view positions; z if compiled or with gradients
     parts = [vbao_rows(cam, tex, rows[rs], gbuffer.normal[:, :, rs], mask[:, :, rs], noise[:, :, rs], params, debug,
                        bent_normals) for rs in row_bands(H, W, band_samples(4 * params.steps), z.element_size(), batch=B)]
     vis = torch.cat([p[0] for p in parts], 2).clamp(0.0, 1.0)

@@ -17,6 +17,7 @@ from ...layout import stack_columns
 from ..common import index_dtype, texel_of, uv_to_texel
 from ..compiled import kernel, step_blocks
 from .dda_state import select_rows
+from .linear_float_step import float_flags, float_march_step
 from .common import (HIT, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, compact_now, components, end_code, nan_off_mask)
 
 __all__ = ["DepthTest", "MarchLog", "MarchOutcome", "LiveRays", "march_step", "march_steps", "march", "refine_step",
@@ -93,7 +94,8 @@ class LiveRays:
     """The march's working set: ``ids`` (into the rays), each ray's sample ``Q`` and ``deltaStep`` as x, y, z
     apart (flat arrays, so a compiled step runs vectorised), its batch offset ``base`` (in the index dtype) and
     its state, all int32 (a compiled step loads and stores bool arrays lane by lane): ``live`` (1: still marching),
-    ``hit`` (1: stopped on a hit; ``Q`` stays at the hit sample) and ``steps`` (samples taken). Stopped rays ride
+    ``hit`` (1: stopped on a hit; ``Q`` stays at the hit sample) and ``steps`` (samples taken). Eagerly, ``base`` and
+    the state are in the samples' dtype instead (:func:`~.linear_float_step.float_flags`). Stopped rays ride
     along, masked, until a quarter of the set has stopped."""
 
     ids: torch.Tensor
@@ -140,6 +142,8 @@ def march_step(scale: tuple, size: tuple, thickness: float, front: torch.Tensor,
         on-screen test and this step's hits.
     """
     qx, qy, qz, dx, dy, dz, base, live, hit, steps = rays
+    if live.is_floating_point():                 # eager 0/1 float flags (march, float_flags): the same bits
+        return float_march_step(scale, size, thickness, front, back, rays)
     x, y, z = qx + dx, qy + dy, qz + dz                                           # Q += deltaStep
     u, v, t, h = _probe(scale, size, thickness, front, back, (x, y, z), base)
     on = (u >= 0) & (u <= 1) & (v >= 0) & (v <= 1)
@@ -180,9 +184,10 @@ def march(test: DepthTest, log: MarchLog, Q: torch.Tensor, dS: torch.Tensor, bas
     out = _Outcome(torch.full((n,), NO_RAY, dtype=torch.int8, device=dev), torch.zeros(n, dtype=torch.int32, device=dev),
                    torch.full((n,), -1, device=dev), torch.zeros(n, 3, dtype=Q.dtype, device=dev))
     front = test.front
-    flags = torch.zeros(n, dtype=torch.int32, device=dev)                          # live, hit, steps: int32
+    floats = float_flags(Q, front.numel())                                       # eager: 0/1 float flags
+    flags = torch.zeros(n, dtype=Q.dtype if floats else torch.int32, device=dev)  # live, hit, steps (else int32)
     ws = LiveRays(torch.arange(n, device=dev), *components(Q), *components(dS),
-                  base.to(index_dtype(front.numel())), flags + 1, flags, flags.clone())
+                  base.to(Q.dtype if floats else index_dtype(front.numel())), flags + 1, flags, flags.clone())
     scale, debug = test.camera.ndc_scale(), bool(log.trace_ids) or log.counting
     n_run = min(iterations, max_iterations)
     for count, left in step_blocks(n_run, debug, dev):
@@ -191,14 +196,14 @@ def march(test: DepthTest, log: MarchLog, Q: torch.Tensor, dS: torch.Tensor, bas
             break
         r = march_steps(scale, (test.H, test.W), test.thickness, front, test.back, (ws.qx, ws.qy, ws.qz, ws.dx, ws.dy,
                         ws.dz, ws.base, ws.live, ws.hit, ws.steps), count, left, debug=debug)
-        was = ws.live != 0
+        was = ws.live != 0 if debug else None                                     # (a pass over the set)
         ws = LiveRays(ws.ids, *r[:3], ws.dx, ws.dy, ws.dz, ws.base, *r[3:6])
         if debug:
             t, on, h = r[7:]
             marched = flat_nonzero(was)
             if log.trace_ids:
                 log.record(ws.ids[marched], stack_columns([ws.qx, ws.qy, ws.qz])[marched], h[marched], False)
-            log.read(t[was & on].long())
+            log.read(t[was & (on != 0)].long())
         n_live = int(r[6])
         if compact_now(n_live, m):
             out.flush(ws, flat_nonzero(ws.live == 0))
@@ -224,7 +229,7 @@ class _Outcome:
         """Write the results of the stopped rays at positions ``stopped`` of ``ws``."""
         g, h = ws.ids.index_select(0, stopped), ws.hit.index_select(0, stopped) != 0
         steps = ws.steps.index_select(0, stopped)
-        self.steps.index_copy_(0, g, steps)
+        self.steps.index_copy_(0, g, steps.to(self.steps.dtype))
         self.term.index_copy_(0, g, torch.where(h, HIT, OFF_SCREEN).to(torch.int8))
         hi = flat_nonzero(h)
         gh, at = g.index_select(0, hi), stopped.index_select(0, hi)

@@ -27,13 +27,29 @@ from __future__ import annotations
 
 import torch
 
-__all__ = ["float_masks", "replace_zeros", "count_between", "inside_image", "select"]
+from .compiled import enabled
+
+__all__ = ["float_masks", "float_flags", "replace_zeros", "count_between", "inside_image", "select"]
 
 
 def float_masks(x: torch.Tensor) -> bool:
     """Whether the helpers of this module take their floating-point form for ``x``: eager, without gradients, in
     float32 or float64 (whose sums of ones are exact up to :math:`2^{24}`; float16 stops at 2048, bfloat16 at 256)."""
     return not (torch.compiler.is_compiling() or x.requires_grad) and x.dtype in (torch.float32, torch.float64)
+
+
+def float_flags(samples: torch.Tensor, count: int) -> bool:
+    """Whether a marcher keeps its working set's flags, counts and codes in ``samples``' dtype, as 0/1 masks and
+    integer-valued floats, and steps eagerly in that form: not :func:`~ssbench.passes.compiled.enabled` (a compiled
+    step keeps them in int32), :func:`float_masks` of ``samples``, and every integer the step forms — a flat texel
+    index among ``count`` texels, a count of rays — exact in that dtype (at most :math:`2/\varepsilon`,
+    :math:`2^{24}` in float32).
+
+    Example:
+        >>> float_flags(torch.zeros(4), 640 * 360), float_flags(torch.zeros(4), 2 ** 25)
+        (True, False)
+    """
+    return not enabled() and float_masks(samples) and count <= 2 / torch.finfo(samples.dtype).eps
 
 
 def replace_zeros(x: torch.Tensor, value: float) -> torch.Tensor:

@@ -208,3 +208,14 @@ def unflat(values: torch.Tensor, rows: torch.Tensor, fill, shape: tuple, dtype: 
     out = torch.full((values.shape[1], B * H * W), fill, dtype=dtype, device=values.device)
     out.index_copy_(1, rows, values.T.to(dtype))
     return contiguous(out.reshape(-1, B, H, W).transpose(0, 1))
+
+
+def ray_view_z(Qz: torch.Tensor, k: torch.Tensor, lo: torch.Tensor, hi: torch.Tensor) -> torch.Tensor:
+    """The DDA marchers' perspective-correct view z ``Q.z / k`` (SSR article §2.2), clamped to the segment's z range
+    ``[lo, hi]`` (finite where ``k`` ≤ 0).
+
+    Example:
+        >>> ray_view_z(torch.tensor([-4.0, -4.0]), torch.tensor([2.0, 0.0]), torch.tensor(-9.0), torch.tensor(-1.0))
+        tensor([-2., -9.])
+    """
+    return torch.minimum(torch.maximum(Qz / k.clamp_min(torch.finfo(k.dtype).tiny), lo), hi)

@@ -1,7 +1,7 @@
 """The DDA's march (:mod:`.dda`, SSR article §2.2) on its per-ray state (:mod:`.dda_state`): the step loop
-(:func:`dda_march`), ``texelFetch`` in the permuted frame, the perspective-correct z ``Q.z / k``, fetch counting
+(:func:`dda_march`), ``texelFetch`` in the permuted frame, fetch counting
 for the visit maps, and the two refinements of a strided hit (the article's binary search, G3D's 1-pixel
-re-march). The supercover DDA (:mod:`.dda_supercover`) shares ``ray_view_z`` and ``count_visits``.
+re-march). The supercover DDA (:mod:`.dda_supercover`) shares ``count_visits``.
 """
 from __future__ import annotations
 
@@ -13,7 +13,9 @@ import torch
 from ...indices import flat_nonzero
 from ...layout import stack_columns
 from ..compiled import kernel
-from .common import HIT, OFF_SCREEN, OUT_OF_STEPS, end_code
+from ..float_masks import float_flags
+from .common import HIT, OFF_SCREEN, OUT_OF_STEPS, end_code, ray_view_z
+from .dda_float_step import float_dda_step, float_fields
 from .dda_state import DDARays, DepthTexels, MarchOutput
 from .masked_march import add_visits, hit_rows, marching_fields, masked_march, next_state
 
@@ -29,11 +31,6 @@ def fetch_cell(permute: torch.Tensor, b: torch.Tensor, Px: torch.Tensor, Py: tor
     on = (px >= 0) & (px < W) & (py >= 0) & (py < H)
     t = b * (H * W) + py.floor().clamp(0, H - 1).long() * W + px.floor().clamp(0, W - 1).long()
     return on, t, torch.take(tex.view_z, t), torch.take(tex.mask, t)         # (take: a faster gather than [t])
-
-
-def ray_view_z(Qz, k, lo, hi):
-    """Perspective-correct view z ``Q.z / k``, clamped to the segment's z range (finite where ``k`` ≤ 0)."""
-    return torch.minimum(torch.maximum(Qz / k.clamp_min(torch.finfo(k.dtype).tiny), lo), hi)
 
 
 def count_visits(out: MarchOutput, visits, i, t, active) -> None:
@@ -140,6 +137,8 @@ def dda_step(state: DDAState, ray: DDARay, tex: tuple, size: tuple, z_thickness:
         ``(state, done, t, live)``: the new :class:`DDAState`, the rays that stopped here, the fetched texels and
         the rays that fetched them.
     """
+    if state.alive32.is_floating_point():        # eager 0/1 float flags (dda_march, float_fields): the same bits
+        return float_dda_step(state, ray, tex, size, z_thickness)
     st, r = state, ray
     front, back_z, second_z = tex
     H, W = size
@@ -191,7 +190,7 @@ def dda_steps(state: DDAState, ray: DDARay, tex: tuple, size: tuple, z_thickness
     done = torch.zeros_like(state.alive32)
     for j in range(count):
         state, d, t, live = dda_step(state, ray, tex, size, z_thickness, None if left is None else left > j)
-        done = done | d.to(done.dtype)
+        done = d.to(done.dtype) if j == 0 else done | d.to(done.dtype)
     return (state, done.sum()) + ((t, live.to(torch.int32)) if debug else ())
 
 
@@ -217,6 +216,8 @@ def dda_march(s: DDARays, tex: DepthTexels, params: "DDASSRParams", H: int, W: i
     N, set_up = s.count, s
     out = MarchOutput.empty(N, s.k.dtype, s.k.device, OUT_OF_STEPS)
     s = MarchingRays(**marching_fields(s, tex.view_z.numel()))
+    if float_flags(s.k, tex.view_z.numel()):                                     # eager: 0/1 float flags
+        s = float_fields(s)
     run = lambda state, ray, count, left: dda_steps(state, ray, tex.marched, (H, W), params.z_thickness,  # noqa: E731
                                                     count, left, visits is not None)
     masked_march(s, DDAState, DDARay, run, lambda s, rows: flush(out, s, rows, set_up, tex, params, H, W, visits),
@@ -228,7 +229,8 @@ def dda_march(s: DDARays, tex: DepthTexels, params: "DDASSRParams", H: int, W: i
 class MarchingRays(DDARays):
     """:class:`DDARays` as :func:`dda_march` marches them: the batch index in the texel index dtype, ``permute``,
     ``clipped`` and ``alive`` as int32 (for the compiled step), and each ray's fetches ``steps`` (int32) and
-    termination code ``term`` (int32), written back when the ray is dropped."""
+    termination code ``term`` (int32), written back when the ray is dropped. Eagerly, the batch index, ``clipped``,
+    ``alive``, ``steps`` and ``term`` are in the samples' dtype instead (:mod:`.dda_float_step`)."""
 
     b_index: Optional[torch.Tensor] = None
     permute32: Optional[torch.Tensor] = None

@@ -16,8 +16,7 @@ from ...gbuffer import GBuffer
 from ...indices import flat_nonzero
 from ...layout import contiguous, stack_columns
 from ..compiled import kernel
-from .common import crosses_near_plane, ray_segments
-from .dda_march import ray_view_z
+from .common import crosses_near_plane, ray_segments, ray_view_z
 from .dda_state import DDARays
 
 if TYPE_CHECKING:                                        # (ssr_dda imports this module)

@@ -125,9 +125,9 @@ class MarchOutput:
                    Q=torch.zeros(n, 3, dtype=dtype, device=device), k=torch.ones(n, dtype=dtype, device=device))
 
     def write_ends(self, rows: torch.Tensor, i: torch.Tensor, term: torch.Tensor, steps: torch.Tensor) -> torch.Tensor:
-        """Copy the termination codes ``term`` (any integer type) and fetch counts ``steps`` of a working set's
-        ``rows`` (its output rows ``i``) into these outputs, as every marcher writes back its stopped rays; returns
-        those rows' codes.
+        """Copy the termination codes ``term`` and fetch counts ``steps`` (any integer type, or integer-valued floats)
+        of a working set's ``rows`` (its output rows ``i``) into these outputs, as every marcher writes back its
+        stopped rays; returns those rows' codes.
 
         Example:
             >>> out = MarchOutput.empty(3, torch.float32, "cpu", 4)
@@ -137,7 +137,7 @@ class MarchOutput:
         """
         at, codes = i.index_select(0, rows), term.index_select(0, rows)
         self.term.index_copy_(0, at, codes.to(self.term.dtype))
-        self.steps.index_copy_(0, at, steps.index_select(0, rows))
+        self.steps.index_copy_(0, at, steps.index_select(0, rows).to(self.steps.dtype))
         return codes
 
     def write_hits(self, i: torch.Tensor, P: torch.Tensor, Q: torch.Tensor, k: torch.Tensor) -> None:

@@ -22,8 +22,7 @@ import torch
 from ...indices import flat_nonzero
 from ...layout import stack_columns
 from ..compiled import kernel
-from .common import HIT, OFF_SCREEN, OUT_OF_STEPS, end_code
-from .dda_march import ray_view_z
+from .common import HIT, OFF_SCREEN, OUT_OF_STEPS, end_code, ray_view_z
 from .masked_march import HIT_ONLY, hit_rows, marching_fields, masked_march, next_state
 from .dda_state import DDARays, DepthTexels, MarchOutput
 

@@ -5,8 +5,8 @@ a ``torch.where``.
 :mod:`ssbench.passes.float_masks` says why: on the CPU a comparison written into a bool tensor and ``torch.where`` cost
 several additions each, a comparison written into a float buffer less than one. Here a working set's flags ``live``
 and ``hit`` are 0/1 and its ``steps`` a count, all in the samples' dtype, and the texel index is formed in floating
-point (exact integers: :func:`float_flags` takes this form only while every texel index and every count is below
-:math:`2/\\varepsilon`, :math:`2^{24}` in float32).
+point (exact integers: :func:`~ssbench.passes.float_masks.float_flags` takes this form only while every texel index
+and every count is below :math:`2/\\varepsilon`, :math:`2^{24}` in float32).
 
 A ray that has stopped keeps its sample ``Q`` without a select: ``Q + live·deltaStep`` adds ``1·deltaStep`` (the
 step's ``Q + deltaStep``, bit for bit) or ``0·deltaStep``, a signed zero, which leaves every ``Q`` as it was: a
@@ -23,30 +23,16 @@ import torch
 
 from ...camera import Camera
 from ..common import texel_of
-from ..compiled import enabled
-from ..float_masks import float_masks
 
-__all__ = ["float_flags", "float_march_step"]
-
-
-def float_flags(samples: torch.Tensor, texels: int) -> bool:
-    """Whether :func:`~.linear_march.march` keeps its working set's flags in ``samples``' dtype and steps it with
-    :func:`float_march_step`: eager (not :func:`~ssbench.passes.compiled.enabled`; the compiled step keeps int32
-    flags), without gradients, in float32 or float64 (:func:`~ssbench.passes.float_masks.float_masks`), and with every
-    flat texel index of the ``texels`` of the batch, and every count of rays, an exact integer in that dtype.
-
-    Example:
-        >>> float_flags(torch.zeros(4), 640 * 360), float_flags(torch.zeros(4), 2 ** 25)
-        (True, False)
-    """
-    return not enabled() and float_masks(samples) and texels <= 2 / torch.finfo(samples.dtype).eps
+__all__ = ["float_march_step"]
 
 
 def float_march_step(scale: tuple, size: tuple, thickness: float, front: torch.Tensor, back: Optional[torch.Tensor],
                      rays: tuple) -> tuple:
-    """:func:`~.linear_march.march_step` (``go`` absent) on a working set with 0/1 float flags (:func:`float_flags`),
-    the same bits: ``Q += deltaStep``, project to the ``NEAREST`` texel, read ``front`` (the scene z, NaN off the
-    mask), test ``rayIntersectsDepth`` and the screen; a live ray stops on a hit or off screen.
+    """:func:`~.linear_march.march_step` (``go`` absent) on a working set with 0/1 float flags
+    (:func:`~ssbench.passes.float_masks.float_flags`), the same bits: ``Q += deltaStep``, project to the ``NEAREST``
+    texel, read ``front`` (the scene z, NaN off the mask), test ``rayIntersectsDepth`` and the screen; a live ray
+    stops on a hit or off screen.
 
     Args:
         scale: the camera's :meth:`~ssbench.camera.Camera.ndc_scale`; size: ``(H, W)``.

@@ -16,8 +16,9 @@ from ...indices import flat_nonzero
 from ...layout import stack_columns
 from ..common import index_dtype, texel_of, uv_to_texel
 from ..compiled import kernel, step_blocks
+from ..float_masks import float_flags
 from .dda_state import select_rows
-from .linear_float_step import float_flags, float_march_step
+from .linear_float_step import float_march_step
 from .common import (HIT, NO_RAY, OFF_SCREEN, OUT_OF_STEPS, compact_now, components, end_code, nan_off_mask)
 
 __all__ = ["DepthTest", "MarchLog", "MarchOutcome", "LiveRays", "march_step", "march_steps", "march", "refine_step",
@@ -95,7 +96,7 @@ class LiveRays:
     apart (flat arrays, so a compiled step runs vectorised), its batch offset ``base`` (in the index dtype) and
     its state, all int32 (a compiled step loads and stores bool arrays lane by lane): ``live`` (1: still marching),
     ``hit`` (1: stopped on a hit; ``Q`` stays at the hit sample) and ``steps`` (samples taken). Eagerly, ``base`` and
-    the state are in the samples' dtype instead (:func:`~.linear_float_step.float_flags`). Stopped rays ride
+    the state are in the samples' dtype instead (:func:`~ssbench.passes.float_masks.float_flags`). Stopped rays ride
     along, masked, until a quarter of the set has stopped."""
 
     ids: torch.Tensor

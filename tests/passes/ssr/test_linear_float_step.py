@@ -11,7 +11,8 @@ import torch
 from ssbench.passes.compiled import compiling
 from ssbench.passes.ssr import linear_march
 from ssbench.passes.ssr.linear import LinearSSRParams, ssr_linear
-from ssbench.passes.ssr.linear_float_step import float_flags, float_march_step
+from ssbench.passes.float_masks import float_flags
+from ssbench.passes.ssr.linear_float_step import float_march_step
 from ssbench.passes.ssr.linear_march import march_step
 
 H, W = 6, 8

@@ -21,7 +21,9 @@ A comparison written into a floating-point buffer gives 1.0 or 0.0 in a vectoris
 those are exact (integers below :math:`2^{24}`), and adding ``value · m · m`` to ``x`` replaces ``x`` exactly where
 ``m`` is 1 and adds a signed zero elsewhere, which leaves every nonzero ``x`` (infinities and NaN too) as it was.
 So each helper here returns the bits of its boolean twin. Inside ``torch.compile`` (inductor fuses the boolean
-form into the loop around it) and with gradients (``where`` routes them differently) the boolean form runs.
+form into the loop around it) and with gradients (``where`` routes them differently) the boolean form runs. The SSR
+marchers' eager steps (:mod:`ssbench.passes.ssr.linear_float_step`, :mod:`ssbench.passes.ssr.dda_float_step`) keep
+their working sets' flags, counts and codes in this form where :func:`float_flags` says it is exact.
 """
 from __future__ import annotations
 

@@ -29,8 +29,13 @@ def next_state(state: NamedTuple, marching: torch.Tensor, moved: tuple, done: to
     """The state after one step of a masked march (:func:`~.dda_march.dda_step`, the supercover walk's
     ``walk_step``): the state's leading fields become ``moved`` (in field order) where the ray was ``marching`` and
     stay elsewhere; then ``alive32`` is cleared where the ray stopped (``done``), ``steps`` counts the ``live``
-    fetches and ``term`` (int32) takes the step's termination code where the ray stopped."""
+    fetches and ``term`` (int32) takes the step's termination code where the ray stopped. In the eager float form
+    (:mod:`.dda_float_step`: flags, counts and codes in the samples' dtype; ``marching`` still bool) the same numbers
+    by arithmetic: ``done`` and ``live`` are 0/1 and a ray stops only while marching."""
     kept = [torch.where(marching, a, a0) for a, a0 in zip(moved, state)]
+    if state.alive32.is_floating_point():
+        return type(state)(*kept, state.alive32 - done, state.steps + live,
+                           torch.addcmul(state.term, done, term - state.term))      # small integers: exact
     return type(state)(*kept, torch.where(done, 0, state.alive32), state.steps + live.to(torch.int32),
                        torch.where(done, term.to(state.term.dtype), state.term))
 

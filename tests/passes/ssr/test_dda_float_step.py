@@ -1,6 +1,7 @@
-"""The DDA's step with 0/1 float flags against its int32 form, bit for bit: on every step of marches through the
-analytic room (strided footprints cut short at the segment's end, rays leaving the screen, hits, back faces, the second
-depth layer), on a step whose footprint share is NaN, and the pass's outputs with either form."""
+"""The DDA's step and its supercover walk's with 0/1 float flags against their int32 forms, bit for bit: on every step
+of marches through the analytic room (strided footprints cut short at the segment's end, rays leaving the screen, hits,
+back faces, the second depth layer), on a step whose footprint share is NaN, and the passes' outputs with either
+form."""
 from __future__ import annotations
 
 import dataclasses
@@ -9,10 +10,11 @@ import math
 import pytest
 import torch
 
-from ssbench.passes.ssr import dda_march
+from ssbench.passes.ssr import dda_march, dda_supercover_walk
 from ssbench.passes.ssr.common import HIT, MAX_DISTANCE, OFF_SCREEN
 from ssbench.passes.ssr.dda import DDASSRParams, ssr_dda
-from ssbench.passes.ssr.dda_float_step import float_dda_step
+from ssbench.passes.ssr.dda_float_step import float_dda_step, float_walk_step
+from ssbench.passes.ssr.dda_supercover import SupercoverDDASSRParams, ssr_dda_supercover
 from tests.passes.ssr_scenes import room, with_second_layer
 
 PARAMS = (DDASSRParams(), DDASSRParams(pixel_stride=3.5, jitter=1.0, max_ray_distance=6.0),
@@ -29,14 +31,14 @@ def bits(x: torch.Tensor) -> torch.Tensor:
 
 def as_floats(state, ray):
     """The int32 form's state and ray with their flags, counts, codes and batch index in the samples' dtype."""
-    f = state.Px.dtype
+    f = state.prevZ.dtype
     return (state._replace(alive32=state.alive32.to(f), steps=state.steps.to(f), term=state.term.to(f)),
             ray._replace(clipped32=ray.clipped32.to(f), b_index=ray.b_index.to(f)))
 
 
 def assert_same_step(old: tuple, new: tuple) -> None:
     (s0, done0, t0, live0), (s1, done1, t1, live1) = old, new
-    for name in ("Px", "Py", "Qz", "k", "n", "prevZ"):
+    for name in s0._fields[:-3]:                                                 # the samples' fields
         assert torch.equal(bits(getattr(s0, name)), bits(getattr(s1, name))), name
     for name in ("alive32", "steps", "term"):
         assert torch.equal(getattr(s0, name).double(), getattr(s1, name).double()), name
@@ -107,3 +109,61 @@ def test_pass_outputs_equal_with_int32_flags(monkeypatch, dtype):
             if isinstance(v, torch.Tensor):
                 assert torch.equal(bits(v), bits(b.debug[name])), name
         assert bool(a.hit.any())
+
+
+WALK_PARAMS = (SupercoverDDASSRParams(), SupercoverDDASSRParams(max_steps=9),
+               SupercoverDDASSRParams(max_ray_distance=2.5, z_thickness=0.02))
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_float_walk_step_equals_int32_step_on_every_step(monkeypatch, dtype):
+    g = scene(dtype)
+    int_step, seen = dda_supercover_walk.walk_step, {"steps": 0, HIT: 0, OFF_SCREEN: 0, MAX_DISTANCE: 0}
+
+    def both(state, ray, view_z, size, z_thickness, go=None):
+        old = int_step(state, ray, view_z, size, z_thickness, go)
+        assert_same_step(old, float_walk_step(*as_floats(state, ray), view_z, size, z_thickness))
+        seen["steps"] += 1
+        for code in (HIT, OFF_SCREEN, MAX_DISTANCE):
+            seen[code] += int((old[1] & (old[0].term == code)).sum())
+        return old
+    monkeypatch.setattr(dda_supercover_walk, "float_flags", lambda *_: False)
+    monkeypatch.setattr(dda_supercover_walk, "walk_step", both)
+    for p in WALK_PARAMS:
+        ssr_dda_supercover(g, p)
+    assert seen["steps"] > 40 and min(seen.values()) > 0
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_walk_outputs_equal_with_int32_flags(monkeypatch, dtype):
+    g = scene(dtype)
+    for p in WALK_PARAMS:
+        a = ssr_dda_supercover(g, p, debug=True)
+        monkeypatch.setattr(dda_supercover_walk, "float_flags", lambda *_: False)
+        b = ssr_dda_supercover(g, p, debug=True)
+        monkeypatch.undo()
+        for name in ("color", "hit", "hit_pixel", "hit_view", "steps", "termination", "fade", "raw_color"):
+            assert torch.equal(bits(getattr(a, name)), bits(getattr(b, name))), name
+        assert all(torch.equal(bits(v), bits(b.debug[k])) for k, v in a.debug.items() if isinstance(v, torch.Tensor))
+        assert bool(a.hit.any())
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_float_walk_step_off_both_edges(monkeypatch, dtype):
+    """A cell off the screen on both axes at once (out through a corner) is off screen once, not twice."""
+    captured = []
+
+    def first(*args, **kwargs):
+        captured.append(args)
+        raise Stop
+    monkeypatch.setattr(dda_supercover_walk, "float_flags", lambda *_: False)
+    monkeypatch.setattr(dda_supercover_walk, "walk_step", first)
+    with pytest.raises(Stop):
+        ssr_dda_supercover(room(24, 18, dtype=dtype), SupercoverDDASSRParams())
+    monkeypatch.undo()
+    state, ray, view_z, size, z_thickness = captured[0][:5]
+    rows = torch.arange(state.cx.numel()) % 3 == 0
+    state = state._replace(cx=torch.where(rows, -3.0, state.cx), cy=torch.where(rows, 40.0, state.cy))
+    old = dda_supercover_walk.walk_step(state, ray, view_z, size, z_thickness)
+    assert bool((old[0].term[rows] == OFF_SCREEN).all())
+    assert_same_step(old, float_walk_step(*as_floats(state, ray), view_z, size, z_thickness))

@@ -1,7 +1,8 @@
-"""The DDA's step (SSR article §2.2) and its supercover walk's cell step with their flags as 0/1 floating-point
-numbers: what :func:`~.dda_march.dda_step` and :func:`~.dda_supercover_walk.walk_step` compute, eagerly and without
-gradients, the same bits. Of the DDA step's fifteen ``torch.where``, the two of the hit pixel's axis swap and the six
-that keep a stopped ray's sample stay (:func:`~.masked_march.next_state`; the walk keeps ten of its seventeen).
+"""The DDA's step (SSR article §2.2) with its flags as 0/1 floating-point numbers: what :func:`~.dda_march.dda_step`
+computes, eagerly and without gradients, the same bits. Of the step's fifteen ``torch.where``, the two of the hit
+pixel's axis swap and the six that keep a stopped ray's sample stay (:func:`~.masked_march.next_state`). (The
+supercover walk's cell step, :func:`~.dda_supercover_walk.walk_step`, written the same way kept ten of its seventeen
+and took 1.00–1.04× the time of its boolean form: it keeps that form.)
 
 :mod:`ssbench.passes.float_masks` says why: on the CPU a comparison written into a bool tensor and ``torch.where`` cost
 several additions each, a comparison written into a float buffer less than one. Here the working set's ``alive32``,
@@ -25,7 +26,7 @@ from ..float_masks import inside_image
 from .common import BEHIND_CAMERA, HIT, MAX_DISTANCE, OFF_SCREEN, ray_view_z
 from .masked_march import next_state
 
-__all__ = ["FLOAT_FIELDS", "float_fields", "float_dda_step", "float_walk_step"]
+__all__ = ["FLOAT_FIELDS", "float_fields", "float_dda_step"]
 
 #: the marching set's integer fields (:class:`~.dda_march.MarchingRays`) that the float step keeps in the samples' dtype
 FLOAT_FIELDS = ("alive32", "steps", "term", "clipped32", "b_index")
@@ -105,50 +106,6 @@ def float_dda_step(state, ray, tex: tuple, size: tuple, z_thickness: float) -> t
     code.mul_(torch.rsub(hit, 1.0).sub_(off)).add_(hit, alpha=HIT).add_(off, alpha=OFF_SCREEN)
     done = torch.maximum(torch.maximum(off, hit), partial).add_(past)           # disjoint from past
     return next_state(st, keep, (Px, Py, Qz, k, n, prevZ), done, live, code), done, t, live
-
-
-def float_walk_step(state, ray, view_z: torch.Tensor, size: tuple, z_thickness: float) -> tuple:
-    """:func:`~.dda_supercover_walk.walk_step` (``go`` absent) on a cell walk in :func:`float_fields` form, the same
-    bits: cross the nearer of the next column and row edge, ``texelFetch`` the cell entered and test the ray's z
-    interval over it. The four selects that step the cell and its edge parameters stay ``torch.where`` (a cell
-    ``−0`` plus a zero step need not stay ``−0``, and ``tDeltaY`` may be infinite); the masks, the code and the
-    texel index are this module's arithmetic (the screen test as the old one's ``~(… | …)``, NaN inside).
-
-    Args:
-        state: :class:`~.dda_supercover_walk.WalkState`; ray: :class:`~.dda_supercover_walk.WalkRay`.
-        view_z: :math:`(B·H·W,)` the scene's view z, NaN off the mask.
-
-    Returns:
-        ``(state, done, t, live)`` as :func:`float_dda_step`.
-    """
-    st, r = state, ray
-    H, W = size
-    marching, keep = st.alive32, st.alive32 != 0
-    nA = torch.minimum(st.tx, st.ty)                                               # edge crossed into the cell
-    stepx, stepy = st.tx <= st.ty, st.ty <= st.tx                                  # both: through a corner
-    cx, tx = torch.where(stepx, st.cx + r.stepDir, st.cx), torch.where(stepx, st.tx + 1, st.tx)
-    cy, ty = torch.where(stepy, st.cy + r.sy, st.cy), torch.where(stepy, st.ty + r.ddy, st.ty)
-    nB = torch.minimum(torch.minimum(tx, ty), r.nEnd)                              # where it leaves (or P1)
-    past = torch.ge(nA, r.nEnd, out=torch.empty_like(nA)).mul_(marching)
-    test = torch.empty_like(cx)
-    outside = torch.lt(cx, 0, out=torch.empty_like(cx)).add_(torch.ge(cx, r.Wm, out=test))
-    outside.add_(torch.lt(cy, 0, out=test)).add_(torch.ge(cy, r.Hm, out=test)).clamp_max_(1.0)
-    in_range = marching - past
-    off = in_range * outside
-    live = in_range - off
-    swap = r.permute32 != 0
-    px, py = torch.where(swap, cy, cx).clamp_(0, W - 1), torch.where(swap, cx, cy).clamp_(0, H - 1)
-    t = torch.add(px, py, alpha=W).add_(r.b_index, alpha=H * W).to(torch.int32)  # exact integers
-    sceneZMax = view_z.index_select(0, t)
-    zA = st.prevZ                                 # z(nA): the last cell's z(nB), as nA is its nB (or the ray is past)
-    zB = ray_view_z(r.Qz + r.dQz * nB, r.k + r.dk * nB, r.zlo, r.zhi)
-    rayZMin, rayZMax = torch.minimum(zA, zB), torch.maximum(zA, zB)
-    hit = _between(rayZMin, rayZMax, sceneZMax - z_thickness, sceneZMax).mul_(live)
-    # the code of a ray that stops: OFF_SCREEN off screen, the segment's end past it, else HIT (past, off: exclusive)
-    code = (r.clipped32 * (BEHIND_CAMERA - MAX_DISTANCE) + (MAX_DISTANCE - HIT)).mul_(past)
-    code.add_(off, alpha=OFF_SCREEN - HIT).add_(HIT)
-    done = past + off + hit                                                        # disjoint
-    return next_state(st, keep, (cx, cy, tx, ty, nA, zB), done, live, code), done, t, live
 
 
 def _between(z_min: torch.Tensor, z_max: torch.Tensor, lo: torch.Tensor, hi: torch.Tensor) -> torch.Tensor:

@@ -22,10 +22,8 @@ import torch
 from ...indices import flat_nonzero
 from ...layout import stack_columns
 from ..compiled import kernel
-from ..float_masks import float_flags
 from .common import HIT, OFF_SCREEN, OUT_OF_STEPS, end_code, ray_view_z
 from .masked_march import HIT_ONLY, hit_rows, marching_fields, masked_march, next_state
-from .dda_float_step import float_fields, float_walk_step
 from .dda_state import DDARays, DepthTexels, MarchOutput
 
 __all__ = ["CellWalk", "WalkState", "WalkRay", "cell_setup", "hit_at", "walk_step", "walk_steps",
@@ -40,8 +38,7 @@ class CellWalk(DDARays):
     enters the next; before the first step: where it enters the first); ``ddy`` (``tDeltaY``; ``tDeltaX = 1``);
     ``sy`` (``stepY``; ``stepX = stepDir``); ``nEnd`` (``P1``); ``Wm, Hm``: the image's size along the major and
     minor axes; and as the march keeps them: the batch index in the texel index dtype, ``permute``, ``clipped`` and
-    ``alive`` as int32, the fetches ``steps`` (int32) and the termination code ``term`` (int32) (eagerly, the batch
-    index, ``clipped``, ``alive``, ``steps`` and ``term`` in the samples' dtype: :mod:`.dda_float_step`)."""
+    ``alive`` as int32, the fetches ``steps`` (int32) and the termination code ``term`` (int32)."""
 
     cx: torch.Tensor
     cy: torch.Tensor
@@ -135,8 +132,6 @@ def walk_step(state: WalkState, ray: WalkRay, view_z: torch.Tensor, size: tuple,
         ``(state, done, t, live)``: the new :class:`WalkState`, the rays that stopped here, the fetched texels and
         the rays that fetched them.
     """
-    if state.alive32.is_floating_point():        # eager 0/1 float flags (supercover_march): the same bits
-        return float_walk_step(state, ray, view_z, size, z_thickness)
     st, r = state, ray
     H, W = size
     marching = st.alive32 != 0 if go is None else (st.alive32 != 0) & go
@@ -176,7 +171,7 @@ def walk_steps(state: WalkState, ray: WalkRay, tex: tuple, size: tuple, z_thickn
     done = torch.zeros_like(state.alive32)
     for j in range(count):
         state, d, t, live = walk_step(state, ray, tex[0], size, z_thickness, None if left is None else left > j)
-        done = d.to(done.dtype) if j == 0 else done | d.to(done.dtype)
+        done = done | d.to(done.dtype)
     return (state, done.sum()) + ((t, live.to(torch.int32)) if debug else ())
 
 
@@ -200,7 +195,7 @@ def flush(out: MarchOutput, c: CellWalk, rows: torch.Tensor, set_up: DDARays, vi
         return
     h = hit_rows(c, hi, set_up, WALK_HIT_ONLY)
     nA, nB = h.nA, torch.minimum(torch.minimum(h.tx, h.ty), h.nEnd)
-    sceneZMax = view_z.index_select(0, texel(h.cx, h.cy, h.permute32, h.b_index.long(), H, W))   # (or float)
+    sceneZMax = view_z.index_select(0, texel(h.cx, h.cy, h.permute32, h.b_index, H, W))
     n = hit_at(h, nA, nB, ray_view_z(h.Qz + h.dQz * nA, h.k + h.dk * nA, h.zlo, h.zhi), sceneZMax)
     inside = lambda v, cell: torch.minimum(torch.maximum(v, cell), torch.nextafter(cell + 1, cell))  # noqa: E731
     x, y = inside(h.Px + h.stepDir * n, h.cx), inside(h.Py + h.dPy * n, h.cy)
@@ -214,8 +209,6 @@ def supercover_march(s: DDARays, tex: DepthTexels, z_thickness: float, max_steps
     per-ray outputs by ``s.i``; ``visits`` (or ``None``): the debug visit map, counted per fetch."""
     out = MarchOutput.empty(s.count, s.k.dtype, s.k.device, OUT_OF_STEPS)
     c = cell_setup(s, H, W, tex.view_z.numel())
-    if float_flags(c.k, tex.view_z.numel()):                                     # eager: 0/1 float flags
-        c = float_fields(c)
     run = lambda state, ray, count, left: walk_steps(state, ray, tex.marched, (H, W), z_thickness, count,  # noqa: E731
                                                      left, visits is not None)
     masked_march(c, WalkState, WalkRay, run, lambda c, rows: flush(out, c, rows, s, tex.view_z, H, W), max_steps,

@@ -1,7 +1,6 @@
-"""The DDA's step and its supercover walk's with 0/1 float flags against their int32 forms, bit for bit: on every step
-of marches through the analytic room (strided footprints cut short at the segment's end, rays leaving the screen, hits,
-back faces, the second depth layer), on a step whose footprint share is NaN, and the passes' outputs with either
-form."""
+"""The DDA's step with 0/1 float flags against its int32 form, bit for bit: on every step of marches through the
+analytic room (strided footprints cut short at the segment's end, rays leaving the screen, hits, back faces, the second
+depth layer), on a step whose footprint share is NaN, and the pass's outputs with either form."""
 from __future__ import annotations
 
 import dataclasses
@@ -10,11 +9,10 @@ import math
 import pytest
 import torch
 
-from ssbench.passes.ssr import dda_march, dda_supercover_walk
+from ssbench.passes.ssr import dda_march
 from ssbench.passes.ssr.common import HIT, MAX_DISTANCE, OFF_SCREEN
 from ssbench.passes.ssr.dda import DDASSRParams, ssr_dda
-from ssbench.passes.ssr.dda_float_step import float_dda_step, float_walk_step
-from ssbench.passes.ssr.dda_supercover import SupercoverDDASSRParams, ssr_dda_supercover
+from ssbench.passes.ssr.dda_float_step import float_dda_step
 from tests.passes.ssr_scenes import room, with_second_layer
 
 PARAMS = (DDASSRParams(), DDASSRParams(pixel_stride=3.5, jitter=1.0, max_ray_distance=6.0),
@@ -55,65 +53,50 @@ class Stop(Exception):
     """Raised to end a march at its first step."""
 
 
-#: per marcher: its module, the name of its int32 step there, its float step, its pass and parameter sets
-MARCHERS = {"dda": (dda_march, "dda_step", float_dda_step, ssr_dda, PARAMS),
-            "walk": (dda_supercover_walk, "walk_step", float_walk_step, ssr_dda_supercover,
-                     (SupercoverDDASSRParams(), SupercoverDDASSRParams(max_steps=9),
-                      SupercoverDDASSRParams(max_ray_distance=2.5, z_thickness=0.02)))}
+def run(g, p, **kwargs):
+    """The DDA on ``g`` with parameters ``p``, its jitter seeded."""
+    return ssr_dda(g, p, generator=torch.Generator().manual_seed(2), **kwargs)
 
 
-def run(marcher: str, g, p, **kwargs):
-    """The marcher's pass on ``g`` with parameters ``p`` (the DDA's jitter seeded)."""
-    _, _, _, fn, _ = MARCHERS[marcher]
-    if marcher == "dda":
-        kwargs["generator"] = torch.Generator().manual_seed(2)
-    return fn(g, p, **kwargs)
-
-
-def first_step(monkeypatch, marcher: str, g) -> tuple:
+def first_step(monkeypatch, g) -> tuple:
     """The arguments of the int32 march's first step (the march ended there)."""
-    module, name, _, _, params = MARCHERS[marcher]
     captured = []
 
     def first(*args, **kwargs):
         captured.append(args)
         raise Stop
-    monkeypatch.setattr(module, "float_flags", lambda *_: False)
-    monkeypatch.setattr(module, name, first)
+    monkeypatch.setattr(dda_march, "float_flags", lambda *_: False)
+    monkeypatch.setattr(dda_march, "dda_step", first)
     with pytest.raises(Stop):
-        run(marcher, g, params[0])
+        run(g, PARAMS[0])
     monkeypatch.undo()
     return captured[0][:5]
 
 
-@pytest.mark.parametrize("marcher", list(MARCHERS))
 @pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
-def test_float_step_equals_int32_step_on_every_step(monkeypatch, marcher, dtype):
-    module, name, float_step, _, params = MARCHERS[marcher]
-    int_step, seen = getattr(module, name), {"steps": 0, HIT: 0, OFF_SCREEN: 0, MAX_DISTANCE: 0}
+def test_float_step_equals_int32_step_on_every_step(monkeypatch, dtype):
+    int_step, seen = dda_march.dda_step, {"steps": 0, HIT: 0, OFF_SCREEN: 0, MAX_DISTANCE: 0}
 
     def both(state, ray, tex, size, z_thickness, go=None):
         old = int_step(state, ray, tex, size, z_thickness, go)
-        assert_same_step(old, float_step(*as_floats(state, ray), tex, size, z_thickness))
+        assert_same_step(old, float_dda_step(*as_floats(state, ray), tex, size, z_thickness))
         seen["steps"] += 1
         for code in (HIT, OFF_SCREEN, MAX_DISTANCE):
             seen[code] += int((old[1] & (old[0].term == code)).sum())
         return old
-    monkeypatch.setattr(module, "float_flags", lambda *_: False)                # the int32 march drives
-    monkeypatch.setattr(module, name, both)
-    for p in params:
-        run(marcher, scene(dtype), p)
+    monkeypatch.setattr(dda_march, "float_flags", lambda *_: False)             # the int32 march drives
+    monkeypatch.setattr(dda_march, "dda_step", both)
+    for p in PARAMS:
+        run(scene(dtype), p)
     assert seen["steps"] > 40 and min(seen.values()) > 0                       # every ending happened
 
 
-@pytest.mark.parametrize("marcher", list(MARCHERS))
 @pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
-def test_pass_outputs_equal_with_int32_flags(monkeypatch, marcher, dtype):
-    module, _, _, _, params = MARCHERS[marcher]
-    for p in params:
-        a = run(marcher, scene(dtype), p, debug=True)
-        monkeypatch.setattr(module, "float_flags", lambda *_: False)
-        b = run(marcher, scene(dtype), p, debug=True)
+def test_pass_outputs_equal_with_int32_flags(monkeypatch, dtype):
+    for p in PARAMS:
+        a = run(scene(dtype), p, debug=True)
+        monkeypatch.setattr(dda_march, "float_flags", lambda *_: False)
+        b = run(scene(dtype), p, debug=True)
         monkeypatch.undo()
         for name in ("color", "hit", "hit_pixel", "hit_view", "steps", "termination", "fade", "raw_color"):
             assert torch.equal(bits(getattr(a, name)), bits(getattr(b, name))), name
@@ -125,19 +108,8 @@ def test_pass_outputs_equal_with_int32_flags(monkeypatch, marcher, dtype):
 def test_float_step_keeps_a_nan_footprint_share_out(monkeypatch, dtype):
     """``f = (stop − u) / stride + ½`` is NaN where ``stop`` and ``stride`` are infinite: not a partial footprint,
     ``back = 0`` and ``half = ½`` in both forms."""
-    state, ray, tex, size, z_thickness = first_step(monkeypatch, "dda", room(24, 18, dtype=dtype))
+    state, ray, tex, size, z_thickness = first_step(monkeypatch, room(24, 18, dtype=dtype))
     rows = torch.arange(state.Px.numel()) % 5 == 0
     ray = ray._replace(stride=torch.where(rows, math.inf, ray.stride), stop=torch.where(rows, math.inf, ray.stop))
     old = dda_march.dda_step(state, ray, tex, size, z_thickness)
     assert_same_step(old, float_dda_step(*as_floats(state, ray), tex, size, z_thickness))
-
-
-@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
-def test_float_walk_step_off_both_edges(monkeypatch, dtype):
-    """A cell off the screen on both axes at once (out through a corner) is off screen once, not twice."""
-    state, ray, view_z, size, z_thickness = first_step(monkeypatch, "walk", room(24, 18, dtype=dtype))
-    rows = torch.arange(state.cx.numel()) % 3 == 0
-    state = state._replace(cx=torch.where(rows, -3.0, state.cx), cy=torch.where(rows, 40.0, state.cy))
-    old = dda_supercover_walk.walk_step(state, ray, view_z, size, z_thickness)
-    assert bool((old[0].term[rows] == OFF_SCREEN).all())
-    assert_same_step(old, float_walk_step(*as_floats(state, ray), view_z, size, z_thickness))

@@ -7,7 +7,8 @@ import pytest
 import torch
 
 from ssbench.passes import compiled as C
-from ssbench.passes.float_masks import count_between, float_masks, inside_image, replace_zeros, select
+from ssbench.passes.float_masks import (count_between, float_flags, float_masks, inside_image, replace_zeros,
+                                       select)
 
 
 def _bits(x: torch.Tensor) -> torch.Tensor:
@@ -94,3 +95,11 @@ def test_select_gives_the_bits_of_where(dtype):
     assert torch.equal(_bits(a), _bits(_hard(dtype))) and 0 < int(mask.sum()) < mask.numel()   # inputs untouched
     row = select(mask.view(64, 64)[:1], a.view(64, 64), b.view(64, 64))                  # a mask broadcast on rows
     assert torch.equal(_bits(row), _bits(torch.where(mask.view(64, 64)[:1] == 1, a.view(64, 64), b.view(64, 64))))
+
+
+def test_float_flags_only_eager_and_exact():
+    x = torch.zeros(3)
+    assert float_flags(x, 2 ** 24) and not float_flags(x, 2 ** 24 + 1) and float_flags(x.double(), 2 ** 40)
+    assert not float_flags(x.half(), 10) and not float_flags(torch.zeros(3, requires_grad=True), 10)
+    with C.compiling(True):
+        assert not float_flags(x, 10)                            # a compiled step keeps int32 flags

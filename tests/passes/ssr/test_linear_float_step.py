@@ -8,10 +8,8 @@ import math
 import pytest
 import torch
 
-from ssbench.passes.compiled import compiling
 from ssbench.passes.ssr import linear_march
 from ssbench.passes.ssr.linear import LinearSSRParams, ssr_linear
-from ssbench.passes.float_masks import float_flags
 from ssbench.passes.ssr.linear_float_step import float_march_step
 from ssbench.passes.ssr.linear_march import march_step
 
@@ -71,14 +69,6 @@ def test_float_step_equals_int32_step(dtype, with_back):
         assert torch.equal(ti[oni].long(), tf[oni].long())       # the texel of every on-screen sample
         rays, floats = ri, rf
     assert int(rays[8].sum()) > 0 and int((rays[7] == 0).sum()) > 400       # hits and stops happened
-
-
-def test_float_flags_only_eager_and_exact():
-    x = torch.zeros(3)
-    assert float_flags(x, 2 ** 24) and not float_flags(x, 2 ** 24 + 1) and float_flags(x.double(), 2 ** 40)
-    assert not float_flags(x.half(), 10) and not float_flags(torch.zeros(3, requires_grad=True), 10)
-    with compiling(True):
-        assert not float_flags(x, 10)                            # the compiled step keeps int32 flags
 
 
 @pytest.mark.parametrize("dtype", [torch.float32, torch.float64])

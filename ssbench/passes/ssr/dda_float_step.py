@@ -85,7 +85,8 @@ def float_dda_step(state, ray, tex: tuple, size: tuple, z_thickness: float) -> t
     px, py = torch.where(swap, Py, Px), torch.where(swap, Px, Py)                 # hitPixel = permute ? P.yx : P
     on = inside_image(px, py, W, H)
     col, row = px.floor().clamp_(0, W - 1), py.floor().clamp_(0, H - 1)
-    t = torch.add(col, row, alpha=W).add_(r.b_index, alpha=H * W).to(torch.int32)   # exact integers
+    t = torch.add(col, row, alpha=W).add_(r.b_index, alpha=H * W)                 # exact integers
+    t = t.nan_to_num_(0.0).to(torch.int32)       # a NaN sample (degenerate input) is off screen: any texel will do
     sceneZMax = front.index_select(0, t)
     in_range = marching - past                                                    # marching & ~past
     live = in_range * on                                                          # this sample is fetched

@@ -113,3 +113,16 @@ def test_float_step_keeps_a_nan_footprint_share_out(monkeypatch, dtype):
     ray = ray._replace(stride=torch.where(rows, math.inf, ray.stride), stop=torch.where(rows, math.inf, ray.stop))
     old = dda_march.dda_step(state, ray, tex, size, z_thickness)
     assert_same_step(old, float_dda_step(*as_floats(state, ray), tex, size, z_thickness))
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_float_step_reads_a_texel_for_nan_samples(monkeypatch, dtype):
+    """A NaN sample (degenerate input) is off screen and reads some texel in range, never an index out of range."""
+    state, ray, tex, size, z_thickness = first_step(monkeypatch, room(24, 18, dtype=dtype))
+    rows = torch.arange(state.Px.numel())
+    state = state._replace(Px=torch.where(rows % 4 == 0, math.nan, state.Px),
+                           Py=torch.where(rows % 4 == 1, math.nan, state.Py))
+    new, done, t, live = float_dda_step(*as_floats(state, ray), tex, size, z_thickness)
+    bad = (rows % 4 == 0) | (rows % 4 == 1)
+    assert bool((t >= 0).all()) and bool((t < tex[0].numel()).all())
+    assert bool((live[bad] == 0).all()) and bool((done[bad] == 1).all()) and bool((new.term[bad] == OFF_SCREEN).all())
